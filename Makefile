@@ -1,0 +1,33 @@
+# Two commands do all the set-up on a fresh clone: `make cosim` and `make test`.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: venv fmu test cosim bench lint xc sweep clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[dev]"
+	touch $@
+
+venv: $(STAMP)
+
+fmu: $(STAMP)
+	$(PY) -m harness build-fmus
+
+test: fmu
+	$(PY) -m pytest -q
+
+cosim: fmu
+	$(PY) -m harness cosim --scenario all --variants all
+
+bench: fmu
+	$(PY) -m harness bench
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check fmu_src harness tests
+
+clean:
+	rm -rf build

@@ -1,0 +1,129 @@
+"""FMI 2.0 Co-Simulation slave of the self-regulating spring balancer (SPEC.md section 3).
+
+A thin layer over `fmu_src.self_regulating`: it maps FMI variables to the physics,
+integrates it over each communication step, and reports misuse through the FMU log.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from pythonfmu.default_experiment import DefaultExperiment
+
+from fmu_src import self_regulating as physics
+from fmu_src.fmi_base import MechanismSlave
+
+# How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
+REGULATION_ANGLE_TOLERANCE = 0.5 * physics.DEG
+
+
+class SelfRegulatingBalancer(MechanismSlave):
+    """1-DOF link balanced by a zero-free-length spring on a lockable slider, regulated by
+    a pulley-counterweight (Franchetti et al. 2021)."""
+
+    parameters_type = physics.Parameters
+    hidden_state = ("state", "previous_inputs", "stop_reported")
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=35.0, step_size=1e-3)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Self-regulating gravity balancer (Franchetti, Boschetti, Lenzo "
+                            "2021): 1-DOF link, zero-free-length spring on a lockable slider, "
+                            "pulley-counterweight regulation")
+        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at b0 "
+                                      "at theta = pi, k (a + b0) r / (g R) (eq. 10)")
+        self.add_calculated_parameter("payload_max", "kg", "Payload capacity with the slider "
+                                      "travel limited to w, k a (w - b0) / (w g) (eq. 16)")
+        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
+        self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's delta m)",
+                       min=0.0)
+        self.add_input("counterweight_added", 0.0, "kg",
+                       "Mass added to the counterweight M0 (same as the payload when regulating)")
+        self.add_input("slider_locked", True, None, "Slider clamped to the link (db/dt = 0)")
+        self.add_input("pulley_locked", True, None,
+                       "Pulley locked to the frame: counterweight idle, slider wire unloaded")
+        for name, unit, description in OUTPUTS:
+            self.add_output(name, unit, description)
+        self.state = None
+        self.previous_inputs = None
+        self.stop_reported = False
+
+    def validate(self, params: physics.Parameters) -> None:
+        physics.validate(params)
+
+    def inputs(self) -> physics.Inputs:
+        return physics.Inputs(float(self.tau_drive), float(self.payload),
+                              float(self.counterweight_added), bool(self.slider_locked),
+                              bool(self.pulley_locked))
+
+    def initialise(self, params: physics.Parameters) -> None:
+        self.M0 = params.M0
+        self.payload_max = params.payload_max
+        self.state = physics.initial_state(params)
+        self.previous_inputs = self.inputs()
+        self.set_outputs(physics.outputs(params, self.previous_inputs, self.state))
+
+    def step(self, dt: float) -> None:
+        p, u = self.params, self.inputs()
+        if u.counterweight_added < -p.M0:
+            raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
+                             f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
+        if u != self.previous_inputs:
+            self.report_misuse(p, u)
+            self.previous_inputs = u
+        self.state = physics.advance(p, u, self.state, dt)
+        out = physics.outputs(p, u, self.state)
+        if out.slider_at_stop and not self.stop_reported:
+            stop = "b_min" if self.state.b <= p.b_min else "b_max"
+            self.warn(f"slider reached its end stop {stop} = {self.state.b:.4f} m: "
+                      f"balance_error = {out.balance_error:.4g} N m")
+        self.stop_reported = out.slider_at_stop
+        self.set_outputs(out)
+
+    def report_misuse(self, p: physics.Parameters, u: physics.Inputs) -> None:
+        """Warn, at the communication point where inputs change, about misuse the model allows."""
+        before = self.previous_inputs
+        released = before.slider_locked and not u.slider_locked
+        if released and u.pulley_locked:
+            self.warn("slider released with the pulley locked: nothing holds it against the "
+                      f"spring, which pulls it towards b_min = {p.b_min} m")
+        if not u.slider_locked and not u.pulley_locked and (
+                released or before.pulley_locked or u.payload != before.payload):
+            theta = self.state.theta
+            off = abs(math.remainder(theta - math.pi, 2.0 * math.pi))
+            if off > REGULATION_ANGLE_TOLERANCE:
+                b_end = physics.regulated_slider_position(p, u, theta)
+                self.warn(f"regulating at theta = {math.degrees(theta):.2f} deg instead of 180 "
+                          f"deg: the slider settles at b = {b_end:.4f} m, not at the balancing "
+                          "position")
+            if u.payload > p.payload_max and before.payload <= p.payload_max:
+                self.warn(f"payload = {u.payload} kg exceeds payload_max = "
+                          f"{p.payload_max:.4f} kg: the slider will stop at b_max")
+        if u.counterweight_added != before.counterweight_added and u.pulley_locked:
+            self.warn("counterweight_added changed with the pulley locked: it acts only once "
+                      "the pulley is released")
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        self.state = physics.State(*hidden["state"])
+        self.previous_inputs = physics.Inputs(*hidden["previous_inputs"])
+        self.stop_reported = bool(hidden["stop_reported"])
+
+
+OUTPUTS = (
+    ("theta", "rad", "Link angle from the upward vertical, counter-clockwise positive"),
+    ("omega", "rad/s", "Link angular velocity"),
+    ("b", "m", "Slider position along the link (O to B)"),
+    ("delta_b", "m", "Slider displacement from b0"),
+    ("x", "m", "Spring length A-B (eq. 4)"),
+    ("F_t", "N", "Spring force on the slider along the link, towards O"),
+    ("F_n", "N", "Spring force on the slider normal to the link"),
+    ("tau_gravity", "N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta"),
+    ("balance_error", "N.m", "(m c + payload w + m_slider b) g - k a b; 0 when balanced"),
+    ("E_p", "J", "Gravitational potential energy of link, payload and slider"),
+    ("E_e", "J", "Elastic energy of the spring"),
+    ("E_t", "J", "Total potential energy E_p + E_e"),
+    ("E_cw", "J", "Potential energy of the counterweight relative to its start"),
+    ("E_kin", "J", "Kinetic energy of link, payload, drive rotor, slider and counterweight"),
+    ("slider_at_stop", None, "Free slider resting on an end stop (b_min or b_max)"),
+)

@@ -1,0 +1,1 @@
+"""FMU sources: pure physics modules (standard library only) and the pythonfmu slaves on them."""

@@ -1,0 +1,254 @@
+"""Shared pythonfmu base class for the balancer FMUs (standard library only).
+
+PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns
+(its issue #33). `MechanismSlave.to_xml` adds them, in the way DNV's component-model does,
+from one table of variable metadata that is also used to check inputs at run time.
+
+Error reporting: pythonfmu turns any Python exception into fmi2Fatal and a False return
+of do_step into fmi2Discard; it has no route to fmi2Error. So a bad parameter fails
+fmi2ExitInitializationMode with fmi2Fatal (the instance cannot be used, as the standard
+requires after Error as well), and a bad input or step size fails fmi2DoStep with
+fmi2Discard. In both cases an Error-status log message names the variable and its range.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+
+# unit -> (quantity used as the declared type name, SI base-unit exponents)
+UNITS: dict[str, tuple[str, dict[str, int]]] = {
+    "1": ("Dimensionless", {}),
+    "s": ("Time", {"s": 1}),
+    "m": ("Length", {"m": 1}),
+    "m/s": ("Velocity", {"m": 1, "s": -1}),
+    "m/s2": ("Acceleration", {"m": 1, "s": -2}),
+    "rad": ("Angle", {"rad": 1}),
+    "rad/s": ("AngularVelocity", {"rad": 1, "s": -1}),
+    "kg": ("Mass", {"kg": 1}),
+    "kg.m2": ("MomentOfInertia", {"kg": 1, "m": 2}),
+    "N": ("Force", {"kg": 1, "m": 1, "s": -2}),
+    "N.m": ("Torque", {"kg": 1, "m": 2, "s": -2}),
+    "J": ("Energy", {"kg": 1, "m": 2, "s": -2}),
+    "W": ("Power", {"kg": 1, "m": 2, "s": -3}),
+    "N/m": ("TranslationalSpringConstant", {"kg": 1, "s": -2}),
+    "N.s/m": ("TranslationalDampingConstant", {"kg": 1, "s": -1}),
+    "N.m.s/rad": ("RotationalDampingConstant", {"kg": 1, "m": 2, "s": -1, "rad": -1}),
+    "V": ("Voltage", {"kg": 1, "m": 2, "s": -3, "A": -1}),
+    "A": ("Current", {"A": 1}),
+    "Ohm": ("Resistance", {"kg": 1, "m": 2, "s": -3, "A": -2}),
+    "H": ("Inductance", {"kg": 1, "m": 2, "s": -2, "A": -2}),
+    "N.m/A": ("TorqueConstant", {"kg": 1, "m": 2, "s": -2, "A": -1}),
+    "V.s/rad": ("BackEmfConstant", {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1}),
+}
+# display units: unit -> (display unit, factor): display = factor * value
+DISPLAY_UNITS = {"rad": ("deg", 180.0 / math.pi), "rad/s": ("deg/s", 180.0 / math.pi)}
+
+
+@dataclass(frozen=True)
+class VariableInfo:
+    """Model-description metadata of one variable."""
+
+    unit: str | None
+    description: str
+    min: float | None = None
+    max: float | None = None
+
+
+class MechanismSlave(Fmi2Slave):
+    """Base of the balancer slaves: a thin FMI layer over a pure physics module.
+
+    Subclasses set `parameters_type` (a frozen dataclass whose fields carry `unit`,
+    `description`, `min`, `max`, `min_exclusive` metadata and which has a `validate`
+    function), register inputs and outputs with `add_input`/`add_output`, and implement
+    `initialise(params)` and `step(dt)`. Their hidden state is listed in `hidden_state`.
+    """
+
+    parameters_type: type
+    hidden_state: tuple[str, ...] = ()
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.author = "Gravity balancer co-simulation project"
+        self.license = "MIT"
+        self.info: dict[str, VariableInfo] = {}
+        self.real_inputs: list[str] = []
+        self.params = None
+        for f in fields(self.parameters_type):
+            meta = f.metadata
+            setattr(self, f.name, f.default)
+            self._add(Real(f.name, causality=Fmi2Causality.parameter,
+                           variability=Fmi2Variability.fixed, description=meta["description"]),
+                      VariableInfo(meta["unit"], meta["description"], meta["min"], meta["max"]))
+
+    # ---- registration -------------------------------------------------------------
+    def _add(self, var: Real | Boolean, info: VariableInfo) -> None:
+        self.info[var.name] = info
+        self.register_variable(var)
+
+    def add_calculated_parameter(self, name: str, unit: str, description: str) -> None:
+        """A parameter derived from the others at initialisation."""
+        setattr(self, name, 0.0)
+        self._add(Real(name, causality=Fmi2Causality.calculatedParameter,
+                       variability=Fmi2Variability.fixed, initial=Fmi2Initial.calculated,
+                       description=description), VariableInfo(unit, description))
+
+    def add_input(self, name: str, start: float | bool, unit: str | None, description: str,
+                  min: float | None = None, max: float | None = None) -> None:
+        """A Real (unit given) or Boolean (unit None) input held over a communication step."""
+        setattr(self, name, start)
+        if unit is None:
+            var = Boolean(name, causality=Fmi2Causality.input,
+                          variability=Fmi2Variability.discrete, description=description)
+        else:
+            var = Real(name, causality=Fmi2Causality.input,
+                       variability=Fmi2Variability.continuous, description=description)
+            self.real_inputs.append(name)
+        self._add(var, VariableInfo(unit, description, min, max))
+
+    def add_output(self, name: str, unit: str | None, description: str) -> None:
+        """A Real (unit given) or Boolean (unit None) output computed by the model."""
+        setattr(self, name, False if unit is None else 0.0)
+        if unit is None:
+            var = Boolean(name, causality=Fmi2Causality.output,
+                          variability=Fmi2Variability.discrete, initial=Fmi2Initial.calculated,
+                          description=description)
+        else:
+            var = Real(name, causality=Fmi2Causality.output,
+                       variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
+                       description=description)
+        self._add(var, VariableInfo(unit, description))
+
+    def set_outputs(self, values: Any) -> None:
+        """Copy a NamedTuple of outputs onto the output variables of the same names."""
+        for name, value in zip(values._fields, values):
+            setattr(self, name, value)
+
+    # ---- FMI life cycle -----------------------------------------------------------
+    def fail(self, message: str) -> None:
+        """Log an Error-status message (the caller then returns False or raises)."""
+        self.log(message, Fmi2Status.error)
+
+    def warn(self, message: str) -> None:
+        self.log(message, Fmi2Status.warning)
+
+    def exit_initialization_mode(self) -> None:
+        values = {f.name: float(getattr(self, f.name)) for f in fields(self.parameters_type)}
+        params = self.parameters_type(**values)
+        try:
+            self.validate(params)
+        except ValueError as error:
+            self.fail(f"invalid parameter: {error}")
+            raise
+        self.params = params
+        self.initialise(params)
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if not (step_size > 0.0 and math.isfinite(step_size)):
+            self.fail(f"communication step size = {step_size} s is outside (0, inf)")
+            return False
+        for name in self.real_inputs:
+            value = getattr(self, name)
+            info = self.info[name]
+            if not math.isfinite(value):
+                self.fail(f"input {name} = {value} is not a finite number")
+                return False
+            if (info.min is not None and value < info.min) or (
+                    info.max is not None and value > info.max):
+                self.fail(f"input {name} = {value} {info.unit} is outside "
+                          f"[{info.min}, {info.max}]")
+                return False
+        try:
+            self.step(step_size)
+        except ValueError as error:
+            self.fail(str(error))
+            return False
+        return True
+
+    def validate(self, params: Any) -> None:
+        raise NotImplementedError
+
+    def initialise(self, params: Any) -> None:
+        raise NotImplementedError
+
+    def step(self, dt: float) -> None:
+        raise NotImplementedError
+
+    # ---- state get/set: registered variables plus hidden state ------------------------
+    def _get_fmu_state(self) -> dict[str, Any]:
+        state = super()._get_fmu_state()
+        state["__hidden__"] = {name: _to_json(getattr(self, name)) for name in self.hidden_state}
+        return state
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        state = dict(state)
+        hidden = state.pop("__hidden__")
+        super()._set_fmu_state(state)
+        self.params = self.parameters_type(
+            **{f.name: float(getattr(self, f.name)) for f in fields(self.parameters_type)})
+        self.restore_hidden_state(hidden)
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        for name, value in hidden.items():
+            setattr(self, name, value)
+
+    # ---- model description ------------------------------------------------------------
+    def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006
+        root = super().to_xml(model_options)
+        used_units = sorted({i.unit for i in self.info.values() if i.unit is not None})
+        position = list(root).index(root.find("CoSimulation")) + 1
+        root.insert(position, _unit_definitions(used_units))
+        root.insert(position + 1, _type_definitions(used_units))
+
+        initial_unknowns = []
+        for index, element in enumerate(root.find("ModelVariables"), start=1):
+            name = element.get("name")
+            info = self.info[name]
+            real = element.find("Real")
+            if real is not None:
+                real.set("declaredType", UNITS[info.unit][0])
+                if info.unit in DISPLAY_UNITS:
+                    real.set("displayUnit", DISPLAY_UNITS[info.unit][0])
+                for key in ("min", "max"):
+                    if getattr(info, key) is not None:
+                        real.set(key, f"{getattr(info, key):.16g}")
+            if element.get("initial") == "calculated":
+                initial_unknowns.append(index)
+        structure = root.find("ModelStructure")
+        if initial_unknowns:
+            node = SubElement(structure, "InitialUnknowns")
+            for index in initial_unknowns:
+                SubElement(node, "Unknown", attrib={"index": str(index)})
+        return root
+
+
+def _unit_definitions(units: list[str]) -> Element:
+    node = Element("UnitDefinitions")
+    for unit in units:
+        unit_node = SubElement(node, "Unit", attrib={"name": unit})
+        SubElement(unit_node, "BaseUnit", attrib={k: str(v) for k, v in UNITS[unit][1].items()})
+        if unit in DISPLAY_UNITS:
+            name, factor = DISPLAY_UNITS[unit]
+            SubElement(unit_node, "DisplayUnit", attrib={"name": name, "factor": f"{factor:.16g}"})
+    return node
+
+
+def _type_definitions(units: list[str]) -> Element:
+    node = Element("TypeDefinitions")
+    for unit in units:
+        quantity = UNITS[unit][0]
+        simple = SubElement(node, "SimpleType", attrib={"name": quantity})
+        SubElement(simple, "Real", attrib={"quantity": quantity, "unit": unit})
+    return node
+
+
+def _to_json(value: Any) -> Any:
+    """Hidden state as JSON-compatible data (NamedTuples become lists)."""
+    if isinstance(value, tuple):
+        return [_to_json(v) for v in value]
+    return value

@@ -1,0 +1,1 @@
+"""Co-simulation harness: FMPy master, drive, controller, scenarios, metrics and CLI."""

@@ -1,0 +1,76 @@
+"""Build the FMUs of `fmu_src/` with pythonfmu.
+
+Each FMU gets its slave script and exactly the `fmu_src` modules it imports (found by
+reading the imports), staged as the package `fmu_src` in the FMU's resources, so the slave
+runs in any Python interpreter with nothing but the standard library and pythonfmu's own
+embedded files.
+"""
+
+from __future__ import annotations
+
+import ast
+import shutil
+import tempfile
+from pathlib import Path
+
+from pythonfmu.builder import FmuBuilder
+
+SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
+DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
+# Slave scripts, one per FMU: the file name is the model identifier.
+MODELS = ("SelfRegulatingBalancer",)
+
+
+def _fmu_src_imports(path: Path) -> set[str]:
+    """Modules of the fmu_src package imported by the file at path."""
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            if node.module == "fmu_src":
+                names.update(alias.name for alias in node.names)
+            elif node.module.startswith("fmu_src."):
+                names.add(node.module.split(".", 1)[1])
+    return names
+
+
+def dependencies(model: str) -> list[Path]:
+    """fmu_src modules the slave script needs, followed transitively."""
+    pending, found = [SOURCE_DIR / f"{model}.py"], set()
+    while pending:
+        for name in _fmu_src_imports(pending.pop()):
+            if name not in found:
+                found.add(name)
+                pending.append(SOURCE_DIR / f"{name}.py")
+    return sorted(SOURCE_DIR / f"{name}.py" for name in found)
+
+
+def build(model: str, dest: Path = DEFAULT_DEST, documentation: Path | None = None) -> Path:
+    """Build one FMU into dest and return its path."""
+    dest.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f"build_{model}_") as tmp:
+        stage = Path(tmp)
+        package = stage / "fmu_src"
+        package.mkdir()
+        shutil.copy2(SOURCE_DIR / "__init__.py", package)
+        for module in dependencies(model):
+            shutil.copy2(module, package)
+        script = shutil.copy2(SOURCE_DIR / f"{model}.py", stage)
+        fmu = FmuBuilder.build_FMU(
+            script, dest=dest, project_files=[package], documentation_folder=documentation,
+            canGetAndSetFMUstate=True, canSerializeFMUstate=True,
+            canHandleVariableCommunicationStepSize=True)
+    return Path(fmu)
+
+
+def build_all(dest: Path = DEFAULT_DEST) -> list[Path]:
+    """Build every FMU of MODELS into dest."""
+    return [build(model, dest) for model in MODELS]
+
+
+def fmu_path(model: str, dest: Path = DEFAULT_DEST) -> Path:
+    """Path of a built FMU; builds it if it is missing or older than its sources."""
+    fmu = dest / f"{model}.fmu"
+    sources = [SOURCE_DIR / f"{model}.py", *dependencies(model)]
+    if not fmu.exists() or fmu.stat().st_mtime < max(s.stat().st_mtime for s in sources):
+        build(model, dest)
+    return fmu
