@@ -27,6 +27,8 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
+from fmu_src.integration import integrate
+
 DEG = math.pi / 180.0
 
 
@@ -222,20 +224,6 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     return rate
 
 
-# Internal step: rate * h <= STEP_RATE_PRODUCT keeps classical RK4 well inside its stability
-# region (|lambda h| < 2.8) and its local error below ~1e-9 of the motion per step.
-STEP_RATE_PRODUCT = 0.05
-
-
-def _rk4(p: Parameters, u: Inputs, s: State, h: float) -> State:
-    k1 = derivatives(p, u, s)
-    k2 = derivatives(p, u, State(*(si + 0.5 * h * ki for si, ki in zip(s, k1))))
-    k3 = derivatives(p, u, State(*(si + 0.5 * h * ki for si, ki in zip(s, k2))))
-    k4 = derivatives(p, u, State(*(si + h * ki for si, ki in zip(s, k3))))
-    return State(*(si + h / 6.0 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
-                   for si, d1, d2, d3, d4 in zip(s, k1, k2, k3, k4)))
-
-
 def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
     """Clamp the slider to its end stops (inelastic) and hold it still when locked."""
     theta, omega, b, v, s_cw = s
@@ -254,20 +242,12 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
     return State(theta, omega, b, v, s_cw)
 
 
-def substeps(p: Parameters, u: Inputs, s: State, dt: float) -> int:
-    """Number of RK4 sub-steps for a communication step dt [s]."""
-    return max(1, math.ceil(dt * characteristic_rate(p, u, s) / STEP_RATE_PRODUCT))
-
-
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
     if u.slider_locked and s.v != 0.0:
         s = s._replace(v=0.0)
-    n = substeps(p, u, s, dt)
-    h = dt / n
-    for _ in range(n):
-        s = _apply_constraints(p, u, _rk4(p, u, s, h))
-    return s
+    return integrate(lambda state: derivatives(p, u, state), s, dt,
+                     characteristic_rate(p, u, s), lambda state: _apply_constraints(p, u, state))
 
 
 def slider_at_stop(p: Parameters, u: Inputs, s: State) -> bool:

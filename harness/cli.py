@@ -1,29 +1,34 @@
-"""Command line: `python -m harness <command>`."""
+"""Command line: `python -m harness <command>`.
+
+Each command lives in its own module, which defines COMMAND (its name), HELP,
+add_arguments(parser) and run(args) -> exit code; COMMANDS lists those modules.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import sys
 from collections.abc import Sequence
 
-from harness import fmu_build
-
-
-def _build_fmus(args: argparse.Namespace) -> int:
-    for fmu in fmu_build.build_all(args.dest):
-        print(fmu)
-    return 0
+COMMANDS = ("harness.fmu_build",)
 
 
 def parser() -> argparse.ArgumentParser:
-    top = argparse.ArgumentParser(prog="python -m harness", description=__doc__)
+    top = argparse.ArgumentParser(prog="python -m harness", description=__doc__.splitlines()[0])
     commands = top.add_subparsers(dest="command", required=True)
-
-    build = commands.add_parser("build-fmus", help="build every FMU into build/fmus")
-    build.add_argument("--dest", type=fmu_build.Path, default=fmu_build.DEFAULT_DEST)
-    build.set_defaults(run=_build_fmus)
+    for name in COMMANDS:
+        module = importlib.import_module(name)
+        sub = commands.add_parser(module.COMMAND, help=module.HELP, description=module.HELP)
+        module.add_arguments(sub)
+        sub.set_defaults(run=module.run)
     return top
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    return args.run(args)
+    try:
+        return args.run(args)
+    except ValueError as error:  # bad input data: one clear line, non-zero exit
+        print(f"error: {error}", file=sys.stderr)
+        return 2

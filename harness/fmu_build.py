@@ -8,6 +8,7 @@ embedded files.
 
 from __future__ import annotations
 
+import argparse
 import ast
 import shutil
 import tempfile
@@ -74,3 +75,17 @@ def fmu_path(model: str, dest: Path = DEFAULT_DEST) -> Path:
     if not fmu.exists() or fmu.stat().st_mtime < max(s.stat().st_mtime for s in sources):
         build(model, dest)
     return fmu
+
+
+COMMAND = "build-fmus"
+HELP = "build every FMU of fmu_src into build/fmus"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--dest", type=Path, default=DEFAULT_DEST, help="output folder")
+
+
+def run(args: argparse.Namespace) -> int:
+    for fmu in build_all(args.dest):
+        print(fmu)
+    return 0
