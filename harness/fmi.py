@@ -1,0 +1,124 @@
+"""Thin access to an FMI 2.0 Co-Simulation FMU through FMPy, by variable name.
+
+`CoSimFMU` extracts an FMU once, instantiates it with a logger that keeps every message
+(so tests and the harness can read warnings), and offers set/get by name, stepping,
+state get/set and reset. The co-simulation master (`harness.master`) is built on it.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (
+    FMU2Slave,
+    defaultCallbacks,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+
+__all__ = ["CoSimFMU", "FMICallException", "LogMessage"]
+
+STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+
+
+@dataclass(frozen=True)
+class LogMessage:
+    """One message from the FMU logger."""
+
+    status: str
+    category: str
+    message: str
+
+
+class CoSimFMU:
+    """One instance of a Co-Simulation FMU, addressed by variable names."""
+
+    def __init__(self, path: str | Path, instance_name: str = "instance") -> None:
+        self.path = Path(path)
+        self.model_description = read_model_description(str(self.path))
+        self.variables = {v.name: v for v in self.model_description.modelVariables}
+        self._unzip_dir = extract(str(self.path))
+        self.messages: list[LogMessage] = []
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self._callbacks.allocateMemory = defaultCallbacks.allocateMemory
+        self._callbacks.freeMemory = defaultCallbacks.freeMemory
+        self.slave = FMU2Slave(guid=self.model_description.guid, unzipDirectory=self._unzip_dir,
+                               modelIdentifier=self.model_description.coSimulation.modelIdentifier,
+                               instanceName=instance_name)
+        self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+
+    def _log(self, _env: Any, _instance: bytes, status: int, category: bytes,
+             message: bytes) -> None:
+        self.messages.append(LogMessage(STATUS_NAMES[status], (category or b"").decode(),
+                                        (message or b"").decode()))
+
+    def references(self, names: Iterable[str]) -> list[int]:
+        """Value references of the named variables (KeyError names an unknown variable)."""
+        try:
+            return [self.variables[n].valueReference for n in names]
+        except KeyError as error:
+            raise KeyError(f"{self.path.name} has no variable {error.args[0]!r}") from None
+
+    def set(self, values: Mapping[str, float | bool]) -> None:
+        """Set Real and Boolean variables by name."""
+        reals = {n: v for n, v in values.items() if self.variables[n].type == "Real"}
+        bools = {n: v for n, v in values.items() if self.variables[n].type == "Boolean"}
+        if reals:
+            self.slave.setReal(self.references(reals), [float(v) for v in reals.values()])
+        if bools:
+            self.slave.setBoolean(self.references(bools), [bool(v) for v in bools.values()])
+
+    def get(self, names: Iterable[str]) -> dict[str, float | bool]:
+        """Current values of Real and Boolean variables by name."""
+        names = list(names)
+        reals = [n for n in names if self.variables[n].type == "Real"]
+        bools = [n for n in names if self.variables[n].type == "Boolean"]
+        out: dict[str, float | bool] = {}
+        if reals:
+            out.update(zip(reals, self.slave.getReal(self.references(reals))))
+        if bools:
+            out.update((n, bool(v)) for n, v in
+                       zip(bools, self.slave.getBoolean(self.references(bools))))
+        return {n: out[n] for n in names}
+
+    def initialize(self, parameters: Mapping[str, float | bool] | None = None,
+                   start_time: float = 0.0, stop_time: float | None = None) -> None:
+        """setupExperiment, parameters, enter and exit initialisation mode."""
+        self.slave.setupExperiment(startTime=start_time, stopTime=stop_time)
+        self.slave.enterInitializationMode()
+        if parameters:
+            self.set(parameters)
+        self.slave.exitInitializationMode()
+
+    def step(self, time: float, step_size: float) -> None:
+        self.slave.doStep(currentCommunicationPoint=time, communicationStepSize=step_size)
+
+    def reset(self) -> None:
+        self.slave.reset()
+
+    def names(self, causality: str) -> list[str]:
+        """Names of the variables of one causality, in model-description order."""
+        return [v.name for v in self.model_description.modelVariables
+                if v.causality == causality]
+
+    def close(self) -> None:
+        """Terminate (if possible), free the instance and delete the extracted files."""
+        try:
+            self.slave.terminate()
+        except FMICallException:
+            pass
+        self.slave.freeInstance()
+        shutil.rmtree(self._unzip_dir, ignore_errors=True)
+
+    def __enter__(self) -> CoSimFMU:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
