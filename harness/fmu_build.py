@@ -4,6 +4,11 @@ Each FMU gets its slave script and exactly the `fmu_src` modules it imports (fou
 reading the imports), staged as the package `fmu_src` in the FMU's resources, so the slave
 runs in any Python interpreter with nothing but the standard library and pythonfmu's own
 embedded files.
+
+`fmu_src` is a namespace package (no __init__.py) on purpose: pythonfmu runs every FMU of a
+process in one interpreter, each adding its resources folder to sys.path. A namespace
+package's search path follows sys.path, so a second FMU finds its own modules even when an
+earlier FMU imported `fmu_src` first (from a folder that may be deleted since).
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from pythonfmu.builder import FmuBuilder
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
-MODELS = ("SelfRegulatingBalancer",)
+MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator")
 
 
 def _fmu_src_imports(path: Path) -> set[str]:
@@ -52,7 +57,6 @@ def build(model: str, dest: Path = DEFAULT_DEST, documentation: Path | None = No
         stage = Path(tmp)
         package = stage / "fmu_src"
         package.mkdir()
-        shutil.copy2(SOURCE_DIR / "__init__.py", package)
         for module in dependencies(model):
             shutil.copy2(module, package)
         script = shutil.copy2(SOURCE_DIR / f"{model}.py", stage)

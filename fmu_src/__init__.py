@@ -1,1 +1,0 @@
-"""FMU sources: pure physics modules (standard library only) and the pythonfmu slaves on them."""

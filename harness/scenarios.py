@@ -1,0 +1,175 @@
+"""Task scenarios as data: TOML files in harness/scenarios/ (or any path).
+
+A scenario names the mechanism FMU, its parameters, the joint the drive moves and a list of
+phases. Each phase has a duration [s], a target angle [deg] reached by a quintic (zero
+velocity and acceleration at both ends) over the phase, and input changes applied at the
+phase start: a plain value steps there, `{ ramp = value }` ramps linearly to value over the
+phase. Inputs keep their value until a later phase changes them.
+
+Variants are configurations of the same run (SPEC.md section 3): they may replace the FMU
+(`model`), override its parameters (`parameters`), hold inputs at fixed values for the whole
+run (`inputs`), or drop scenario inputs the model does not have (`drop_inputs`).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """Linear ramp to `target` over the phase."""
+
+    target: float
+
+
+@dataclass(frozen=True)
+class Phase:
+    name: str
+    duration: float                 # [s]
+    target: float                   # joint target at the end of the phase [rad]
+    inputs: dict[str, Any] = field(default_factory=dict)  # value or Ramp, from phase start
+
+
+@dataclass(frozen=True)
+class Variant:
+    name: str
+    description: str = ""
+    model: str | None = None
+    parameters: dict[str, float] = field(default_factory=dict)
+    inputs: dict[str, float | bool] = field(default_factory=dict)
+    drop_inputs: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    model: str
+    parameters: dict[str, float]
+    initial_angle: float            # [rad]
+    phases: tuple[Phase, ...]
+    variants: dict[str, Variant]
+    baseline: str                   # variant against which eps is computed
+    joint: dict[str, str]           # FMU names of angle, speed, torque and parameter names
+
+    @property
+    def duration(self) -> float:
+        return sum(p.duration for p in self.phases)
+
+    def phase_times(self) -> list[tuple[str, float, float]]:
+        """(name, start, end) of each phase [s]."""
+        out, t = [], 0.0
+        for phase in self.phases:
+            out.append((phase.name, t, t + phase.duration))
+            t += phase.duration
+        return out
+
+    def variant(self, name: str) -> Variant:
+        try:
+            return self.variants[name]
+        except KeyError:
+            raise ValueError(f"scenario {self.name} has no variant {name!r}; "
+                             f"choose from {', '.join(self.variants)}") from None
+
+    def reference(self, times: np.ndarray) -> np.ndarray:
+        """Joint reference angle [rad] at the given times: quintic segments."""
+        ref = np.full(times.shape, self.initial_angle)
+        start_angle = self.initial_angle
+        for (_, t0, t1), phase in zip(self.phase_times(), self.phases, strict=True):
+            inside = (times >= t0) & (times <= t1) if t1 == self.duration else (
+                (times >= t0) & (times < t1))
+            s = (times[inside] - t0) / (t1 - t0)
+            ref[inside] = start_angle + (phase.target - start_angle) * quintic(s)
+            start_angle = phase.target
+        ref[times > self.duration] = start_angle
+        return ref
+
+    def inputs(self, times: np.ndarray, variant: Variant) -> dict[str, np.ndarray]:
+        """Input signals of the scenario at the given times, with the variant's overrides."""
+        names = [n for phase in self.phases for n in phase.inputs]
+        names = [n for n in dict.fromkeys(names) if n not in variant.drop_inputs]
+        signals: dict[str, np.ndarray] = {}
+        for name in names:
+            value: Any = 0.0
+            signal = np.zeros(times.shape)
+            for (_, t0, t1), phase in zip(self.phase_times(), self.phases, strict=True):
+                inside = times >= t0
+                change = phase.inputs.get(name)
+                if isinstance(change, Ramp):
+                    s = np.clip((times[inside] - t0) / (t1 - t0), 0.0, 1.0)
+                    signal[inside] = value + (change.target - value) * s
+                    value = change.target
+                elif change is not None:
+                    value = change
+                    signal[inside] = value
+            if isinstance(value, bool):
+                signal = signal.astype(bool)
+            signals[name] = signal
+        for name, value in variant.inputs.items():
+            signals[name] = np.full(times.shape, value, dtype=type(value))
+        return signals
+
+
+def quintic(s: np.ndarray) -> np.ndarray:
+    """Quintic 10 s^3 - 15 s^4 + 6 s^5: 0 -> 1 with zero speed and acceleration at both ends."""
+    return s ** 3 * (10.0 + s * (-15.0 + 6.0 * s))
+
+
+def _input_change(name: str, value: Any, where: str) -> Any:
+    if isinstance(value, dict):
+        if set(value) != {"ramp"}:
+            raise ValueError(f"{where}: input {name} must be a value or {{ ramp = value }}")
+        return Ramp(float(value["ramp"]))
+    if not isinstance(value, bool | int | float) or not math.isfinite(value):
+        raise ValueError(f"{where}: input {name} = {value!r} is not a finite number or boolean")
+    return value if isinstance(value, bool) else float(value)
+
+
+def load(name_or_path: str | Path) -> Scenario:
+    """Load a scenario by name (harness/scenarios/<name>.toml) or from a TOML file."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = SCENARIO_DIR / f"{name_or_path}.toml"
+    if not path.exists():
+        known = ", ".join(available())
+        raise ValueError(f"no scenario {name_or_path!r} (known: {known})")
+    data = tomllib.loads(path.read_text())
+    where = path.name
+    phases = []
+    for i, raw in enumerate(data["phases"]):
+        duration = float(raw["duration"])
+        if not duration > 0.0:
+            raise ValueError(f"{where}: phase {i} duration = {duration} s is outside (0, inf)")
+        inputs = {n: _input_change(n, v, f"{where} phase {raw.get('name', i)}")
+                  for n, v in raw.get("inputs", {}).items()}
+        phases.append(Phase(str(raw.get("name", i + 1)), duration,
+                            math.radians(float(raw["target_deg"])), inputs))
+    variants = {
+        name: Variant(name, raw.get("description", ""), raw.get("model"),
+                      {k: float(v) for k, v in raw.get("parameters", {}).items()},
+                      dict(raw.get("inputs", {})), tuple(raw.get("drop_inputs", ())))
+        for name, raw in data["variants"].items()}
+    joint = {"angle": "theta", "speed": "omega", "torque": "tau_drive",
+             "initial_angle": "theta0", "inertia": "J_link", "friction": "d_link",
+             "drive_inertia": "J_drive"} | data.get("joint", {})
+    scenario = Scenario(
+        name=data["name"], description=data.get("description", ""), model=data["model"],
+        parameters={k: float(v) for k, v in data.get("parameters", {}).items()},
+        initial_angle=math.radians(float(data["initial_angle_deg"])), phases=tuple(phases),
+        variants=variants, baseline=data.get("baseline", next(iter(variants))), joint=joint)
+    scenario.variant(scenario.baseline)
+    return scenario
+
+
+def available() -> list[str]:
+    """Names of the scenarios shipped in harness/scenarios."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
