@@ -1,0 +1,60 @@
+"""`python -m harness cosim`: run scenarios and variants, write results/<scenario>/."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tqdm import tqdm
+
+from harness import master, results, scenarios
+
+COMMAND = "cosim"
+HELP = "co-simulate scenario variants and write CSV series, summary and plots"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scenario", default="all",
+                        help="scenario name, TOML file, or 'all' (default: all shipped)")
+    parser.add_argument("--variants", default="all",
+                        help="'all' or a comma-separated list of variant names")
+    parser.add_argument("--step", type=float, default=master.DEFAULT_STEP,
+                        help="communication step [s] (default 1e-3)")
+    parser.add_argument("--out", type=Path, default=results.RESULTS_DIR,
+                        help="results folder; files go to OUT/<scenario>/ (default results/)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
+    """Variant names from 'all' or a comma-separated list; the eps baseline is always run."""
+    names = list(scenario.variants) if spec == "all" else [v.strip() for v in spec.split(",")]
+    for name in names:
+        scenario.variant(name)
+    if scenario.baseline not in names:
+        names.append(scenario.baseline)
+    return names
+
+
+def run_scenario(scenario: scenarios.Scenario, variants: list[str], step: float, out: Path,
+                 quiet: bool = False) -> list[master.RunResult]:
+    """Run the variants of one scenario with a progress bar and write its result files."""
+    steps = round(scenario.duration / step)
+    runs = []
+    with tqdm(total=steps * len(variants), unit="step", unit_scale=True, disable=quiet,
+              desc=scenario.name) as bar:
+        for name in variants:
+            bar.set_postfix_str(name)
+            runs.append(master.run(scenario, scenario.variant(name), step, progress=bar.update))
+    for path in results.write_run(runs, scenario.baseline, out / scenario.name):
+        print(path)
+    return runs
+
+
+def run(args: argparse.Namespace) -> int:
+    names = scenarios.available() if args.scenario == "all" else [args.scenario]
+    for name in names:
+        scenario = scenarios.load(name)
+        variants = selected_variants(scenario, args.variants)
+        run_scenario(scenario, variants, args.step, args.out, args.quiet)
+        print(results.summary_text(args.out / scenario.name / "summary.csv"))
+    return 0
