@@ -11,7 +11,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-COMMANDS = ("harness.fmu_build",)
+COMMANDS = ("harness.fmu_build", "harness.cosim")
 
 
 def parser() -> argparse.ArgumentParser:

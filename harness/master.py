@@ -37,6 +37,7 @@ class RunResult:
 
     scenario: str
     variant: str
+    model: str
     step_size: float
     series: pd.DataFrame
     metrics: dict[str, float]
@@ -129,8 +130,8 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     work = torque * dtheta
     phase_work = {name: float(np.sum(work[round(t0 / step_size):round(t1 / step_size)]))
                   for name, t0, t1 in scenario.phase_times()}
-    return RunResult(scenario.name, variant.name, step_size, series, result_metrics, gains,
-                     parameters, phase_work, messages)
+    return RunResult(scenario.name, variant.name, model, step_size, series, result_metrics,
+                     gains, parameters, phase_work, messages)
 
 
 def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:
