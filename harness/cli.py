@@ -11,7 +11,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-COMMANDS = ("harness.fmu_build", "harness.cosim")
+COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.ciupitu_example")
 
 
 def parser() -> argparse.ArgumentParser:

@@ -1,0 +1,73 @@
+"""FMI 2.0 Co-Simulation slave of Ciupitu's passive translational counterweight (SPEC.md
+section 4).
+
+A thin layer over `fmu_src.ciupitu`: it maps FMI variables to the physics and integrates it
+over each communication step.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pythonfmu.default_experiment import DefaultExperiment
+
+from fmu_src import ciupitu as physics
+from fmu_src.fmi_base import MechanismSlave
+
+
+class CiupituBalancer(MechanismSlave):
+    """1-DOF arm balanced by a counterweight sliding along it, guided by a bar to a ground
+    pivot above the arm's pivot (Ciupitu 2018, Figure 4a), plus a fixed counterweight."""
+
+    parameters_type = physics.Parameters
+    hidden_state = ("state",)
+    # 1 ms is the harness's communication step (as for SelfRegulatingBalancer); 20 s spans
+    # several strokes of a rocking cycle and many periods of the default arm's free swing.
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Passive translational counterweight balancer (Ciupitu 2018, "
+                            "Figure 4a): 1-DOF arm, counterweight sliding along the arm, "
+                            "guided by one bar to a ground pivot")
+        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the arm about O, along theta")
+        self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's G_pv/g)",
+                       min=0.0)
+        for name, unit, description in OUTPUTS:
+            self.add_output(name, unit, description)
+        self.state = None
+
+    def validate(self, params: physics.Parameters) -> None:
+        physics.validate(params)
+
+    def inputs(self) -> physics.Inputs:
+        return physics.Inputs(float(self.tau_drive), float(self.payload))
+
+    def initialise(self, params: physics.Parameters) -> None:
+        self.state = physics.initial_state(params)
+        self.set_outputs(physics.outputs(params, self.inputs(), self.state))
+
+    def step(self, dt: float) -> None:
+        u = self.inputs()
+        self.state = physics.advance(self.params, u, self.state, dt)
+        self.set_outputs(physics.outputs(self.params, u, self.state))
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        self.state = physics.State(*hidden["state"])
+
+
+OUTPUTS = (
+    ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
+                     "(the paper's phi = pi/2 - theta)"),
+    ("omega", "rad/s", "Arm angular velocity"),
+    ("OB", "m", "Distance from O to the sliding counterweight B (eq. 13)"),
+    ("tau_gravity", "N.m", "Gravity torque on the arm about O along theta, -dE_p/dtheta "
+                           "= -(M_u + M_bar) when the fixed counterweight balances m c"),
+    ("E_p", "J", "Gravitational potential energy of link, payload and both counterweights"),
+    ("E_kin", "J", "Kinetic energy of link, payload, counterweights and drive rotor"),
+    ("M_g", "N.m", "Payload moment about O, -payload g w cos(phi) (eq. 8, paper's sign)"),
+    ("M_b", "N.m", "Moment of the counterweight's weight about O, m2 g OB cos(phi) (eq. 12)"),
+    ("M_u", "N.m", "Unbalanced moment M_b + M_g (eq. 16)"),
+    ("M_bar", "N.m", "Static moment about O of the bar AB's force on the counterweight, "
+                     "m2 g (dOB/dphi) sin(phi) (omitted by the paper)"),
+)

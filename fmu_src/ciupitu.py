@@ -1,0 +1,388 @@
+"""Physics of Ciupitu's passive translational counterweight (Ciupitu 2018, Figure 4a).
+
+Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
+`CiupituBalancer`, the harness command `ciupitu-example` and the tests (SPEC.md section 4).
+
+Geometry. A counterweight of weight G2 = m2 g slides along the arm on the side opposite to
+the payload; a bar of length AB joins it to the ground pivot A, a distance OA above O. The
+paper's arm angle phi is measured from the horizontal, phi = pi/2 - theta, with theta the
+project's angle (SPEC section 2: from the upward vertical, counter-clockwise; the project's
+figure is the paper's Figure 4a mirrored left to right). The counterweight sits at
+
+    OB(phi) = sqrt(AB^2 - OA^2 cos^2 phi) - OA sin phi                  (eq. 13, AB > OA)
+
+which is >= AB - OA > 0 at every angle, so the arm may turn fully. Eq. 14 is a misprint.
+
+Moments about O in the paper's sign convention (positive in the direction of increasing
+phi, i.e. of decreasing theta), eqs. 8, 12 and 16:
+
+    M_g = -G_pv OP cos phi,   M_b = G2 OB cos phi,   M_u = M_b + M_g
+
+Static example (paper Section 4): the arm rocks uniformly, one stroke from phi = +pi/2 to
+-pi/2 per half period T/2, so s = t/T = (pi/2 - phi)/(2 pi) in [0, 1/2]; payload laws
+G_pv = 4 G_max s (1 - s) (parabolic, eq. 7 without its constant part) and G_pv = 2 G_max s
+(linear). The interpretation that reproduces the paper's numbers: E_u and E_b are the NET
+work over one stroke, the absolute value of the signed integral of M_g and of M_u over phi
+(over t it is the same up to the constant factor dphi/dt, which cancels in eps), and
+eps = 1 - E_b/E_u (eq. 31, E_b printed as E_e). For the paper's data this gives
+eps_parabolic = 0.9734464 and eps_linear = 0.6320306 (paper: 0.973446, 0.632031), and
+max |M_u| = 0.82786 N m at phi = 0.1047 rad (parabolic; paper 0.828 N m at 0.095 rad, where
+|M_u| = 0.82765 N m: the maximum is flat) and 1.3666 N m at phi = -0.479 rad (linear; paper
+"about 1.4 N m at -0.5 rad"). Absolute work (integral of |M|) gives eps_parabolic = 0.895884
+instead, so it is not the paper's reading; for the linear law M_u keeps one sign and both
+readings agree.
+
+Caveat (kept, because the SPEC and the paper define M_b so): M_b is the moment of the
+counterweight's weight alone. The bar AB also pushes the counterweight, along a line through
+A rather than O, so the torque the arm really receives (virtual work, -dE_p/dtheta) has a
+further term, the static moment of the bar force about O:
+
+    M_bar = G2 (dOB/dphi) sin phi
+
+which vanishes only at phi = 0 and +-pi/2. With it the counterweight's work over a stroke is
+G2 times the rise of B, 2 AB G2, so E_b = |2 AB G2 - E_u|: for the paper's example
+eps = 0.932601 (parabolic) and 0.5 (linear). A dynamic run through a drive sees these, not
+the paper's values.
+
+Dynamics (one degree of freedom, FMU state theta and omega = dtheta/dt). The link has mass m
+at c, inertia J_link about O, a payload (kg) at w = OP, a fixed counterweight m_fixed_cw at
+c_fixed_cw on the side opposite to the payload, and the sliding counterweight m2 at OB on the
+same opposite side. With OB' = dOB/dphi (dphi = -dtheta):
+
+    E_p = g cos(theta) (m c + payload w - m_fixed_cw c_fixed_cw - m2 OB)
+    J(theta) = J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive + m2 (OB^2 + OB'^2)
+    E_kin = 1/2 J omega^2
+    J omega' = tau_drive + tau_gravity - d_link omega - 1/2 (dJ/dtheta) omega^2
+
+from the Lagrangian L = E_kin - E_p, with tau_gravity = -dE_p/dtheta. In terms of the
+paper's moments (all static):
+
+    tau_gravity = -(M_u + M_bar + (m_fixed_cw c_fixed_cw - m c) g cos phi)
+
+with G_pv = payload g, OP = w and G2 = m2 g; the last term is zero when the fixed
+counterweight balances the link (m_fixed_cw c_fixed_cw = m c, the default).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from typing import Any, NamedTuple
+
+from fmu_src.integration import integrate
+
+DEG = math.pi / 180.0
+HALF_PI = 0.5 * math.pi
+
+
+def _param(default: float, unit: str, description: str, *, min: float | None = None,
+           max: float | None = None, min_exclusive: bool = False) -> float:
+    """Dataclass field carrying the FMI unit, description and physical bounds."""
+    return field(default=default, metadata=dict(
+        unit=unit, description=description, min=min, max=max, min_exclusive=min_exclusive))
+
+
+def check_fields(data: Any) -> None:
+    """Raise ValueError naming the first field of a _param dataclass that is NaN or out of range.
+
+    Messages start with the field name (the harness relies on it to name its option).
+    """
+    for f in fields(data):
+        value = getattr(data, f.name)
+        lo, hi, open_lo = f.metadata["min"], f.metadata["max"], f.metadata["min_exclusive"]
+        if not math.isfinite(value):
+            raise ValueError(f"{f.name} = {value} is not a finite number")
+        if lo is not None and (value <= lo if open_lo else value < lo):
+            bound = f"({lo}, inf)" if open_lo else f"[{lo}, inf)"
+            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is outside {bound}")
+        if hi is not None and value > hi:
+            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is above {hi}")
+
+
+def _check_bar(OA: float, AB: float) -> None:
+    if not AB > OA:
+        raise ValueError(f"AB = {AB} m must be above OA = {OA} m (eq. 13 needs AB > OA)")
+
+
+# ---- geometry and the paper's moments ---------------------------------------------------
+class Geometry(NamedTuple):
+    """Counterweight distance OB and its derivatives with respect to phi."""
+
+    OB: float         # m, eq. 13
+    dOB: float        # m/rad, dOB/dphi
+    d2OB: float       # m/rad^2, d^2 OB/dphi^2
+
+
+def geometry(OA: float, AB: float, phi: float) -> Geometry:
+    """OB(phi) of eq. 13 and its first two derivatives; phi from the horizontal [rad]."""
+    sin_p, cos_p = math.sin(phi), math.cos(phi)
+    root = math.sqrt(AB * AB - (OA * cos_p) ** 2)
+    d_root = OA * OA * sin_p * cos_p / root
+    d2_root = (OA * OA * math.cos(2.0 * phi) - d_root * d_root) / root
+    return Geometry(root - OA * sin_p, d_root - OA * cos_p, d2_root + OA * sin_p)
+
+
+class Moments(NamedTuple):
+    """Static moments about O in the paper's convention (positive towards increasing phi)."""
+
+    M_g: float        # N m, payload, eq. 8
+    M_b: float        # N m, counterweight weight, eq. 12
+    M_u: float        # N m, unbalance M_b + M_g, eq. 16
+
+
+def moments(G_pv: float, OP: float, G2: float, OA: float, AB: float, phi: float) -> Moments:
+    """M_g, M_b, M_u for payload weight G_pv [N] at OP [m] and counterweight G2 [N]."""
+    cos_p = math.cos(phi)
+    M_g = -G_pv * OP * cos_p
+    M_b = G2 * geometry(OA, AB, phi).OB * cos_p
+    return Moments(M_g, M_b, M_b + M_g)
+
+
+# ---- static example of the paper (Section 4) --------------------------------------------
+@dataclass(frozen=True)
+class ExampleData:
+    """Data of the paper's Section 4 example (defaults are the paper's)."""
+
+    Gmax: float = _param(4.0, "N", "Peak of the variable payload weight G_pv,max", min=0.0,
+                         min_exclusive=True)
+    OP: float = _param(2.0, "m", "Distance from O to the payload P", min=0.0, min_exclusive=True)
+    G2: float = _param(3.0, "N", "Weight of the sliding counterweight", min=0.0)
+    OA: float = _param(1.0, "m", "Height of the ground pivot A above O", min=0.0)
+    AB: float = _param(2.0, "m", "Length of the bar joining A to the counterweight B", min=0.0,
+                       min_exclusive=True)
+
+
+def validate_example(data: ExampleData) -> None:
+    """Raise ValueError naming the first datum that is NaN or outside its range."""
+    check_fields(data)
+    _check_bar(data.OA, data.AB)
+
+
+def stroke_fraction(phi: float) -> float:
+    """s = t/T of the uniform rocking at arm angle phi on the stroke +pi/2 -> -pi/2."""
+    return (HALF_PI - phi) / (2.0 * math.pi)
+
+
+# G_pv / G_max as a function of s over the stroke, s in [0, 1/2]
+PAYLOAD_LAWS: dict[str, Callable[[float], float]] = {
+    "parabolic": lambda s: 4.0 * s * (1.0 - s),
+    "linear": lambda s: 2.0 * s,
+}
+
+
+class StrokeResult(NamedTuple):
+    """Energies and unbalance of one stroke of the static example."""
+
+    E_u: float            # J, net work of M_g (unbalanced arm)
+    E_b: float            # J, net work of M_u (balanced arm)
+    eps: float            # efficaciousness 1 - E_b/E_u, eq. 31
+    max_abs_Mu: float     # N m
+    phi_max_Mu: float     # rad, where |M_u| is largest
+
+
+def stroke(data: ExampleData, law: str) -> StrokeResult:
+    """Net stroke energies, eps and the largest |M_u| for one payload law of PAYLOAD_LAWS."""
+    validate_example(data)
+    shape = PAYLOAD_LAWS[law]
+
+    def unbalance(phi: float) -> Moments:
+        G_pv = data.Gmax * shape(stroke_fraction(phi))
+        return moments(G_pv, data.OP, data.G2, data.OA, data.AB, phi)
+
+    E_u = abs(gauss_legendre(lambda phi: unbalance(phi).M_g, -HALF_PI, HALF_PI))
+    E_b = abs(gauss_legendre(lambda phi: unbalance(phi).M_u, -HALF_PI, HALF_PI))
+    phi_max = argmax(lambda phi: abs(unbalance(phi).M_u), -HALF_PI, HALF_PI)
+    return StrokeResult(E_u, E_b, 1.0 - E_b / E_u, abs(unbalance(phi_max).M_u), phi_max)
+
+
+# Five-point Gauss-Legendre rule on [-1, 1]
+_GL_X = (-math.sqrt(5.0 + 2.0 * math.sqrt(10.0 / 7.0)) / 3.0,
+         -math.sqrt(5.0 - 2.0 * math.sqrt(10.0 / 7.0)) / 3.0, 0.0,
+         math.sqrt(5.0 - 2.0 * math.sqrt(10.0 / 7.0)) / 3.0,
+         math.sqrt(5.0 + 2.0 * math.sqrt(10.0 / 7.0)) / 3.0)
+_GL_W = ((322.0 - 13.0 * math.sqrt(70.0)) / 900.0, (322.0 + 13.0 * math.sqrt(70.0)) / 900.0,
+         128.0 / 225.0, (322.0 + 13.0 * math.sqrt(70.0)) / 900.0,
+         (322.0 - 13.0 * math.sqrt(70.0)) / 900.0)
+
+
+def gauss_legendre(f: Callable[[float], float], a: float, b: float, panels: int = 64) -> float:
+    """Integral of a smooth f over [a, b]: composite 5-point Gauss-Legendre (error ~ h^10)."""
+    h = (b - a) / panels
+    total = 0.0
+    for i in range(panels):
+        mid = a + (i + 0.5) * h
+        total += sum(w * f(mid + 0.5 * h * x) for x, w in zip(_GL_X, _GL_W))
+    return 0.5 * h * total
+
+
+def argmax(f: Callable[[float], float], a: float, b: float, samples: int = 2001,
+           tol: float = 1e-12) -> float:
+    """Abscissa of the largest f on [a, b]: a grid search refined by golden-section search."""
+    h = (b - a) / (samples - 1)
+    best = max(range(samples), key=lambda i: f(a + i * h))
+    lo, hi = max(a, a + (best - 1) * h), min(b, a + (best + 1) * h)
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+    f1, f2 = f(x1), f(x2)
+    while hi - lo > tol:
+        if f1 >= f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - ratio * (hi - lo)
+            f1 = f(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + ratio * (hi - lo)
+            f2 = f(x2)
+    return 0.5 * (lo + hi)
+
+
+# ---- dynamics for the FMU ---------------------------------------------------------------
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of the arm; the link is Franchetti's (Table 1, as for SelfRegulatingBalancer).
+
+    Ours, not from a paper: J_link = m L^2/3 with L = 2 c (0.16 kg m^2); fixed counterweight
+    6 kg at 0.1 m (balances m c = 0.6 kg m with half the inertia of a mirror image of the link
+    mass); d_link = 0.01 N m s/rad. PLACEHOLDERS, to be replaced by the harness optimisation:
+    m2 = 0.75 kg, OA = 0.175 m, AB = 0.35 m, the paper's example scaled to a 1 kg payload at
+    w = 0.35 m (lengths by w/OP, weights by 1 kg g / G_max).
+    """
+
+    m: float = _param(3.0, "kg", "Link mass", min=0.0)
+    c: float = _param(0.2, "m", "Distance from pivot O to the link centre of mass", min=0.0)
+    J_link: float = _param(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, L = 0.4 m)",
+                           min=0.0)
+    w: float = _param(0.35, "m", "Distance from O to the payload (the paper's OP)", min=0.0)
+    m2: float = _param(0.75, "kg", "Mass of the sliding counterweight (G2/g)", min=0.0)
+    OA: float = _param(0.175, "m", "Height of the ground pivot A above O", min=0.0)
+    AB: float = _param(0.35, "m", "Length of the bar joining A to the sliding counterweight B",
+                       min=0.0, min_exclusive=True)
+    m_fixed_cw: float = _param(6.0, "kg", "Mass of the fixed counterweight opposite the payload",
+                               min=0.0)
+    c_fixed_cw: float = _param(0.1, "m", "Distance from O to the fixed counterweight", min=0.0)
+    d_link: float = _param(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    g: float = _param(9.81, "m/s2", "Gravitational acceleration", min=0.0)
+    theta0: float = _param(60.0 * DEG, "rad", "Initial arm angle from the upward vertical")
+    omega0: float = _param(0.0, "rad/s", "Initial arm angular velocity")
+    J_drive: float = _param(0.0, "kg.m2", "Drive inertia reflected to the arm (J_rotor N^2)",
+                            min=0.0)
+
+    @property
+    def J_min(self) -> float:
+        """Lower bound of the arm's inertia without payload (OB >= AB - OA) [kg m^2]."""
+        return (self.J_link + self.J_drive + self.m_fixed_cw * self.c_fixed_cw ** 2
+                + self.m2 * (self.AB - self.OA) ** 2)
+
+
+def validate(params: Parameters) -> None:
+    """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
+    check_fields(params)
+    _check_bar(params.OA, params.AB)
+    if not params.J_min > 0.0:
+        raise ValueError("J_link + J_drive + m_fixed_cw c_fixed_cw^2 + m2 (AB - OA)^2 = "
+                         f"{params.J_min} kg.m2 must be positive: the arm needs inertia")
+
+
+def paper_example_parameters(data: ExampleData = ExampleData(), g: float = 9.81) -> Parameters:
+    """Parameters of the paper's example arm: payload at OP, counterweight G2/g, bar OA-AB.
+
+    The paper gives no arm mass or inertia (its weight is balanced by the fixed counterweight
+    and drops out), so the arm is massless, without friction, and starts at phi = pi/2.
+    """
+    validate_example(data)
+    return Parameters(m=0.0, c=0.0, J_link=0.0, w=data.OP, m2=data.G2 / g, OA=data.OA,
+                      AB=data.AB, m_fixed_cw=0.0, c_fixed_cw=0.0, d_link=0.0, g=g,
+                      theta0=0.0, omega0=0.0)
+
+
+class Inputs(NamedTuple):
+    """Inputs held constant over a communication step."""
+
+    tau_drive: float = 0.0    # N m, drive torque on the arm (counter-clockwise, along theta)
+    payload: float = 0.0      # kg, payload at distance w
+
+
+class State(NamedTuple):
+    """Continuous state: arm angle from the upward vertical [rad] and its rate [rad/s]."""
+
+    theta: float
+    omega: float
+
+
+def initial_state(params: Parameters) -> State:
+    """State at t = 0."""
+    return State(params.theta0, params.omega0)
+
+
+def _net_moment_arm(p: Parameters, payload: float, OB: float) -> float:
+    """m c + payload w - m_fixed_cw c_fixed_cw - m2 OB: E_p = g cos(theta) times this [kg m]."""
+    return p.m * p.c + payload * p.w - p.m_fixed_cw * p.c_fixed_cw - p.m2 * OB
+
+
+def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
+    """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
+    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
+    J = (p.J_link + payload * p.w ** 2 + p.m_fixed_cw * p.c_fixed_cw ** 2 + p.J_drive
+         + p.m2 * (OB * OB + dOB * dOB))
+    return J, -2.0 * p.m2 * dOB * (OB + d2OB)
+
+
+def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
+    """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
+    OB, dOB, _ = geometry(p.OA, p.AB, HALF_PI - theta)
+    return p.g * (math.sin(theta) * _net_moment_arm(p, payload, OB)
+                  - math.cos(theta) * p.m2 * dOB)
+
+
+def derivatives(p: Parameters, u: Inputs, s: State) -> State:
+    """Time derivative of the state for constant inputs (Lagrange equation)."""
+    J, dJ = inertia(p, u.payload, s.theta)
+    torque = (u.tau_drive + tau_gravity(p, u.payload, s.theta) - p.d_link * s.omega
+              - 0.5 * dJ * s.omega ** 2)
+    return State(s.omega, torque / J)
+
+
+def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
+    """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
+    J, dJ = inertia(p, u.payload, s.theta)
+    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - s.theta)
+    stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
+                       + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
+    return max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega) * (1.0 + abs(dJ) / J))
+
+
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant."""
+    return integrate(lambda state: derivatives(p, u, state), s, dt,
+                     characteristic_rate(p, u, s))
+
+
+class Outputs(NamedTuple):
+    """Observable quantities of SPEC section 4 (SI units)."""
+
+    theta: float
+    omega: float
+    OB: float
+    tau_gravity: float
+    E_p: float
+    E_kin: float
+    M_g: float
+    M_b: float
+    M_u: float
+    M_bar: float
+
+
+def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
+    """All outputs for the state s and inputs u."""
+    phi = HALF_PI - s.theta
+    OB, dOB, _ = geometry(p.OA, p.AB, phi)
+    M = moments(u.payload * p.g, p.w, p.m2 * p.g, p.OA, p.AB, phi)
+    return Outputs(
+        theta=s.theta, omega=s.omega, OB=OB,
+        tau_gravity=tau_gravity(p, u.payload, s.theta),
+        E_p=p.g * math.cos(s.theta) * _net_moment_arm(p, u.payload, OB),
+        E_kin=0.5 * inertia(p, u.payload, s.theta)[0] * s.omega ** 2,
+        M_g=M.M_g, M_b=M.M_b, M_u=M.M_u,
+        M_bar=p.m2 * p.g * dOB * math.sin(phi),
+    )
