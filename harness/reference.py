@@ -21,7 +21,7 @@ from scipy.integrate import solve_ivp
 
 from harness.controller import ControllerDesign, design_pid
 from harness.drive import MotorParameters
-from harness.scenarios import Scenario, Variant, quintic
+from harness.scenarios import RAMP_SHAPES, Scenario, Variant, quintic
 
 # model identifier -> its pure physics module in fmu_src
 PHYSICS = {"SelfRegulatingBalancer": "fmu_src.self_regulating",
@@ -69,21 +69,21 @@ def simulate(scenario: Scenario, variant: Variant, motor: MotorParameters = Moto
 
     # start in equilibrium, as the co-simulation does
     mech0 = physics.initial_state(p)
-    u0 = _inputs(physics, scenario, variant, 0.0, 0.0, 0.0)
-    tau_gravity0 = physics.outputs(p, u0, mech0).tau_gravity
+    segments = scenario.input_segments(variant)
+    tau_gravity0 = physics.outputs(p, _phase_inputs(physics, segments[0], 0.0, 0.0),
+                                   mech0).tau_gravity
     i0 = -tau_gravity0 / k_tau
     x = np.array([*mech0, i0, i0 * motor.R_a, scenario.initial_angle - mech0[angle_index],
                   *np.zeros(len(ENERGIES))])
     times, angles = [0.0], [mech0[angle_index]]
     start_angle = scenario.initial_angle
 
-    for (_, t0, t1), phase in zip(scenario.phase_times(), scenario.phases, strict=True):
-        u_start = _inputs(physics, scenario, variant, t0, t0, t1)
-        u_end = _inputs(physics, scenario, variant, t1, t0, t1)
+    for (_, t0, t1), phase, segment in zip(scenario.phase_times(), scenario.phases, segments,
+                                           strict=True):
         a0, a1 = start_angle, phase.target
 
-        def rhs(t: float, y: np.ndarray, t0=t0, t1=t1, a0=a0, a1=a1, u_start=u_start,
-                u_end=u_end) -> np.ndarray:
+        def rhs(t: float, y: np.ndarray, t0=t0, t1=t1, a0=a0, a1=a1,
+                segment=segment) -> np.ndarray:
             s = (t - t0) / (t1 - t0)
             reference = a0 + (a1 - a0) * float(quintic(np.float64(s)))
             mech, current, integral, filtered = y[:n_mech], y[n_mech], y[n_mech + 1], y[n_mech + 2]
@@ -93,10 +93,7 @@ def simulate(scenario: Scenario, variant: Variant, motor: MotorParameters = Moto
             voltage = min(max(voltage, -motor.V_supply), motor.V_supply)
             omega = mech[speed_index]
             torque = k_tau * current
-            u = u_start._replace(tau_drive=torque, **{
-                name: a + (b - a) * s for name, a, b in zip(u_start._fields, u_start, u_end,
-                                                             strict=True)
-                if name != "tau_drive" and not isinstance(a, bool) and a != b})
+            u = _phase_inputs(physics, segment, s, torque)
             d_mech = physics.derivatives(p, u, physics.State(*mech))
             power = voltage * current
             return np.array([
@@ -120,12 +117,9 @@ def simulate(scenario: Scenario, variant: Variant, motor: MotorParameters = Moto
     return ReferenceResult(energies, np.array(times), np.array(angles))
 
 
-def _inputs(physics: ModuleType, scenario: Scenario, variant: Variant, t: float, t0: float,
-            t1: float) -> tuple:
-    """The mechanism's Inputs at time t of the phase [t0, t1] (tau_drive left at 0)."""
-    # sample just inside the phase so that steps at its start are included and the next
-    # phase's steps are not
-    inside = min(max(t, t0 + 1e-9), t1 - 1e-9)
-    signals = scenario.inputs(np.array([inside]), variant)
-    values = {name: signals[name][0].item() for name in physics.Inputs._fields if name in signals}
-    return physics.Inputs(**values)
+def _phase_inputs(physics: ModuleType, segment: dict[str, tuple], s: float,
+                  torque: float) -> tuple:
+    """The mechanism's Inputs at fraction s of a phase (see Scenario.input_segments)."""
+    values = {name: (start if start == end else start + (end - start) * RAMP_SHAPES[shape](s))
+              for name, (start, end, shape) in segment.items() if name in physics.Inputs._fields}
+    return physics.Inputs(**values)._replace(tau_drive=torque)

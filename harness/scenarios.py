@@ -3,8 +3,9 @@
 A scenario names the mechanism FMU, its parameters, the joint the drive moves and a list of
 phases. Each phase has a duration [s], a target angle [deg] reached by a quintic (zero
 velocity and acceleration at both ends) over the phase, and input changes applied at the
-phase start: a plain value steps there, `{ ramp = value }` ramps linearly to value over the
-phase. Inputs keep their value until a later phase changes them.
+phase start: a plain value steps there, `{ ramp = value }` ramps to value over the phase,
+linearly or with `shape` one of RAMP_SHAPES (e.g. `{ ramp = 4.0, shape = "ease_out" }`).
+Inputs keep their value until a later phase changes them.
 
 Variants are configurations of the same run (SPEC.md section 3): they may replace the FMU
 (`model`), override its parameters (`parameters`), hold inputs at fixed values for the whole
@@ -24,11 +25,26 @@ import numpy as np
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 
+def quintic(s: np.ndarray) -> np.ndarray:
+    """Quintic 10 s^3 - 15 s^4 + 6 s^5: 0 -> 1 with zero speed and acceleration at both ends."""
+    return s ** 3 * (10.0 + s * (-15.0 + 6.0 * s))
+
+
+# ramp shapes f(s), f(0) = 0, f(1) = 1, s the fraction of the phase
+RAMP_SHAPES = {
+    "linear": lambda s: s,
+    "quintic": quintic,
+    "ease_out": lambda s: s * (2.0 - s),  # parabola with zero slope at the end
+    "ease_in": lambda s: s * s,           # parabola with zero slope at the start
+}
+
+
 @dataclass(frozen=True)
 class Ramp:
-    """Linear ramp to `target` over the phase."""
+    """Ramp to `target` over the phase with one of RAMP_SHAPES."""
 
     target: float
+    shape: str = "linear"
 
 
 @dataclass(frozen=True)
@@ -93,42 +109,54 @@ class Scenario:
         ref[times > self.duration] = start_angle
         return ref
 
-    def inputs(self, times: np.ndarray, variant: Variant) -> dict[str, np.ndarray]:
-        """Input signals of the scenario at the given times, with the variant's overrides."""
+    def input_segments(self, variant: Variant) -> list[dict[str, tuple[Any, Any, str]]]:
+        """Per phase, each input as (value at start, value at end, ramp shape).
+
+        The variant's fixed inputs replace the scenario's; its dropped inputs are left out.
+        """
         names = [n for phase in self.phases for n in phase.inputs]
         names = [n for n in dict.fromkeys(names) if n not in variant.drop_inputs]
-        signals: dict[str, np.ndarray] = {}
-        for name in names:
-            value: Any = 0.0
-            signal = np.zeros(times.shape)
-            for (_, t0, t1), phase in zip(self.phase_times(), self.phases, strict=True):
-                inside = times >= t0
+        booleans = {n for phase in self.phases for n, v in phase.inputs.items()
+                    if isinstance(v, bool)}
+        values: dict[str, Any] = {n: False if n in booleans else 0.0 for n in names}
+        segments = []
+        for phase in self.phases:
+            segment = {}
+            for name in names:
                 change = phase.inputs.get(name)
                 if isinstance(change, Ramp):
-                    s = np.clip((times[inside] - t0) / (t1 - t0), 0.0, 1.0)
-                    signal[inside] = value + (change.target - value) * s
-                    value = change.target
-                elif change is not None:
-                    value = change
-                    signal[inside] = value
-            if isinstance(value, bool):
-                signal = signal.astype(bool)
-            signals[name] = signal
-        for name, value in variant.inputs.items():
-            signals[name] = np.full(times.shape, value, dtype=type(value))
+                    segment[name] = (values[name], change.target, change.shape)
+                    values[name] = change.target
+                else:
+                    if change is not None:
+                        values[name] = change
+                    segment[name] = (values[name], values[name], "linear")
+            segment.update({n: (v, v, "linear") for n, v in variant.inputs.items()})
+            segments.append(segment)
+        return segments
+
+    def inputs(self, times: np.ndarray, variant: Variant) -> dict[str, np.ndarray]:
+        """Input signals at the given times (a phase's changes apply from its start)."""
+        signals: dict[str, np.ndarray] = {}
+        segments = self.input_segments(variant)
+        for (_, t0, t1), segment in zip(self.phase_times(), segments, strict=True):
+            inside = times >= t0
+            s = np.clip((times[inside] - t0) / (t1 - t0), 0.0, 1.0)
+            for name, (start, end, shape) in segment.items():
+                signal = signals.setdefault(
+                    name, np.zeros(times.shape, dtype=bool if isinstance(end, bool) else float))
+                signal[inside] = end if start == end else start + (end - start) * \
+                    RAMP_SHAPES[shape](s)
         return signals
-
-
-def quintic(s: np.ndarray) -> np.ndarray:
-    """Quintic 10 s^3 - 15 s^4 + 6 s^5: 0 -> 1 with zero speed and acceleration at both ends."""
-    return s ** 3 * (10.0 + s * (-15.0 + 6.0 * s))
 
 
 def _input_change(name: str, value: Any, where: str) -> Any:
     if isinstance(value, dict):
-        if set(value) != {"ramp"}:
-            raise ValueError(f"{where}: input {name} must be a value or {{ ramp = value }}")
-        return Ramp(float(value["ramp"]))
+        shape = value.get("shape", "linear")
+        if "ramp" not in value or set(value) - {"ramp", "shape"} or shape not in RAMP_SHAPES:
+            raise ValueError(f"{where}: input {name} must be a value or {{ ramp = value, "
+                             f"shape = one of {', '.join(RAMP_SHAPES)} }}")
+        return Ramp(float(value["ramp"]), shape)
     if not isinstance(value, bool | int | float) or not math.isfinite(value):
         raise ValueError(f"{where}: input {name} = {value!r} is not a finite number or boolean")
     return value if isinstance(value, bool) else float(value)
