@@ -14,6 +14,7 @@ an initial condition, not a feedforward: during the task the drive gets only the
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -55,8 +56,13 @@ def _parameter(fmu: CoSimFMU, parameters: dict[str, float], name: str) -> float:
 def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         motor: MotorParameters = MotorParameters(),
         design: ControllerDesign = ControllerDesign(),
-        progress: Callable[[int], None] | None = None) -> RunResult:
-    """Co-simulate one variant of a scenario and return its series and metrics."""
+        progress: Callable[[int], None] | None = None,
+        fmu: CoSimFMU | None = None) -> RunResult:
+    """Co-simulate one variant of a scenario and return its series and metrics.
+
+    fmu: an instance of the variant's model to reuse (it is reset first and left open),
+    e.g. one per worker in a parameter sweep; by default a new instance is made and freed.
+    """
     if not (step_size > 0.0 and math.isfinite(step_size)):
         raise ValueError(f"step size = {step_size} s is outside (0, inf)")
     joint = scenario.joint
@@ -70,8 +76,16 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     inputs = scenario.inputs(times, variant)
     record_every = max(1, round(RECORD_INTERVAL / step_size))
 
-    instance = f"{scenario.name}.{variant.name}"
-    with CoSimFMU(fmu_build.fmu_path(model), instance_name=instance) as fmu:
+    if fmu is None:
+        context = CoSimFMU(fmu_build.fmu_path(model), f"{scenario.name}.{variant.name}")
+    else:
+        if fmu.model_description.modelName != model:
+            raise ValueError(f"variant {variant.name} needs model {model}, "
+                             f"not {fmu.model_description.modelName}")
+        fmu.reset()
+        context = contextlib.nullcontext(fmu)
+    with context as fmu:
+        first_message = len(fmu.messages)
         unknown = [n for n in inputs if n not in fmu.variables]
         if unknown:
             raise ValueError(f"model {model} has no input {', '.join(unknown)}: drop it in "
@@ -118,7 +132,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                 rows.append(fmu.get(record_names))
                 if progress is not None:
                     progress(record_every)
-        messages = [f"{m.status}: {m.message}" for m in fmu.messages]
+        messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
     voltage, current, torque, angle = map(np.asarray, (voltage, current, torque, angle))
     dtheta = np.diff(angle)
