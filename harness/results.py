@@ -118,7 +118,11 @@ def plot(results: list[RunResult], path: Path) -> Path:
         ax.set_xlabel("time [s]")
     fig.suptitle(f"{results[0].scenario}: mechanism (Franchetti et al. 2021, Fig. 5) and drive")
     fig.tight_layout()
+    return save_figure(fig, path)
 
+
+def save_figure(fig: plt.Figure, path: Path) -> Path:
+    """Write a figure as PNG atomically and close it."""
     def write(tmp: Path) -> None:
         fig.savefig(tmp, dpi=110, format="png")
     write_atomic(path, write)

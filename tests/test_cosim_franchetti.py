@@ -11,6 +11,7 @@ import pytest
 
 from fmu_src.self_regulating import Parameters
 from harness import master, reference, results, scenarios
+from harness.compare import compare, read_result, report
 from harness.drive import MotorParameters
 
 SCENARIO = scenarios.load("franchetti2021")
@@ -122,3 +123,12 @@ def test_rerun_reproduces_committed_summary(runs: dict[str, master.RunResult]) -
     # the loop is deterministic; 1e-6 allows for another CPU's floating-point library
     np.testing.assert_allclose(fresh[numeric].to_numpy(float),
                                committed[numeric].to_numpy(float), rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_rerun_reproduces_committed_series(runs: dict[str, master.RunResult],
+                                           variant: str) -> None:
+    committed = read_result(results.RESULTS_DIR / "franchetti2021" / f"{variant}.csv")
+    signals = ["theta", "b", "E_t", "tau_drive", "i", "E_drawn"]
+    comparisons = compare(committed, runs[variant].series, signals, rtol=1e-6, atol=1e-9)
+    assert all(c.passed for c in comparisons), report(comparisons)

@@ -1,0 +1,135 @@
+"""`python -m harness compare REFERENCE.csv RESULT.csv`: signal-by-signal comparison.
+
+Two checks per signal, both on the result interpolated to the reference's time points:
+- tolerance: |result - reference| <= atol + rtol * max |reference| at every point;
+- band: the FMI cross-check band of `fmpy.util.validate_signal` (a band around the
+  reference, 20 samples wide and 10 % of the signal's range high) must hold every point.
+A signal passes when both hold. The files follow the FMI cross-check CSV conventions.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from fmpy.util import validate_signal
+
+COMMAND = "compare"
+HELP = "compare two result CSV files signal by signal within tolerances"
+
+
+@dataclass(frozen=True)
+class SignalComparison:
+    """Outcome for one signal: deviations in its own unit, points outside the checks."""
+
+    name: str
+    max_abs_error: float
+    allowed: float
+    outside_tolerance: int
+    outside_band: int
+
+    @property
+    def passed(self) -> bool:
+        return self.outside_tolerance == 0 and self.outside_band == 0
+
+
+def read_result(path: Path) -> pd.DataFrame:
+    """A result CSV, checked: `time` first, strictly increasing, numeric columns."""
+    try:
+        frame = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as error:
+        raise ValueError(f"{path}: cannot read as CSV ({error})") from None
+    if frame.columns.empty or frame.columns[0] != "time":
+        raise ValueError(f"{path}: the first column must be 'time'")
+    if len(frame) < 2:
+        raise ValueError(f"{path}: needs at least two rows")
+    bad = [c for c in frame.columns if not pd.api.types.is_numeric_dtype(frame[c])]
+    if bad:
+        raise ValueError(f"{path}: non-numeric column(s) {', '.join(bad)}")
+    if not np.all(np.diff(frame.time.to_numpy()) > 0):
+        raise ValueError(f"{path}: time is not strictly increasing")
+    return frame
+
+
+def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | None = None,
+            rtol: float = 1e-3, atol: float = 1e-9) -> list[SignalComparison]:
+    """Compare the named signals (default: every signal the two tables share)."""
+    if not (rtol >= 0 and atol >= 0):
+        raise ValueError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
+    shared = [c for c in reference.columns[1:] if c in result.columns]
+    if signals is None:
+        signals = shared
+    unknown = [s for s in signals if s not in shared]
+    if unknown:
+        raise ValueError(f"unknown signal(s) {', '.join(unknown)}; shared signals: "
+                         f"{', '.join(shared)}")
+    t_ref, t_res = reference.time.to_numpy(float), result.time.to_numpy(float)
+    inside = (t_ref >= t_res[0]) & (t_ref <= t_res[-1])
+    out = []
+    for name in signals:
+        y_ref = reference[name].to_numpy(float)
+        y_res = np.interp(t_ref[inside], t_res, result[name].to_numpy(float))
+        error = np.abs(y_res - y_ref[inside])
+        allowed = atol + rtol * float(np.max(np.abs(y_ref)))
+        _, _, _, band_out = validate_signal(t=t_res, y=result[name].to_numpy(float),
+                                            t_ref=t_ref.copy(), y_ref=y_ref)
+        out.append(SignalComparison(name, float(np.max(error, initial=0.0)), allowed,
+                                    int(np.sum(error > allowed)), int(np.sum(band_out))))
+    return out
+
+
+def report(comparisons: list[SignalComparison]) -> str:
+    """A table of the comparisons."""
+    table = pd.DataFrame([{"signal": c.name, "max_abs_error": c.max_abs_error,
+                           "allowed": c.allowed, "outside_tol": c.outside_tolerance,
+                           "outside_band": c.outside_band,
+                           "status": "ok" if c.passed else "FAIL"} for c in comparisons])
+    return table.to_string(index=False, float_format=lambda v: f"{v:.4g}")
+
+
+def plot(reference: pd.DataFrame, result: pd.DataFrame, comparisons: list[SignalComparison],
+         path: Path) -> Path:
+    """Reference, result and tolerance band per signal, written atomically as PNG."""
+    import matplotlib.pyplot as plt  # imported here: only a plot needs it
+
+    from harness.results import save_figure
+
+    fig, axes = plt.subplots(len(comparisons), 1, figsize=(9, 2.2 * len(comparisons)),
+                             sharex=True, squeeze=False)
+    for ax, c in zip(axes[:, 0], comparisons, strict=True):
+        ax.fill_between(reference.time, reference[c.name] - c.allowed,
+                        reference[c.name] + c.allowed, color="0.85", label="tolerance")
+        ax.plot(reference.time, reference[c.name], "k", lw=1, label="reference")
+        ax.plot(result.time, result[c.name], "--", color="C3" if not c.passed else "C0",
+                lw=1, label="result")
+        ax.set_ylabel(c.name)
+        ax.legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("reference", type=Path, help="reference CSV (time first)")
+    parser.add_argument("result", type=Path, help="result CSV to check")
+    parser.add_argument("--signals", help="comma-separated signal names (default: all shared)")
+    parser.add_argument("--rtol", type=float, default=1e-3,
+                        help="relative tolerance, of the signal's largest |value| (1e-3)")
+    parser.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (1e-9)")
+    parser.add_argument("--plot", type=Path, help="write a report plot (PNG) here")
+
+
+def run(args: argparse.Namespace) -> int:
+    reference, result = read_result(args.reference), read_result(args.result)
+    signals = args.signals.split(",") if args.signals else None
+    comparisons = compare(reference, result, signals, args.rtol, args.atol)
+    print(report(comparisons))
+    if args.plot:
+        print(plot(reference, result, comparisons, args.plot))
+    failed = [c.name for c in comparisons if not c.passed]
+    if failed:
+        print(f"{len(failed)} signal(s) outside tolerance: {', '.join(failed)}")
+    return 1 if failed else 0
