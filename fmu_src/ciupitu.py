@@ -67,37 +67,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
-from typing import Any, NamedTuple
+from dataclasses import dataclass
+from typing import NamedTuple
 
 from fmu_src.integration import integrate
+from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
 HALF_PI = 0.5 * math.pi
-
-
-def _param(default: float, unit: str, description: str, *, min: float | None = None,
-           max: float | None = None, min_exclusive: bool = False) -> float:
-    """Dataclass field carrying the FMI unit, description and physical bounds."""
-    return field(default=default, metadata=dict(
-        unit=unit, description=description, min=min, max=max, min_exclusive=min_exclusive))
-
-
-def check_fields(data: Any) -> None:
-    """Raise ValueError naming the first field of a _param dataclass that is NaN or out of range.
-
-    Messages start with the field name (the harness relies on it to name its option).
-    """
-    for f in fields(data):
-        value = getattr(data, f.name)
-        lo, hi, open_lo = f.metadata["min"], f.metadata["max"], f.metadata["min_exclusive"]
-        if not math.isfinite(value):
-            raise ValueError(f"{f.name} = {value} is not a finite number")
-        if lo is not None and (value <= lo if open_lo else value < lo):
-            bound = f"({lo}, inf)" if open_lo else f"[{lo}, inf)"
-            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is outside {bound}")
-        if hi is not None and value > hi:
-            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is above {hi}")
 
 
 def _check_bar(OA: float, AB: float) -> None:
@@ -144,18 +121,18 @@ def moments(G_pv: float, OP: float, G2: float, OA: float, AB: float, phi: float)
 class ExampleData:
     """Data of the paper's Section 4 example (defaults are the paper's)."""
 
-    Gmax: float = _param(4.0, "N", "Peak of the variable payload weight G_pv,max", min=0.0,
-                         min_exclusive=True)
-    OP: float = _param(2.0, "m", "Distance from O to the payload P", min=0.0, min_exclusive=True)
-    G2: float = _param(3.0, "N", "Weight of the sliding counterweight", min=0.0)
-    OA: float = _param(1.0, "m", "Height of the ground pivot A above O", min=0.0)
-    AB: float = _param(2.0, "m", "Length of the bar joining A to the counterweight B", min=0.0,
-                       min_exclusive=True)
+    Gmax: float = parameter(4.0, "N", "Peak of the variable payload weight G_pv,max", min=0.0,
+                            min_exclusive=True)
+    OP: float = parameter(2.0, "m", "Distance from O to the payload P", min=0.0, min_exclusive=True)
+    G2: float = parameter(3.0, "N", "Weight of the sliding counterweight", min=0.0)
+    OA: float = parameter(1.0, "m", "Height of the ground pivot A above O", min=0.0)
+    AB: float = parameter(2.0, "m", "Length of the bar joining A to the counterweight B", min=0.0,
+                          min_exclusive=True)
 
 
 def validate_example(data: ExampleData) -> None:
     """Raise ValueError naming the first datum that is NaN or outside its range."""
-    check_fields(data)
+    check_ranges(data)
     _check_bar(data.OA, data.AB)
 
 
@@ -249,24 +226,24 @@ class Parameters:
     w = 0.35 m (lengths by w/OP, weights by 1 kg g / G_max).
     """
 
-    m: float = _param(3.0, "kg", "Link mass", min=0.0)
-    c: float = _param(0.2, "m", "Distance from pivot O to the link centre of mass", min=0.0)
-    J_link: float = _param(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, L = 0.4 m)",
-                           min=0.0)
-    w: float = _param(0.35, "m", "Distance from O to the payload (the paper's OP)", min=0.0)
-    m2: float = _param(0.75, "kg", "Mass of the sliding counterweight (G2/g)", min=0.0)
-    OA: float = _param(0.175, "m", "Height of the ground pivot A above O", min=0.0)
-    AB: float = _param(0.35, "m", "Length of the bar joining A to the sliding counterweight B",
-                       min=0.0, min_exclusive=True)
-    m_fixed_cw: float = _param(6.0, "kg", "Mass of the fixed counterweight opposite the payload",
+    m: float = parameter(3.0, "kg", "Link mass", min=0.0)
+    c: float = parameter(0.2, "m", "Distance from pivot O to the link centre of mass", min=0.0)
+    J_link: float = parameter(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, L = 0.4 m)",
+                              min=0.0)
+    w: float = parameter(0.35, "m", "Distance from O to the payload (the paper's OP)", min=0.0)
+    m2: float = parameter(0.75, "kg", "Mass of the sliding counterweight (G2/g)", min=0.0)
+    OA: float = parameter(0.175, "m", "Height of the ground pivot A above O", min=0.0)
+    AB: float = parameter(0.35, "m", "Length of the bar joining A to the sliding counterweight B",
+                          min=0.0, min_exclusive=True)
+    m_fixed_cw: float = parameter(6.0, "kg", "Mass of the fixed counterweight opposite the payload",
+                                  min=0.0)
+    c_fixed_cw: float = parameter(0.1, "m", "Distance from O to the fixed counterweight", min=0.0)
+    d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
+    theta0: float = parameter(60.0 * DEG, "rad", "Initial arm angle from the upward vertical")
+    omega0: float = parameter(0.0, "rad/s", "Initial arm angular velocity")
+    J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the arm (J_rotor N^2)",
                                min=0.0)
-    c_fixed_cw: float = _param(0.1, "m", "Distance from O to the fixed counterweight", min=0.0)
-    d_link: float = _param(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
-    g: float = _param(9.81, "m/s2", "Gravitational acceleration", min=0.0)
-    theta0: float = _param(60.0 * DEG, "rad", "Initial arm angle from the upward vertical")
-    omega0: float = _param(0.0, "rad/s", "Initial arm angular velocity")
-    J_drive: float = _param(0.0, "kg.m2", "Drive inertia reflected to the arm (J_rotor N^2)",
-                            min=0.0)
 
     @property
     def J_min(self) -> float:
@@ -277,7 +254,7 @@ class Parameters:
 
 def validate(params: Parameters) -> None:
     """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
-    check_fields(params)
+    check_ranges(params)
     _check_bar(params.OA, params.AB)
     if not params.J_min > 0.0:
         raise ValueError("J_link + J_drive + m_fixed_cw c_fixed_cw^2 + m2 (AB - OA)^2 = "

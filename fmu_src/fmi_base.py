@@ -65,8 +65,9 @@ class MechanismSlave(Fmi2Slave):
 
     Subclasses set `parameters_type` (a frozen dataclass whose fields carry `unit`,
     `description`, `min`, `max`, `min_exclusive` metadata and which has a `validate`
-    function), register inputs and outputs with `add_input`/`add_output`, and implement
-    `initialise(params)` and `step(dt)`. Their hidden state is listed in `hidden_state`.
+    function; bool fields become Boolean parameters, the others Real parameters), register
+    inputs and outputs with `add_input`/`add_output`, and implement `initialise(params)` and
+    `step(dt)`. Their hidden state is listed in `hidden_state`.
     """
 
     parameters_type: type
@@ -82,9 +83,17 @@ class MechanismSlave(Fmi2Slave):
         for f in fields(self.parameters_type):
             meta = f.metadata
             setattr(self, f.name, f.default)
-            self._add(Real(f.name, causality=Fmi2Causality.parameter,
-                           variability=Fmi2Variability.fixed, description=meta["description"]),
-                      VariableInfo(meta["unit"], meta["description"], meta["min"], meta["max"]))
+            if isinstance(f.default, bool):
+                self._add(Boolean(f.name, causality=Fmi2Causality.parameter,
+                                  variability=Fmi2Variability.fixed,
+                                  description=meta["description"]),
+                          VariableInfo(None, meta["description"]))
+            else:
+                self._add(Real(f.name, causality=Fmi2Causality.parameter,
+                               variability=Fmi2Variability.fixed,
+                               description=meta["description"]),
+                          VariableInfo(meta["unit"], meta["description"], meta["min"],
+                                       meta["max"]))
 
     # ---- registration -------------------------------------------------------------
     def _add(self, var: Real | Boolean, info: VariableInfo) -> None:
@@ -129,6 +138,12 @@ class MechanismSlave(Fmi2Slave):
         for name, value in zip(values._fields, values):
             setattr(self, name, value)
 
+    def read_parameters(self) -> Any:
+        """The parameters dataclass built from the current parameter variables."""
+        return self.parameters_type(**{
+            f.name: (bool if isinstance(f.default, bool) else float)(getattr(self, f.name))
+            for f in fields(self.parameters_type)})
+
     # ---- FMI life cycle -----------------------------------------------------------
     def fail(self, message: str) -> None:
         """Log an Error-status message (the caller then returns False or raises)."""
@@ -138,8 +153,7 @@ class MechanismSlave(Fmi2Slave):
         self.log(message, Fmi2Status.warning)
 
     def exit_initialization_mode(self) -> None:
-        values = {f.name: float(getattr(self, f.name)) for f in fields(self.parameters_type)}
-        params = self.parameters_type(**values)
+        params = self.read_parameters()
         try:
             self.validate(params)
         except ValueError as error:
@@ -189,8 +203,7 @@ class MechanismSlave(Fmi2Slave):
         state = dict(state)
         hidden = state.pop("__hidden__")
         super()._set_fmu_state(state)
-        self.params = self.parameters_type(
-            **{f.name: float(getattr(self, f.name)) for f in fields(self.parameters_type)})
+        self.params = self.read_parameters()
         self.restore_hidden_state(hidden)
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:

@@ -7,8 +7,9 @@ state get/set and reset. The co-simulation master (`harness.master`) is built on
 
 from __future__ import annotations
 
+import contextlib
 import shutil
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from fmpy.fmi2 import (
 __all__ = ["CoSimFMU", "FMICallException", "LogMessage"]
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+FATAL = STATUS_NAMES.index("Fatal")
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,7 @@ class CoSimFMU:
                                modelIdentifier=self.model_description.coSimulation.modelIdentifier,
                                instanceName=instance_name)
         self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+        self.fatal = False  # after fmi2Fatal the standard allows no further call
 
     def _log(self, _env: Any, _instance: bytes, status: int, category: bytes,
              message: bytes) -> None:
@@ -91,14 +94,24 @@ class CoSimFMU:
     def initialize(self, parameters: Mapping[str, float | bool] | None = None,
                    start_time: float = 0.0, stop_time: float | None = None) -> None:
         """setupExperiment, parameters, enter and exit initialisation mode."""
-        self.slave.setupExperiment(startTime=start_time, stopTime=stop_time)
-        self.slave.enterInitializationMode()
-        if parameters:
-            self.set(parameters)
-        self.slave.exitInitializationMode()
+        with self._watch_fatal():
+            self.slave.setupExperiment(startTime=start_time, stopTime=stop_time)
+            self.slave.enterInitializationMode()
+            if parameters:
+                self.set(parameters)
+            self.slave.exitInitializationMode()
 
     def step(self, time: float, step_size: float) -> None:
-        self.slave.doStep(currentCommunicationPoint=time, communicationStepSize=step_size)
+        with self._watch_fatal():
+            self.slave.doStep(currentCommunicationPoint=time, communicationStepSize=step_size)
+
+    @contextlib.contextmanager
+    def _watch_fatal(self) -> Iterator[None]:
+        try:
+            yield
+        except FMICallException as error:
+            self.fatal = self.fatal or error.status == FATAL
+            raise
 
     def reset(self) -> None:
         self.slave.reset()
@@ -109,12 +122,17 @@ class CoSimFMU:
                 if v.causality == causality]
 
     def close(self) -> None:
-        """Terminate (if possible), free the instance and delete the extracted files."""
-        try:
-            self.slave.terminate()
-        except FMICallException:
-            pass
-        self.slave.freeInstance()
+        """Terminate (if possible), free the instance and delete the extracted files.
+
+        After fmi2Fatal the instance is left alone: FMI 2.0 allows no further call, and
+        pythonfmu 0.7.0 can crash the process if freeInstance follows a Fatal.
+        """
+        if not self.fatal:
+            try:
+                self.slave.terminate()
+            except FMICallException:
+                pass
+            self.slave.freeInstance()
         shutil.rmtree(self._unzip_dir, ignore_errors=True)
 
     def __enter__(self) -> CoSimFMU:

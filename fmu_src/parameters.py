@@ -1,0 +1,39 @@
+"""Parameter fields with FMI metadata, and their range check (standard library only).
+
+A physics module declares its parameters as a frozen dataclass whose fields come from
+`parameter(...)`: the default, the unit and description written to the model description,
+and the physical bounds that `check_ranges` enforces and the FMU declares as min/max.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import field, fields
+from typing import Any
+
+
+def parameter(default: float | bool, unit: str | None, description: str, *,
+              min: float | None = None, max: float | None = None,
+              min_exclusive: bool = False) -> Any:
+    """Dataclass field carrying the FMI unit, description and physical bounds."""
+    return field(default=default, metadata=dict(
+        unit=unit, description=description, min=min, max=max, min_exclusive=min_exclusive))
+
+
+def check_ranges(data: Any) -> None:
+    """Raise ValueError naming the first numeric field that is NaN or outside its bounds.
+
+    Messages start with the field name (the command line relies on it to name its option).
+    """
+    for f in fields(data):
+        value = getattr(data, f.name)
+        if isinstance(value, bool):
+            continue
+        lo, hi, open_lo = f.metadata["min"], f.metadata["max"], f.metadata["min_exclusive"]
+        if not math.isfinite(value):
+            raise ValueError(f"{f.name} = {value} is not a finite number")
+        if lo is not None and (value <= lo if open_lo else value < lo):
+            bound = f"({lo}, inf)" if open_lo else f"[{lo}, inf)"
+            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is outside {bound}")
+        if hi is not None and value > hi:
+            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is above {hi}")

@@ -1,0 +1,267 @@
+"""Physics of the gravity compensator for an RP arm (Demian and Klimchik 2022).
+
+Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
+`PrismaticCompensator`, the harness and the tests. Conventions of SPEC.md section 5: q1 is
+the angle of link 1 from the horizontal, counter-clockwise positive, u = (cos q1, sin q1);
+q2 is the travel of the prismatic joint along the link; gravity along -y; pivot O at the origin.
+
+Potential energy, with lc2 = ls0 + q2, e = b + q* = b + rho q2 and S = max(sin q1, 0):
+
+    E_grav = (m1 lc1 + m2 lc2) g sin q1
+    E_k1 = 1/2 k1 (r S)^2                        pin-slot spring, stretch s = r sin q1 (eq. 3.4)
+    E_k2 = 1/2 k2 |D - C|^2 = 1/2 k2 (c^2 + d^2 - 2 c d sin q1)
+    E_k3 = 1/2 k3 |B - A|^2 = 1/2 k3 (a^2 + e^2 - 2 a e sin q1)
+
+The k1 wire cannot push: below the horizontal (sin q1 < 0) it is slack, T = 0.
+
+Force paths (the worms are ideal: rigid, frictionless, not back-drivable):
+- q1: every spring acts through its energy, -dE/dq1; this includes the reaction
+  k1 r^2 S cos q1 of the pin-slot spring, which the paper's Section 3 design ignores.
+- q2, spring k1: the idle pulley on the slider pushes it outward with 2T, T = k1 r S. The
+  spring's stretch does not change with q2 because the winding pulley, geared to the slider
+  through a self-locking worm, pays out twice the slider travel (eq. 2.5); the worm holds the
+  pulley torque. So 2T acts on q2 although E_k1 does not depend on q2: the worm supplies the
+  work 2T dq2.
+- q2, spring k3: its anchor B moves with q2 through a belt. `self_locking` true: that belt is
+  driven through a self-locking worm, which holds dE_k3/dq2, so k3 exerts no force on q2 and
+  the worm supplies the work dE_k3/dq2 dq2. false: the belt is back-drivable and -dE_k3/dq2
+  acts on q2.
+The worms' force on q2 beyond the spring energies is f2_worm = 2T + [self_locking] dE_k3/dq2,
+and W_worm = integral of f2_worm q2' dt is the work they do on the arm, so that
+E_grav + E_springs + E_kin - W_drive - W_worm + E_friction is constant.
+
+Static residuals, the efforts a drive must supply to hold the arm at rest (positive along
++q1 and +q2; gravity effort minus spring compensation):
+
+    tau1_gravity_residual = dV/dq1,  f2_gravity_residual = dV/dq2 - f2_worm,  V = E_grav + E_springs
+
+Lagrange equations, J1 = I1 + m1 lc1^2, inputs tau1 and f2:
+
+    (J1 + m2 lc2^2) q1'' + 2 m2 lc2 q1' q2' + tau1_gravity_residual = tau1 - d1 q1'
+    m2 q2'' - m2 lc2 q1'^2 + f2_gravity_residual = f2 - d2 q2'
+
+There are no end stops: q2 is unbounded (lc2 < 0 puts the slider beyond the pivot); a drive
+keeps it within the link.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from fmu_src.integration import integrate
+from fmu_src.parameters import check_ranges, parameter
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of the arm and compensator: Table 1 of the paper as reconstructed in SPEC.md.
+
+    Ours, not the paper's: r = 0.15 m (follows from Table 1's k1 by eq. 3.6), I1 = m1 l1^2/12
+    (uniform rod l1 = 1 m about its centre, for m1 = 1 kg), no friction by default (d1 = d2 = 0
+    as in the paper's model). With design_springs (default) k1, k2, k3 and rho come from the
+    design equations with this g, so compensation is exact; otherwise the given values are
+    used (their defaults are Table 1's, designed for g = 9.8).
+    """
+
+    m1: float = parameter(1.0, "kg", "Mass of link 1", min=0.0)
+    lc1: float = parameter(0.5, "m", "Distance from O to the centre of mass of link 1", min=0.0)
+    I1: float = parameter(1.0 / 12.0, "kg.m2", "Moment of inertia of link 1 about its centre "
+                          "of mass (uniform rod, l1 = 1 m, m1 = 1 kg)", min=0.0)
+    m2: float = parameter(0.5, "kg", "Mass moved by the prismatic joint", min=0.0,
+                          min_exclusive=True)
+    ls0: float = parameter(0.25, "m", "Distance from O to m2 at q2 = 0 (eq. 3.2)", min=0.0,
+                           min_exclusive=True)
+    a: float = parameter(0.4, "m", "Height of the frame anchor A of spring k3", min=0.0,
+                         min_exclusive=True)
+    b: float = parameter(0.125, "m", "Distance from O to the anchor B of spring k3 at q2 = 0",
+                         min=0.0, min_exclusive=True)
+    c: float = parameter(0.4, "m", "Height of the frame anchor C of spring k2", min=0.0,
+                         min_exclusive=True)
+    d: float = parameter(0.5, "m", "Distance from O to the link anchor D of spring k2", min=0.0,
+                         min_exclusive=True)
+    r: float = parameter(0.15, "m", "Pin distance of the pin-slot mechanism (eq. 3.4)", min=0.0,
+                         min_exclusive=True)
+    design_springs: bool = parameter(
+        True, None, "k1, k2, k3 and rho from the design equations 3.6, 3.13, 3.15, 3.17 with "
+        "this g (the given values are ignored)")
+    k1: float = parameter(16.33, "N/m", "Stiffness of the pin-slot spring (used unless "
+                          "design_springs)", min=0.0)
+    k2: float = parameter(24.5, "N/m", "Stiffness of spring CD (used unless design_springs)",
+                          min=0.0)
+    k3: float = parameter(24.5, "N/m", "Stiffness of spring AB (used unless design_springs)",
+                          min=0.0)
+    rho: float = parameter(0.5, "1", "Belt ratio q*/q2 moving anchor B (used unless "
+                           "design_springs)", min=0.0)
+    compensated: bool = parameter(True, None, "Compensator fitted (false removes all springs)")
+    self_locking: bool = parameter(
+        True, None, "The belt moving anchor B is driven through a self-locking worm (spring k3 "
+        "exerts no force on q2); false: back-drivable")
+    d1: float = parameter(0.0, "N.m.s/rad", "Viscous friction of the revolute joint", min=0.0)
+    d2: float = parameter(0.0, "N.s/m", "Viscous friction of the prismatic joint", min=0.0)
+    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
+    q1_0: float = parameter(0.0, "rad", "Initial angle of link 1 from the horizontal")
+    q2_0: float = parameter(0.0, "m", "Initial prismatic joint travel")
+    q1_dot_0: float = parameter(0.0, "rad/s", "Initial revolute joint speed")
+    q2_dot_0: float = parameter(0.0, "m/s", "Initial prismatic joint speed")
+
+    @property
+    def J1(self) -> float:
+        """Inertia of link 1 about O, I1 + m1 lc1^2 [kg m^2]."""
+        return self.I1 + self.m1 * self.lc1 ** 2
+
+    @property
+    def k1_used(self) -> float:
+        """Effective pin-slot spring stiffness, design m2 g / (2 r) (eq. 3.6) [N/m]."""
+        return self.m2 * self.g / (2.0 * self.r) if self.design_springs else self.k1
+
+    @property
+    def k2_used(self) -> float:
+        """Effective stiffness of spring CD, design lc1 m1 g / (c d) (eq. 3.13) [N/m]."""
+        return self.lc1 * self.m1 * self.g / (self.c * self.d) if self.design_springs else self.k2
+
+    @property
+    def k3_used(self) -> float:
+        """Effective stiffness of spring AB, design m2 g ls0 / (a b) (eqs. 3.15, 3.17) [N/m]."""
+        return self.m2 * self.g * self.ls0 / (self.a * self.b) if self.design_springs else self.k3
+
+    @property
+    def rho_used(self) -> float:
+        """Effective belt ratio q*/q2, design b / ls0 (eq. 3.17) [-]."""
+        return self.b / self.ls0 if self.design_springs else self.rho
+
+
+def validate(params: Parameters) -> None:
+    """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
+    check_ranges(params)
+    if not params.J1 > 0.0:
+        raise ValueError(f"I1 = {params.I1} kg.m2 with m1 lc1^2 = {params.m1 * params.lc1 ** 2} "
+                         "kg.m2 gives J1 = I1 + m1 lc1^2 outside (0, inf)")
+
+
+class Inputs(NamedTuple):
+    """Drive efforts held constant over a communication step."""
+
+    tau1: float = 0.0   # N m, drive torque on the revolute joint
+    f2: float = 0.0     # N, drive force on the prismatic joint, outward positive
+
+
+class State(NamedTuple):
+    """Joint positions and speeds, and the cumulative energies integrated with them [J]."""
+
+    q1: float
+    q1_dot: float
+    q2: float
+    q2_dot: float
+    W_drive: float = 0.0     # work of tau1 and f2 on the arm
+    W_worm: float = 0.0      # work of the worms' forces on the arm
+    E_friction: float = 0.0  # energy dissipated by d1 and d2
+
+
+def initial_state(p: Parameters) -> State:
+    """State at t = 0 from q1_0, q2_0, q1_dot_0, q2_dot_0."""
+    return State(p.q1_0, p.q1_dot_0, p.q2_0, p.q2_dot_0)
+
+
+class Efforts(NamedTuple):
+    """Static efforts at a configuration (drive side, positive along +q1 and +q2)."""
+
+    tau1_gravity: float           # N m, eq. 3.1
+    f2_gravity: float             # N, eq. 3.3
+    tau1_gravity_residual: float  # N m, dV/dq1
+    f2_gravity_residual: float    # N, dV/dq2 - f2_worm
+    T_wire: float                 # N, tension of the k1 wire
+    f2_worm: float                # N, force of the worms on q2 beyond the spring energies
+
+
+def efforts(p: Parameters, q1: float, q2: float) -> Efforts:
+    """Gravity efforts, their residuals after compensation and the worm force at (q1, q2)."""
+    sin_q, cos_q = math.sin(q1), math.cos(q1)
+    tau1_gravity = (p.lc1 * p.m1 + (p.ls0 + q2) * p.m2) * p.g * cos_q
+    f2_gravity = p.m2 * p.g * sin_q
+    if not p.compensated:
+        return Efforts(tau1_gravity, f2_gravity, tau1_gravity, f2_gravity, 0.0, 0.0)
+    k1, k2, k3, rho = p.k1_used, p.k2_used, p.k3_used, p.rho_used
+    e = p.b + rho * q2
+    stretch = p.r * max(sin_q, 0.0)
+    T = k1 * stretch
+    dV_dq1 = tau1_gravity + (T * p.r - p.c * p.d * k2 - p.a * e * k3) * cos_q
+    dE3_dq2 = k3 * rho * (e - p.a * sin_q)
+    f2_worm = 2.0 * T + (dE3_dq2 if p.self_locking else 0.0)
+    return Efforts(tau1_gravity, f2_gravity, dV_dq1, f2_gravity + dE3_dq2 - f2_worm, T, f2_worm)
+
+
+def derivatives(p: Parameters, u: Inputs, s: State) -> State:
+    """Time derivative of the state for constant inputs."""
+    q1, w1, q2, w2 = s[:4]
+    lc2 = p.ls0 + q2
+    eff = efforts(p, q1, q2)
+    tau1 = u.tau1 - p.d1 * w1 - 2.0 * p.m2 * lc2 * w1 * w2 - eff.tau1_gravity_residual
+    f2 = u.f2 - p.d2 * w2 + p.m2 * lc2 * w1 * w1 - eff.f2_gravity_residual
+    return State(w1, tau1 / (p.J1 + p.m2 * lc2 * lc2), w2, f2 / p.m2,
+                 u.tau1 * w1 + u.f2 * w2, eff.f2_worm * w2, p.d1 * w1 * w1 + p.d2 * w2 * w2)
+
+
+def characteristic_rate(p: Parameters, s: State) -> float:
+    """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
+    lc2 = p.ls0 + s.q2
+    J = p.J1 + p.m2 * lc2 * lc2
+    stiffness_1 = p.g * (p.m1 * p.lc1 + p.m2 * abs(lc2))
+    stiffness_2 = p.m2 * p.g / max(abs(lc2), p.ls0)
+    if p.compensated:
+        k3, rho = p.k3_used, p.rho_used
+        stiffness_1 += (p.k1_used * p.r * p.r + p.c * p.d * p.k2_used
+                        + p.a * abs(p.b + rho * s.q2) * k3)
+        stiffness_2 += k3 * rho * rho
+    return max(math.sqrt(stiffness_1 / J), math.sqrt(stiffness_2 / p.m2), p.d1 / J,
+               p.d2 / p.m2, 2.0 * abs(s.q1_dot), abs(s.q2_dot) / max(abs(lc2), p.ls0))
+
+
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant."""
+    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, s))
+
+
+class Outputs(NamedTuple):
+    """Observable quantities of SPEC section 5 (SI units)."""
+
+    q1: float
+    q1_dot: float
+    q2: float
+    q2_dot: float
+    tau1_gravity: float
+    f2_gravity: float
+    tau1_gravity_residual: float
+    f2_gravity_residual: float
+    T_wire: float
+    f2_worm: float
+    E_grav: float
+    E_springs: float
+    E_kin: float
+    W_drive: float
+    W_worm: float
+    E_friction: float
+
+
+def spring_energy(p: Parameters, q1: float, q2: float) -> float:
+    """Elastic energy of springs k1, k2, k3 (0 when not compensated) [J]."""
+    if not p.compensated:
+        return 0.0
+    sin_q = math.sin(q1)
+    e = p.b + p.rho_used * q2
+    return 0.5 * (p.k1_used * (p.r * max(sin_q, 0.0)) ** 2
+                  + p.k2_used * (p.c * p.c + p.d * p.d - 2.0 * p.c * p.d * sin_q)
+                  + p.k3_used * (p.a * p.a + e * e - 2.0 * p.a * e * sin_q))
+
+
+def outputs(p: Parameters, s: State) -> Outputs:
+    """All outputs for the state s."""
+    q1, w1, q2, w2, W_drive, W_worm, E_friction = s
+    lc2 = p.ls0 + q2
+    return Outputs(
+        q1, w1, q2, w2, *efforts(p, q1, q2),
+        E_grav=(p.m1 * p.lc1 + p.m2 * lc2) * p.g * math.sin(q1),
+        E_springs=spring_energy(p, q1, q2),
+        E_kin=0.5 * (p.J1 + p.m2 * lc2 * lc2) * w1 * w1 + 0.5 * p.m2 * w2 * w2,
+        W_drive=W_drive, W_worm=W_worm, E_friction=E_friction)
