@@ -15,9 +15,9 @@ The derivative is filtered with T_f = 1/(derivative_filter_ratio omega_c). There
 feedforward: what balancing saves must show up in the drive. The full model (inductance,
 filter) is checked with python-control (closed-loop poles, margins) in `design_report`.
 
-Discretisation: Tustin (ct.c2d) of each term at the communication step; the integrator
-stops integrating while the voltage is saturated in the direction of the error
-(conditional-integration anti-windup).
+Discretisation: Tustin (ct.c2d) of each term at the communication step; the difference
+equation, voltage limit and anti-windup are `fmu_src.pid.DiscretePID` (shared with the
+`PositionController` FMU).
 """
 
 from __future__ import annotations
@@ -27,17 +27,8 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
+from fmu_src.pid import DiscretePID, PIDCoefficients, PIDGains
 from harness.drive import MotorParameters, motor_system
-
-
-@dataclass(frozen=True)
-class PIDGains:
-    """PID gains in volts per radian of position error."""
-
-    Kp: float  # [V/rad]
-    Ki: float  # [V/(rad s)]
-    Kd: float  # [V s/rad]
-    T_f: float  # derivative filter time constant [s]
 
 
 @dataclass(frozen=True)
@@ -90,37 +81,15 @@ def design_report(motor: MotorParameters, inertia: float, d_link: float,
             "max_pole_real": float(max(poles.real))}
 
 
-class DiscretePID:
-    """The PID of `gains`, discretised by Tustin at dt, with voltage limit and anti-windup."""
+def discretise(gains: PIDGains, dt: float) -> PIDCoefficients:
+    """Tustin difference-equation coefficients at dt [s] from control.c2d."""
+    derivative = ct.c2d(ct.tf([gains.Kd, 0.0], [gains.T_f, 1.0]), dt, method="tustin")
+    integral = ct.c2d(ct.tf([gains.Ki], [1.0, 0.0]), dt, method="tustin")
+    (b0, b1), (_, a1) = np.ravel(derivative.num[0][0]), np.ravel(derivative.den[0][0])
+    return PIDCoefficients(float(b0), float(b1), float(a1),
+                           float(np.ravel(integral.num[0][0])[0]))
 
-    def __init__(self, gains: PIDGains, dt: float, limit: float) -> None:
-        self.gains = gains
-        self.limit = limit
-        derivative = ct.c2d(ct.tf([gains.Kd, 0.0], [gains.T_f, 1.0]), dt, method="tustin")
-        # first-order section y[k] = -a1 y[k-1] + b0 e[k] + b1 e[k-1]
-        (b0, b1), (_, a1) = np.ravel(derivative.num[0][0]), np.ravel(derivative.den[0][0])
-        self._d = (float(b0), float(b1), float(a1))
-        self._half_ki_dt = 0.5 * gains.Ki * dt  # Tustin integrator
-        self.integral = 0.0
-        self._previous_error = 0.0
-        self._derivative = 0.0
-        self.saturated = False
 
-    def reset(self, error: float = 0.0) -> None:
-        """Start from rest with the given error (no derivative kick at start)."""
-        self.integral = 0.0
-        self._previous_error = error
-        self._derivative = 0.0
-
-    def update(self, error: float) -> float:
-        """Voltage command for the position error [rad] at this sample, limited to +-limit."""
-        b0, b1, a1 = self._d
-        self._derivative = -a1 * self._derivative + b0 * error + b1 * self._previous_error
-        candidate = self.integral + self._half_ki_dt * (error + self._previous_error)
-        unclamped = self.gains.Kp * error + candidate + self._derivative
-        voltage = min(max(unclamped, -self.limit), self.limit)
-        self.saturated = voltage != unclamped
-        if not self.saturated or (unclamped > 0) != (error > 0):
-            self.integral = candidate
-        self._previous_error = error
-        return voltage
+def discrete_pid(gains: PIDGains, dt: float, limit: float) -> DiscretePID:
+    """The PID of `gains` at step dt [s] with output limit +-limit [V]."""
+    return DiscretePID(gains, discretise(gains, dt), limit)

@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 
 from harness import fmu_build, metrics
-from harness.controller import ControllerDesign, DiscretePID, PIDGains, design_pid
-from harness.drive import MotorParameters, SampledMotor
+from harness.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
+from harness.drive import MotorParameters, sampled_motor
 from harness.fmi import CoSimFMU
 from harness.scenarios import Scenario, Variant
 
@@ -95,8 +95,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         friction = _parameter(fmu, parameters, joint["friction"])
         inertia = _parameter(fmu, parameters, joint["inertia"]) + motor.J_drive
         gains = design_pid(motor, inertia, friction, design)
-        pid = DiscretePID(gains, step_size, motor.V_supply)
-        drive = SampledMotor(motor, step_size)
+        pid = discrete_pid(gains, step_size, motor.V_supply)
 
         outputs = fmu.names("output")
         record_names = outputs + list(inputs)
@@ -108,9 +107,8 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         initial = fmu.get([joint["angle"], joint["speed"], "tau_gravity"])
         theta, omega = initial[joint["angle"]], initial[joint["speed"]]
         hold_current = -initial["tau_gravity"] / motor.torque_per_amp
-        drive.current = hold_current
-        pid.reset(reference[0] - theta)
-        pid.integral = hold_current * motor.R_a
+        drive = sampled_motor(motor, step_size, current=hold_current)
+        pid.reset(reference[0] - theta, integral=hold_current * motor.R_a)
 
         changes = _input_changes(fmu, inputs)
         voltage, current, torque, angle = [], [], [], [theta]

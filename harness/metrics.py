@@ -1,7 +1,7 @@
 """Drive metrics of SPEC.md section 7, from per-step records of a run.
 
 The drive's signals are held over each communication step k of length dt: voltage V[k],
-step-average current i[k] and torque tau[k] (harness.drive.SampledMotor); the link turns by
+step-average current i[k] and torque tau[k] (fmu_src.dc_motor.SampledMotor); the link turns by
 dtheta[k] over the step. So V i dt is the step's exact electrical energy and tau dtheta its
 exact mechanical work on the link.
 """

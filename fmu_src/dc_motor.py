@@ -1,0 +1,122 @@
+"""DC motor with gearbox: the one definition of the drive model (standard library only).
+
+Armature: L_a di/dt = V - R_a i - K_e N omega; joint-side effort tau_drive = eta N K_t i
+(SPEC.md section 6). Inputs (V, omega), outputs (tau_drive, i), state i. N is the
+transmission ratio, motor radians per joint radian (a gearbox) or per joint metre (a lead
+screw, N = 2 pi / lead): the same equations then give a force and a reflected mass.
+
+Used by the harness (which builds the python-control model from `armature_matrices` and
+discretises it with c2d) and by the `DcMotorDrive` FMU (which uses the closed-form zero-order
+hold of `zoh_coefficients`); the tests check that both discretisations agree.
+
+Default motor: one coherent small geared DC motor, a 60 W class 24 V graphite-brush motor
+with a 3-stage planetary gearhead (the data of the maxon RE 30 / 24 V datasheet, #310007:
+R_a = 0.611 Ohm, L = 0.119 mH, K_t = 25.9 mN m/A, rotor inertia 33.5 g cm^2, nominal
+current 3.44 A; gear ratio 111:1). At the link that gives 2.87 N m/A, 9.9 N m at the motor's
+nominal current (the unbalanced Franchetti link with 1 kg needs up to 9.3 N m), a no-load
+speed of 8.3 rad/s at 24 V (the task peaks at 0.4 rad/s), and J_drive = J_rotor N^2 =
+0.0413 kg m^2.
+
+Gear efficiency: eta multiplies the torque both ways in this linear model, so eta < 1 would
+make a back-driven gearbox return more energy than it receives. The default is eta = 1 and
+the gearbox's losses are left to the joint's viscous friction; set eta < 1 only for studies
+where the drive never regenerates.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from fmu_src.parameters import check_ranges, parameter
+
+
+@dataclass(frozen=True)
+class MotorParameters:
+    """Geared DC motor, SI units."""
+
+    R_a: float = parameter(0.611, "Ohm", "Armature resistance", min=0.0, min_exclusive=True)
+    L_a: float = parameter(0.119e-3, "H", "Armature inductance", min=0.0, min_exclusive=True)
+    K_t: float = parameter(0.0259, "N.m/A", "Torque constant (= back-EMF constant, V s/rad)",
+                           min=0.0, min_exclusive=True)
+    J_rotor: float = parameter(33.5e-7, "kg.m2", "Rotor inertia", min=0.0)
+    N: float = parameter(111.0, "1", "Transmission ratio, motor rad per joint rad (or per m)",
+                         min=0.0, min_exclusive=True)
+    eta: float = parameter(1.0, "1", "Transmission torque efficiency (see module docstring)",
+                           min=0.0, max=1.0, min_exclusive=True)
+    V_supply: float = parameter(24.0, "V", "Supply voltage: |V| <= V_supply", min=0.0,
+                                min_exclusive=True)
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+
+    @property
+    def J_drive(self) -> float:
+        """Rotor inertia reflected to the joint, J_rotor N^2 [kg m^2, or kg for a screw]."""
+        return self.J_rotor * self.N ** 2
+
+    @property
+    def torque_per_amp(self) -> float:
+        """Joint-side effort per armature ampere, eta N K_t [N m/A]."""
+        return self.eta * self.N * self.K_t
+
+    @property
+    def back_emf_per_link_speed(self) -> float:
+        """Armature back-EMF per joint speed, K_e N [V s/rad]."""
+        return self.K_t * self.N
+
+
+def armature_matrices(p: MotorParameters) -> tuple[list, list, list, list]:
+    """(A, B, C, D) of the motor: state i; inputs (V, omega); outputs (tau_drive, i)."""
+    A = [[-p.R_a / p.L_a]]
+    B = [[1.0 / p.L_a, -p.back_emf_per_link_speed / p.L_a]]
+    C = [[p.torque_per_amp], [1.0]]
+    D = [[0.0, 0.0], [0.0, 0.0]]
+    return A, B, C, D
+
+
+class StepCoefficients(NamedTuple):
+    """Zero-order-hold step of the armature, i[k+1] = a i + b_v V + b_w omega, and the
+    step-average current i_avg = avg_a i + avg_b_v V + avg_b_w omega."""
+
+    a: float
+    b_v: float
+    b_w: float
+    avg_a: float
+    avg_b_v: float
+    avg_b_w: float
+
+
+def zoh_coefficients(p: MotorParameters, dt: float) -> StepCoefficients:
+    """Exact zero-order-hold discretisation of the armature over dt [s], in closed form."""
+    decay = math.exp(-p.R_a / p.L_a * dt)
+    settle = (1.0 - decay) / p.R_a                          # current per volt after dt
+    mean = p.L_a * (1.0 - decay) / (p.R_a * dt)             # average of exp over the step
+    average_settle = (1.0 - mean) / p.R_a
+    emf = p.back_emf_per_link_speed
+    return StepCoefficients(decay, settle, -emf * settle, mean, average_settle,
+                            -emf * average_settle)
+
+
+class SampledMotor:
+    """The motor under zero-order-hold inputs, stepped one communication interval at a time.
+
+    The armature time constant L/R_a (0.19 ms by default) is shorter than a 1 ms step, so
+    the current moves within a step: the effort applied over the step is that of the
+    step-average current, and V i_avg dt is the exact electrical energy of the step.
+    """
+
+    def __init__(self, motor: MotorParameters, coefficients: StepCoefficients,
+                 current: float = 0.0) -> None:
+        self.motor = motor
+        self.coefficients = coefficients
+        self.current = current
+
+    def step(self, voltage: float, omega: float) -> tuple[float, float]:
+        """Advance one step with V [V] and omega held; returns (average current [A], effort)."""
+        a, b_v, b_w, avg_a, avg_b_v, avg_b_w = self.coefficients
+        i0 = self.current
+        average = avg_a * i0 + avg_b_v * voltage + avg_b_w * omega
+        self.current = a * i0 + b_v * voltage + b_w * omega
+        return average, self.motor.torque_per_amp * average
