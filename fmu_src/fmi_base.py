@@ -14,6 +14,7 @@ fmi2Discard. In both cases an Error-status log message names the variable and it
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, fields
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
@@ -78,7 +79,9 @@ class MechanismSlave(Fmi2Slave):
         self.author = "Gravity balancer co-simulation project"
         self.license = "MIT"
         self.info: dict[str, VariableInfo] = {}
-        self.real_inputs: list[str] = []
+        # (name, lowest, highest) per Real input; +-float max stand in for a missing bound,
+        # so one chained comparison per input also rejects NaN and +-inf.
+        self.real_input_bounds: list[tuple[str, float, float]] = []
         self.params = None
         for f in fields(self.parameters_type):
             meta = f.metadata
@@ -117,7 +120,9 @@ class MechanismSlave(Fmi2Slave):
         else:
             var = Real(name, causality=Fmi2Causality.input,
                        variability=Fmi2Variability.continuous, description=description)
-            self.real_inputs.append(name)
+            self.real_input_bounds.append((
+                name, -sys.float_info.max if min is None else min,
+                sys.float_info.max if max is None else max))
         self._add(var, VariableInfo(unit, description, min, max))
 
     def add_output(self, name: str, unit: str | None, description: str) -> None:
@@ -135,8 +140,7 @@ class MechanismSlave(Fmi2Slave):
 
     def set_outputs(self, values: Any) -> None:
         """Copy a NamedTuple of outputs onto the output variables of the same names."""
-        for name, value in zip(values._fields, values):
-            setattr(self, name, value)
+        self.__dict__.update(zip(values._fields, values))  # plain attributes: no setattr needed
 
     def read_parameters(self) -> Any:
         """The parameters dataclass built from the current parameter variables."""
@@ -166,16 +170,10 @@ class MechanismSlave(Fmi2Slave):
         if not (step_size > 0.0 and math.isfinite(step_size)):
             self.fail(f"communication step size = {step_size} s is outside (0, inf)")
             return False
-        for name in self.real_inputs:
+        for name, lowest, highest in self.real_input_bounds:
             value = getattr(self, name)
-            info = self.info[name]
-            if not math.isfinite(value):
-                self.fail(f"input {name} = {value} is not a finite number")
-                return False
-            if (info.min is not None and value < info.min) or (
-                    info.max is not None and value > info.max):
-                self.fail(f"input {name} = {value} {info.unit} is outside "
-                          f"[{info.min}, {info.max}]")
+            if not lowest <= value <= highest:
+                self.fail(self._input_problem(name, value))
                 return False
         try:
             self.step(step_size)
@@ -183,6 +181,15 @@ class MechanismSlave(Fmi2Slave):
             self.fail(str(error))
             return False
         return True
+
+    def _input_problem(self, name: str, value: float) -> str:
+        """Error message for a Real input that is not finite or outside its range."""
+        info = self.info[name]
+        if not math.isfinite(value):
+            return f"input {name} = {value} is not a finite number"
+        low = -math.inf if info.min is None else info.min
+        high = math.inf if info.max is None else info.max
+        return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
 
     def validate(self, params: Any) -> None:
         raise NotImplementedError

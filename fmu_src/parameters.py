@@ -30,10 +30,11 @@ def check_ranges(data: Any) -> None:
         if isinstance(value, bool):
             continue
         lo, hi, open_lo = f.metadata["min"], f.metadata["max"], f.metadata["min_exclusive"]
+        allowed = ("(-inf" if lo is None else f"{'(' if open_lo else '['}{lo}") + ", " + (
+            "inf)" if hi is None else f"{hi}]")
+        unit = f.metadata["unit"]
         if not math.isfinite(value):
-            raise ValueError(f"{f.name} = {value} is not a finite number")
-        if lo is not None and (value <= lo if open_lo else value < lo):
-            bound = f"({lo}, inf)" if open_lo else f"[{lo}, inf)"
-            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is outside {bound}")
-        if hi is not None and value > hi:
-            raise ValueError(f"{f.name} = {value} {f.metadata['unit']} is above {hi}")
+            raise ValueError(f"{f.name} = {value} {unit} is not a finite number in {allowed}")
+        if (lo is not None and (value <= lo if open_lo else value < lo)) or (
+                hi is not None and value > hi):
+            raise ValueError(f"{f.name} = {value} {unit} is outside {allowed}")

@@ -39,9 +39,9 @@ def _fmu_src_imports(path: Path) -> set[str]:
     return names
 
 
-def dependencies(model: str) -> list[Path]:
-    """fmu_src modules the slave script needs, followed transitively."""
-    pending, found = [SOURCE_DIR / f"{model}.py"], set()
+def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
+    """fmu_src modules the slave script source_dir/<model>.py needs, followed transitively."""
+    pending, found = [source_dir / f"{model}.py"], set()
     while pending:
         for name in _fmu_src_imports(pending.pop()):
             if name not in found:
@@ -50,18 +50,21 @@ def dependencies(model: str) -> list[Path]:
     return sorted(SOURCE_DIR / f"{name}.py" for name in found)
 
 
-def build(model: str, dest: Path = DEFAULT_DEST, documentation: Path | None = None) -> Path:
-    """Build one FMU into dest and return its path."""
+def build(model: str, dest: Path = DEFAULT_DEST, documentation: Path | None = None,
+          source_dir: Path = SOURCE_DIR) -> Path:
+    """Build the slave script source_dir/<model>.py into dest and return the FMU's path."""
     dest.mkdir(parents=True, exist_ok=True)
+    modules = dependencies(model, source_dir)
     with tempfile.TemporaryDirectory(prefix=f"build_{model}_") as tmp:
         stage = Path(tmp)
         package = stage / "fmu_src"
         package.mkdir()
-        for module in dependencies(model):
+        for module in modules:
             shutil.copy2(module, package)
-        script = shutil.copy2(SOURCE_DIR / f"{model}.py", stage)
+        script = shutil.copy2(source_dir / f"{model}.py", stage)
         fmu = FmuBuilder.build_FMU(
-            script, dest=dest, project_files=[package], documentation_folder=documentation,
+            script, dest=dest, project_files=[package] if modules else [],
+            documentation_folder=documentation,
             canGetAndSetFMUstate=True, canSerializeFMUstate=True,
             canHandleVariableCommunicationStepSize=True)
     return Path(fmu)
@@ -72,12 +75,12 @@ def build_all(dest: Path = DEFAULT_DEST) -> list[Path]:
     return [build(model, dest) for model in MODELS]
 
 
-def fmu_path(model: str, dest: Path = DEFAULT_DEST) -> Path:
+def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR) -> Path:
     """Path of a built FMU; builds it if it is missing or older than its sources."""
     fmu = dest / f"{model}.fmu"
-    sources = [SOURCE_DIR / f"{model}.py", *dependencies(model)]
+    sources = [source_dir / f"{model}.py", *dependencies(model, source_dir)]
     if not fmu.exists() or fmu.stat().st_mtime < max(s.stat().st_mtime for s in sources):
-        build(model, dest)
+        build(model, dest, source_dir=source_dir)
     return fmu
 
 

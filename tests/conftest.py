@@ -1,0 +1,59 @@
+"""Shared helpers for the FMU tests: built FMUs, runs through FMPy, FMI status codes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness import fmu_build
+from harness.fmi import CoSimFMU
+
+# fmi2Status codes (FMI 2.0 standard, section 2.1.3)
+FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR, FMI_FATAL = range(5)
+
+SRB = "SelfRegulatingBalancer"
+
+
+@pytest.fixture(scope="session")
+def srb_fmu() -> Path:
+    """The built SelfRegulatingBalancer FMU (rebuilt if its sources changed)."""
+    return fmu_build.fmu_path(SRB)
+
+
+def open_fmu(path: Path, parameters: Mapping[str, float | bool] | None = None,
+             instance_name: str = "test") -> CoSimFMU:
+    """An initialised instance; parameters and input start values are set in initialisation."""
+    fmu = CoSimFMU(path, instance_name=instance_name)
+    try:
+        fmu.initialize(parameters)
+    except Exception:
+        fmu.close()
+        raise
+    return fmu
+
+
+def run(fmu: CoSimFMU, steps: int, step_size: float, names: Iterable[str],
+        start_time: float = 0.0) -> np.ndarray:
+    """Step `steps` times; row k holds the named variables after step k (Booleans as 0/1)."""
+    names = list(names)
+    reals = [i for i, n in enumerate(names) if fmu.variables[n].type == "Real"]
+    bools = [i for i, n in enumerate(names) if fmu.variables[n].type == "Boolean"]
+    real_refs = fmu.references(names[i] for i in reals)
+    bool_refs = fmu.references(names[i] for i in bools)
+    rows = np.empty((steps, len(names)))
+    slave = fmu.slave
+    for k in range(steps):
+        fmu.step(start_time + k * step_size, step_size)
+        if reals:
+            rows[k, reals] = slave.getReal(real_refs)
+        if bools:
+            rows[k, bools] = slave.getBoolean(bool_refs)
+    return rows
+
+
+def warnings(fmu: CoSimFMU) -> list[str]:
+    """The Warning-status messages the FMU has logged."""
+    return [m.message for m in fmu.messages if m.status == "Warning"]

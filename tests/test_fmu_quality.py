@@ -1,0 +1,173 @@
+"""Quality checks every FMU of harness.fmu_build.MODELS must pass (a new model is covered by
+adding it there): a valid and complete model description, exact state save/restore, reset,
+independent instances, and the same results in DNV's libcosim as in FMPy.
+
+Each model is excited the same generic way: every Real input at 0.1 from initialisation on,
+stepped at its DefaultExperiment step size.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import open_fmu, run
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimObserver import CosimObserver
+from libcosimpy.CosimSlave import CosimLocalSlave
+
+from harness import fmu_build
+
+STEPS = 200
+INPUT_VALUE = 0.1
+
+
+@pytest.fixture(scope="module", params=fmu_build.MODELS)
+def fmu_file(request: pytest.FixtureRequest) -> Path:
+    return fmu_build.fmu_path(request.param)
+
+
+def step_size(path: Path) -> float:
+    return float(read_model_description(str(path)).defaultExperiment.stepSize)
+
+
+def excitation(path: Path) -> dict[str, float]:
+    """Every Real input at INPUT_VALUE."""
+    return {v.name: INPUT_VALUE for v in read_model_description(str(path)).modelVariables
+            if v.causality == "input" and v.type == "Real"}
+
+
+def perturbed_parameters(path: Path) -> dict[str, float]:
+    """The first Real parameter with a non-zero default, 5 % larger (a valid, different model)."""
+    first = next(v for v in read_model_description(str(path)).modelVariables
+                 if v.causality == "parameter" and v.type == "Real" and float(v.start) != 0.0)
+    return {first.name: 1.05 * float(first.start)}
+
+
+def outputs_of_run(path: Path, parameters: dict[str, float] | None = None,
+                   steps: int = STEPS) -> np.ndarray:
+    """All outputs after each step of a run from initialisation."""
+    with open_fmu(path, {**excitation(path), **(parameters or {})}) as fmu:
+        return run(fmu, steps, step_size(path), fmu.names("output"))
+
+
+def test_fmpy_validation_finds_no_problem(fmu_file: Path) -> None:
+    assert validate_fmu(str(fmu_file)) == []
+
+
+def test_model_description_is_complete(fmu_file: Path) -> None:
+    """Descriptions everywhere; every Real has a unit through a declared type that
+    UnitDefinitions defines; a DefaultExperiment."""
+    md = read_model_description(str(fmu_file))
+    units = {u.name for u in md.unitDefinitions}
+    assert md.description and md.typeDefinitions and units
+    for v in md.modelVariables:
+        assert v.description, v.name
+        if v.type == "Real":
+            assert v.declaredType is not None and v.declaredType.unit in units, v.name
+    experiment = md.defaultExperiment
+    assert experiment is not None
+    assert float(experiment.stopTime) > float(experiment.startTime)
+    assert 0.0 < float(experiment.stepSize) <= float(experiment.stopTime)
+
+
+def test_state_restore_replays_exactly(fmu_file: Path) -> None:
+    """getFMUstate, N steps, setFMUstate, the same N steps: identical outputs; likewise after
+    fmi2SerializeFMUstate / fmi2DeSerializeFMUstate."""
+    dt = step_size(fmu_file)
+    with open_fmu(fmu_file, excitation(fmu_file)) as fmu:
+        outputs = fmu.names("output")
+        run(fmu, 50, dt, outputs)
+        state = fmu.slave.getFMUstate()
+        serialized = fmu.slave.serializeFMUstate(state)
+        first = run(fmu, STEPS, dt, outputs, start_time=50 * dt)
+        fmu.slave.setFMUstate(state)
+        again = run(fmu, STEPS, dt, outputs, start_time=50 * dt)
+        fmu.slave.setFMUstate(fmu.slave.deSerializeFMUstate(serialized))
+        restored = run(fmu, STEPS, dt, outputs, start_time=50 * dt)
+        fmu.slave.freeFMUstate(state)
+    assert np.ptp(first, axis=0).max() > 0.0  # the model moves: the replay means something
+    np.testing.assert_array_equal(again, first)
+    np.testing.assert_array_equal(restored, first)
+
+
+def test_reset_then_initialisation_reproduces_the_first_run(fmu_file: Path) -> None:
+    dt, inputs = step_size(fmu_file), excitation(fmu_file)
+    with open_fmu(fmu_file, inputs) as fmu:
+        outputs = fmu.names("output")
+        first = run(fmu, STEPS, dt, outputs)
+        fmu.reset()
+        fmu.initialize(inputs)
+        second = run(fmu, STEPS, dt, outputs)
+    np.testing.assert_array_equal(second, first)
+
+
+def test_two_instances_do_not_interfere(fmu_file: Path) -> None:
+    """Interleaved stepping of two instances with different parameters gives the results of
+    two separate runs (pythonfmu runs both slaves in one interpreter)."""
+    dt = step_size(fmu_file)
+    changed = perturbed_parameters(fmu_file)
+    alone = [outputs_of_run(fmu_file), outputs_of_run(fmu_file, changed)]
+    assert not np.array_equal(*alone)
+    interleaved = [np.empty_like(reference) for reference in alone]
+    with (open_fmu(fmu_file, excitation(fmu_file), "first") as first,
+          open_fmu(fmu_file, {**excitation(fmu_file), **changed}, "second") as second):
+        for k in range(STEPS):
+            for fmu, rows in zip((first, second), interleaved):
+                rows[k] = run(fmu, 1, dt, fmu.names("output"), k * dt)[0]
+    for rows, reference in zip(interleaved, alone):
+        np.testing.assert_array_equal(rows, reference)
+
+
+def test_all_models_share_one_process() -> None:
+    """One instance of every model, stepped in turn, each as if it ran alone."""
+    paths = [fmu_build.fmu_path(model) for model in fmu_build.MODELS]
+    alone = [outputs_of_run(path) for path in paths]
+    fmus = [open_fmu(path, excitation(path), path.stem) for path in paths]
+    try:
+        rows = [np.empty_like(reference) for reference in alone]
+        steps = [step_size(path) for path in paths]
+        for k in range(STEPS):
+            for fmu, dt, result in zip(fmus, steps, rows):
+                result[k] = run(fmu, 1, dt, fmu.names("output"), k * dt)[0]
+    finally:
+        for fmu in fmus:
+            fmu.close()
+    for result, reference in zip(rows, alone):
+        np.testing.assert_array_equal(result, reference)
+
+
+def test_libcosim_gives_the_fmpy_results(fmu_file: Path) -> None:
+    """DNV libcosim (libcosimpy) runs the same slave code: all outputs after 1 s agree with
+    FMPy to 1e-9 (libcosim's step is an integer number of nanoseconds converted back to
+    seconds, so results may differ in the last bits, nothing more)."""
+    dt = step_size(fmu_file)
+    outputs = [v for v in read_model_description(str(fmu_file)).modelVariables
+               if v.causality == "output"]
+    steps = round(1.0 / dt)
+    log_output_level(CosimLogLevel.ERROR)
+    execution = CosimExecution.from_step_size(step_size=round(dt * 1e9))
+    index = execution.add_local_slave(CosimLocalSlave(fmu_path=str(fmu_file),
+                                                      instance_name="libcosim"))
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer=observer)
+    references = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
+    for name, value in excitation(fmu_file).items():
+        execution.real_initial_value(index, references[name], value)
+    assert execution.simulate_until(target_time=steps * round(dt * 1e9))
+
+    reals = [v.name for v in outputs if v.type == "Real"]
+    bools = [v.name for v in outputs if v.type == "Boolean"]
+    libcosim = dict(zip(reals, observer.last_real_values(index, [references[n] for n in reals])))
+    if bools:  # libcosimpy refuses an empty list
+        libcosim.update(zip(bools, observer.last_boolean_values(
+            index, [references[n] for n in bools])))
+    fmpy = dict(zip((v.name for v in outputs), outputs_of_run(fmu_file, steps=steps)[-1]))
+    for name in reals:
+        assert libcosim[name] == pytest.approx(fmpy[name], rel=1e-9, abs=1e-9), name
+    for name in bools:
+        assert bool(libcosim[name]) == bool(fmpy[name]), name

@@ -1,0 +1,122 @@
+"""Pure physics of the self-regulating balancer (fmu_src.self_regulating), no FMI: fast.
+
+Expected values are closed forms of SPEC.md section 3 and the paper's Table 1, derivatives
+taken numerically from the energies, or conservation laws.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import NamedTuple
+
+import pytest
+
+from fmu_src import self_regulating as physics
+from fmu_src.integration import integrate, integrate_second_order
+
+DEG = math.pi / 180.0
+TABLE_1 = physics.Parameters()
+
+
+def test_table_1_design_numbers() -> None:
+    """Eq. 10 M0 = k (a + b0) r / (g R) = 4.5714 kg; eq. 16 payload_max = 8.2857 kg; eq. 13
+    R/r = w/a = 3.5; eq. 8 delta_b = payload w g / (k a) = 35 mm for 1 kg; eq. 2 balance."""
+    p = TABLE_1
+    assert p.M0 == pytest.approx(4.5714, abs=5e-5)
+    assert p.payload_max == pytest.approx(8.2857, abs=5e-5)
+    assert p.pulley_ratio == pytest.approx(p.w / p.a, rel=1e-12)
+    u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
+                       pulley_locked=False)
+    assert physics.regulated_slider_position(p, u, math.pi) == pytest.approx(0.095, abs=1e-12)
+    balanced = physics.outputs(p, physics.Inputs(), physics.initial_state(p))
+    assert balanced.balance_error == pytest.approx(0.0, abs=1e-12)  # m c g = k a b0
+
+
+@pytest.mark.parametrize("L0", [0.0, 0.02])
+@pytest.mark.parametrize("theta", [30 * DEG, 100 * DEG, 200 * DEG, 300 * DEG])
+def test_forces_are_energy_gradients(L0: float, theta: float) -> None:
+    """tau_gravity = -dE_t/dtheta; F_t = dE_e/db (towards O); F_n = (1/b) dE_e/dtheta.
+
+    Central differences with h = 1e-6: truncation ~h^2 E''' ~ 1e-11, rounding ~1e-16 E/h
+    ~ 1e-9; 1e-7 leaves margin and is far below the forces (> 0.1).
+    """
+    p = dataclasses.replace(TABLE_1, L0=L0, m_slider=0.3)
+    u = physics.Inputs(payload=0.7)
+    b, h = 0.08, 1e-6
+
+    def out(theta: float, b: float) -> physics.Outputs:
+        return physics.outputs(p, u, physics.State(theta, 0.0, b, 0.0))
+
+    here = out(theta, b)
+    d_theta = [(out(theta + h, b).E_t - out(theta - h, b).E_t) / (2 * h),
+               (out(theta + h, b).E_e - out(theta - h, b).E_e) / (2 * h)]
+    d_b = (out(theta, b + h).E_e - out(theta, b - h).E_e) / (2 * h)
+    assert here.tau_gravity == pytest.approx(-d_theta[0], abs=1e-7)
+    assert here.F_n == pytest.approx(d_theta[1] / b, abs=1e-7)
+    assert here.F_t == pytest.approx(d_b, abs=1e-7)
+    if L0 == 0.0:  # eq. 9 at theta = pi is the special case of F_t = k (b - a cos theta)
+        assert here.F_t == pytest.approx(p.k * (b - p.a * math.cos(theta)), rel=1e-12)
+
+
+def test_regulation_away_from_pi_has_the_closed_form_position() -> None:
+    """L0 = 0, m_slider = 0: k (b - a cos theta) = (M0 + dm) g R / r."""
+    p = TABLE_1
+    u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
+                       pulley_locked=False)
+    for theta in (120 * DEG, 150 * DEG, 210 * DEG):
+        expected = p.a * math.cos(theta) + (p.M0 + 1.0) * p.g * p.R / (p.r * p.k)
+        assert physics.regulated_slider_position(p, u, theta) == pytest.approx(expected,
+                                                                               abs=1e-12)
+
+
+def test_real_spring_free_slider_conserves_energy() -> None:
+    """L0 > 0, slider mass, pulley free, no damping: E_t + E_kin + E_cw constant over 5 s
+    (RK4 with rate * h <= 0.05: measured ~1e-12 J; 1e-8 J leaves margin)."""
+    p = dataclasses.replace(TABLE_1, L0=0.02, m_slider=0.3, d_link=0.0, d_slider=0.0,
+                            theta0=math.pi, omega0=1.0)
+    u = physics.Inputs(payload=1.0, slider_locked=False, pulley_locked=False)
+    s = physics.initial_state(p)
+
+    def energy(s: physics.State) -> float:
+        o = physics.outputs(p, u, s)
+        return o.E_t + o.E_kin + o.E_cw
+
+    e0, drift, travel = energy(s), 0.0, 0.0
+    for _ in range(5000):
+        s = physics.advance(p, u, s, 1e-3)
+        drift = max(drift, abs(energy(s) - e0))
+        travel = max(travel, abs(s.b - p.b0))
+        assert not physics.slider_at_stop(p, u, s)
+    assert travel > 1e-3 and drift < 1e-8
+
+
+class Pendulum(NamedTuple):
+    x: float
+    v: float
+
+
+def test_second_order_rk4_is_the_same_arithmetic_as_rk4() -> None:
+    """integrate_second_order duplicates rk4 for speed: the results must be bit-identical."""
+    def acceleration(x: float, v: float) -> float:
+        return -9.0 * math.sin(x) - 0.3 * v + 0.1 * math.cos(3.0 * x)
+
+    for dt, rate in ((1e-3, 11.0), (1e-2, 40.0), (0.05, 3.0)):
+        state, x, v = Pendulum(2.0, -0.5), 2.0, -0.5
+        for _ in range(50):
+            state = integrate(lambda s: Pendulum(s.v, acceleration(s.x, s.v)), state, dt, rate)
+            x, v = integrate_second_order(acceleration, x, v, dt, rate)
+        assert (x, v) == tuple(state)
+
+
+def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
+    """advance() integrates only the link while the slider is clamped: same numbers as RK4 on
+    the full state with the general derivatives."""
+    p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, theta0=1.0, omega0=2.0)
+    u = physics.Inputs(tau_drive=0.3, payload=0.8)
+    fast = full = physics.initial_state(p)
+    for dt in (1e-3, 1e-2, 0.1) * 20:
+        fast = physics.advance(p, u, fast, dt)
+        full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
+                         physics.characteristic_rate(p, u, full))
+        assert fast == full
