@@ -26,13 +26,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
-    """Variant names from 'all' or a comma-separated list; the eps baseline is always run."""
+    """Variant names from 'all' or a comma-separated list; their eps baselines are always run."""
     names = list(scenario.variants) if spec == "all" else [v.strip() for v in spec.split(",")]
     for name in names:
         scenario.variant(name)
-    if scenario.baseline not in names:
-        names.append(scenario.baseline)
-    return names
+    baselines = [scenario.baselines[name] for name in names]
+    return list(dict.fromkeys(names + baselines))
 
 
 def run_scenario(scenario: scenarios.Scenario, variants: list[str], step: float, out: Path,
@@ -45,7 +44,7 @@ def run_scenario(scenario: scenarios.Scenario, variants: list[str], step: float,
         for name in variants:
             bar.set_postfix_str(name)
             runs.append(master.run(scenario, scenario.variant(name), step, progress=bar.update))
-    for path in results.write_run(runs, scenario.baseline, out / scenario.name):
+    for path in results.write_run(runs, scenario.baselines, out / scenario.name):
         print(path)
     return runs
 

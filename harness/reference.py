@@ -7,7 +7,7 @@ the continuous controller and no zero-order holds, this is the limit the co-simu
 converges to as the communication step shrinks; `harness bench` and the tests measure that.
 
 The drive's energies are integrated as extra states. The run is split at phase boundaries,
-where the discrete inputs (locks) change; within a phase inputs are constant or linear ramps.
+where the discrete inputs (locks) change; within a phase inputs are constant or ramps.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass, fields
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -47,10 +48,10 @@ def physics_module(model: str) -> ModuleType:
                          f"known: {', '.join(PHYSICS)}") from None
 
 
-def simulate(scenario: Scenario, variant: Variant, motor: MotorParameters = MotorParameters(),
-             design: ControllerDesign = ControllerDesign(), rtol: float = 1e-9) -> ReferenceResult:
-    """Solve the whole task as one ODE; returns the drive energies of SPEC section 7."""
-    physics = physics_module(variant.model or scenario.model)
+def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,
+               motor: MotorParameters = MotorParameters()) -> Any:
+    """The physics module's validated Parameters of a run: defaults, then the scenario's and
+    the variant's values, the initial angle and the drive's reflected inertia."""
     joint = scenario.joint
     values = {f.name: f.default for f in fields(physics.Parameters)}
     values.update(scenario.parameters)
@@ -59,8 +60,17 @@ def simulate(scenario: Scenario, variant: Variant, motor: MotorParameters = Moto
     values[joint["drive_inertia"]] = motor.J_drive
     p = physics.Parameters(**values)
     physics.validate(p)
-    gains = design_pid(motor, values[joint["inertia"]] + motor.J_drive,
-                       values[joint["friction"]], design)
+    return p
+
+
+def simulate(scenario: Scenario, variant: Variant, motor: MotorParameters = MotorParameters(),
+             design: ControllerDesign = ControllerDesign(), rtol: float = 1e-9) -> ReferenceResult:
+    """Solve the whole task as one ODE; returns the drive energies of SPEC section 7."""
+    physics = physics_module(variant.model or scenario.model)
+    joint = scenario.joint
+    p = parameters(physics, scenario, variant, motor)
+    gains = design_pid(motor, getattr(p, joint["inertia"]) + motor.J_drive,
+                       getattr(p, joint["friction"]), design)
     state_names = physics.State._fields
     angle_index = state_names.index(joint["angle"])
     speed_index = state_names.index(joint["speed"])

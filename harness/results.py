@@ -11,7 +11,7 @@ from __future__ import annotations
 import csv
 import os
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 import matplotlib
@@ -25,7 +25,7 @@ from harness.master import RunResult  # noqa: E402
 from harness.metrics import METRICS, efficaciousness  # noqa: E402
 
 RESULTS_DIR = Path(__file__).resolve().parent.parent / "results"
-SUMMARY_COLUMNS = ("variant", *METRICS, "model", "step_size")
+SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size")
 
 
 def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
@@ -52,19 +52,30 @@ def write_csv(frame: pd.DataFrame, path: Path) -> Path:
     return write_atomic(path, write)
 
 
-def summary(results: Iterable[RunResult], baseline: str) -> pd.DataFrame:
-    """One row per variant with the metrics of SPEC section 7; eps against the baseline."""
+def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> pd.DataFrame:
+    """One row per variant with the metrics of SPEC section 7 and the per-phase work.
+
+    W_phases [J] is the sum over the task's phases of |net mechanical work of the drive on the
+    link in the phase|: the paper's stroke energy |integral of M dphi| summed over strokes.
+    eps (on E_drawn, SPEC section 7) and eps_W (on W_phases) are computed against the
+    baseline: one variant name, or a baseline per variant (Scenario.baselines); NaN where the
+    baseline was not run.
+    """
     results = list(results)
-    rows = [{"variant": r.variant, **r.metrics, "model": r.model, "step_size": r.step_size}
-            for r in results]
+    rows = [{"variant": r.variant, **r.metrics,
+             "W_phases": sum(abs(w) for w in r.phase_work.values()),
+             "model": r.model, "step_size": r.step_size} for r in results]
     table = pd.DataFrame(rows)
-    base = table.loc[table.variant == baseline, "E_drawn"]
-    table["eps"] = (efficaciousness(table.E_drawn, float(base.iloc[0])) if len(base)
-                    else np.nan)
+    baselines = table.variant.map(
+        (lambda _: baseline) if isinstance(baseline, str) else baseline.get)
+    indexed = table.set_index("variant")
+    for metric, column in (("E_drawn", "eps"), ("W_phases", "eps_W")):
+        table[column] = efficaciousness(table[metric], baselines.map(indexed[metric]))
     return table[list(SUMMARY_COLUMNS)]
 
 
-def write_run(results: list[RunResult], baseline: str, out_dir: Path) -> list[Path]:
+def write_run(results: list[RunResult], baseline: str | Mapping[str, str],
+              out_dir: Path) -> list[Path]:
     """Write <variant>.csv for each run, summary.csv and the plot into out_dir."""
     written = [write_csv(r.series, out_dir / f"{r.variant}.csv") for r in results]
     written.append(write_csv(summary(results, baseline), out_dir / "summary.csv"))
@@ -78,7 +89,8 @@ MECHANISM_PANELS = (
     ("(b) energies", "J", [("E_p", None), ("E_e", None), ("E_t", None)]),
     ("(c) slider travel and payload", "mm | kg", [("delta_b", lambda v: 1e3 * v),
                                                   ("payload", None)]),
-    ("(d) spring length x", "mm", [("x", lambda v: 1e3 * v)]),
+    ("(d) spring length x, counterweight distance OB", "mm", [("x", lambda v: 1e3 * v),
+                                                              ("OB", lambda v: 1e3 * v)]),
 )
 DRIVE_PANELS = (
     ("drive torque", "N m", "tau_drive"),
@@ -89,7 +101,8 @@ DRIVE_PANELS = (
 
 
 def plot(results: list[RunResult], path: Path) -> Path:
-    """Franchetti Figure 5's four panels per variant (left) and the drive per variant (right)."""
+    """Franchetti Figure 5's four panels per variant (left; a model's other quantities share
+    them, e.g. Ciupitu's OB in (d)) and the drive per variant (right)."""
     fig, axes = plt.subplots(4, 2, figsize=(13, 12), sharex=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for row, (title, unit, signals) in enumerate(MECHANISM_PANELS):
@@ -116,7 +129,8 @@ def plot(results: list[RunResult], path: Path) -> Path:
         ax.legend(fontsize=7)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
-    fig.suptitle(f"{results[0].scenario}: mechanism (Franchetti et al. 2021, Fig. 5) and drive")
+    fig.suptitle(f"{results[0].scenario}: mechanism (panels of Franchetti et al. 2021, Fig. 5) "
+                 "and drive")
     fig.tight_layout()
     return save_figure(fig, path)
 
@@ -136,6 +150,6 @@ def summary_text(path: Path) -> str:
     for column in ("track_err_max", "track_err_rms"):
         table[column] = np.degrees(table[column])
     shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech", "tau_peak", "tau_rms",
-             "i_rms", "track_err_max", "track_err_rms", "eps"]
+             "i_rms", "track_err_max", "track_err_rms", "eps", "W_phases", "eps_W"]
     return (f"{path.parent.name} (tracking errors in deg)\n"
             + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))

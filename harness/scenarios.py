@@ -9,7 +9,9 @@ Inputs keep their value until a later phase changes them.
 
 Variants are configurations of the same run (SPEC.md section 3): they may replace the FMU
 (`model`), override its parameters (`parameters`), hold inputs at fixed values for the whole
-run (`inputs`), or drop scenario inputs the model does not have (`drop_inputs`).
+run (`inputs`), replace the input changes of named phases (`phase_inputs`, e.g.
+`{ down = { payload = { ramp = 0.4, shape = "quintic" } } }`), drop scenario inputs the model
+does not have (`drop_inputs`), or name their own eps `baseline` (default: the scenario's).
 """
 
 from __future__ import annotations
@@ -30,12 +32,27 @@ def quintic(s: np.ndarray) -> np.ndarray:
     return s ** 3 * (10.0 + s * (-15.0 + 6.0 * s))
 
 
-# ramp shapes f(s), f(0) = 0, f(1) = 1, s the fraction of the phase
+def ease_out(s: np.ndarray) -> np.ndarray:
+    """Parabola s (2 - s): 0 -> 1 with zero slope at the end."""
+    return s * (2.0 - s)
+
+
+def ease_in(s: np.ndarray) -> np.ndarray:
+    """Parabola s^2: 0 -> 1 with zero slope at the start."""
+    return s * s
+
+
+# ramp shapes f(s), f(0) = 0, f(1) = 1, s the fraction of the phase. The quintic_* shapes
+# are functions of the joint's travel over the phase (the reference is a quintic in time),
+# so an input given as a law of the angle follows the angle: "quintic" is linear in the
+# angle, "quintic_ease_out" is ease_out of the angle's fraction of the move.
 RAMP_SHAPES = {
     "linear": lambda s: s,
     "quintic": quintic,
-    "ease_out": lambda s: s * (2.0 - s),  # parabola with zero slope at the end
-    "ease_in": lambda s: s * s,           # parabola with zero slope at the start
+    "ease_out": ease_out,
+    "ease_in": ease_in,
+    "quintic_ease_out": lambda s: ease_out(quintic(s)),
+    "quintic_ease_in": lambda s: ease_in(quintic(s)),
 }
 
 
@@ -63,6 +80,8 @@ class Variant:
     parameters: dict[str, float] = field(default_factory=dict)
     inputs: dict[str, float | bool] = field(default_factory=dict)
     drop_inputs: tuple[str, ...] = ()
+    phase_inputs: dict[str, dict[str, Any]] = field(default_factory=dict)  # by phase name
+    baseline: str | None = None     # variant against which eps is computed, if not the default
 
 
 @dataclass(frozen=True)
@@ -74,7 +93,7 @@ class Scenario:
     initial_angle: float            # [rad]
     phases: tuple[Phase, ...]
     variants: dict[str, Variant]
-    baseline: str                   # variant against which eps is computed
+    baseline: str                   # default variant against which eps is computed
     joint: dict[str, str]           # FMU names of angle, speed, torque and parameter names
 
     @property
@@ -88,6 +107,11 @@ class Scenario:
             out.append((phase.name, t, t + phase.duration))
             t += phase.duration
         return out
+
+    @property
+    def baselines(self) -> dict[str, str]:
+        """The eps baseline of each variant: its own `baseline`, else the scenario's."""
+        return {name: v.baseline or self.baseline for name, v in self.variants.items()}
 
     def variant(self, name: str) -> Variant:
         try:
@@ -112,18 +136,21 @@ class Scenario:
     def input_segments(self, variant: Variant) -> list[dict[str, tuple[Any, Any, str]]]:
         """Per phase, each input as (value at start, value at end, ramp shape).
 
-        The variant's fixed inputs replace the scenario's; its dropped inputs are left out.
+        The variant's phase inputs replace those of the phases they name, its fixed inputs
+        replace the scenario's, and its dropped inputs are left out.
         """
-        names = [n for phase in self.phases for n in phase.inputs]
+        changes = [phase.inputs | variant.phase_inputs.get(phase.name, {})
+                   for phase in self.phases]
+        names = [n for phase_changes in changes for n in phase_changes]
         names = [n for n in dict.fromkeys(names) if n not in variant.drop_inputs]
-        booleans = {n for phase in self.phases for n, v in phase.inputs.items()
+        booleans = {n for phase_changes in changes for n, v in phase_changes.items()
                     if isinstance(v, bool)}
         values: dict[str, Any] = {n: False if n in booleans else 0.0 for n in names}
         segments = []
-        for phase in self.phases:
+        for phase_changes in changes:
             segment = {}
             for name in names:
-                change = phase.inputs.get(name)
+                change = phase_changes.get(name)
                 if isinstance(change, Ramp):
                     segment[name] = (values[name], change.target, change.shape)
                     values[name] = change.target
@@ -181,11 +208,22 @@ def load(name_or_path: str | Path) -> Scenario:
                   for n, v in raw.get("inputs", {}).items()}
         phases.append(Phase(str(raw.get("name", i + 1)), duration,
                             math.radians(float(raw["target_deg"])), inputs))
-    variants = {
-        name: Variant(name, raw.get("description", ""), raw.get("model"),
-                      {k: float(v) for k, v in raw.get("parameters", {}).items()},
-                      dict(raw.get("inputs", {})), tuple(raw.get("drop_inputs", ())))
-        for name, raw in data["variants"].items()}
+    phase_names = {phase.name for phase in phases}
+    variants = {}
+    for name, raw in data["variants"].items():
+        phase_inputs = raw.get("phase_inputs", {})
+        unknown = set(phase_inputs) - phase_names
+        if unknown:
+            raise ValueError(f"{where}: variant {name} phase_inputs names no phase "
+                             f"{', '.join(sorted(unknown))}")
+        variants[name] = Variant(
+            name, raw.get("description", ""), raw.get("model"),
+            {k: float(v) for k, v in raw.get("parameters", {}).items()},
+            dict(raw.get("inputs", {})), tuple(raw.get("drop_inputs", ())),
+            {phase: {n: _input_change(n, v, f"{where} variant {name} phase {phase}")
+                     for n, v in changes.items()}
+             for phase, changes in phase_inputs.items()},
+            raw.get("baseline"))
     joint = {"angle": "theta", "speed": "omega", "torque": "tau_drive",
              "initial_angle": "theta0", "inertia": "J_link", "friction": "d_link",
              "drive_inertia": "J_drive"} | data.get("joint", {})
@@ -194,7 +232,8 @@ def load(name_or_path: str | Path) -> Scenario:
         parameters={k: float(v) for k, v in data.get("parameters", {}).items()},
         initial_angle=math.radians(float(data["initial_angle_deg"])), phases=tuple(phases),
         variants=variants, baseline=data.get("baseline", next(iter(variants))), joint=joint)
-    scenario.variant(scenario.baseline)
+    for baseline in sorted(set(scenario.baselines.values())):
+        scenario.variant(baseline)
     return scenario
 
 
