@@ -26,6 +26,9 @@ cosim: fmu
 bench: fmu
 	$(PY) -m harness bench
 
+sweep: fmu
+	$(PY) -m harness sweep harness/sweeps/table1.toml
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check fmu_src harness tests
 

@@ -11,7 +11,8 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.ciupitu_example")
+COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.ciupitu_example",
+            "harness.ciupitu_design", "harness.compare", "harness.sweep", "harness.bench")
 
 
 def parser() -> argparse.ArgumentParser:
