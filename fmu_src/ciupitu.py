@@ -70,7 +70,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from fmu_src.integration import integrate
+from fmu_src.integration import integrate_second_order
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -110,9 +110,13 @@ class Moments(NamedTuple):
 
 def moments(G_pv: float, OP: float, G2: float, OA: float, AB: float, phi: float) -> Moments:
     """M_g, M_b, M_u for payload weight G_pv [N] at OP [m] and counterweight G2 [N]."""
-    cos_p = math.cos(phi)
-    M_g = -G_pv * OP * cos_p
-    M_b = G2 * geometry(OA, AB, phi).OB * cos_p
+    return _moments(G_pv, OP, G2, geometry(OA, AB, phi).OB, math.cos(phi))
+
+
+def _moments(G_pv: float, OP: float, G2: float, OB: float, cos_phi: float) -> Moments:
+    """moments() for a known OB [m] and cos(phi)."""
+    M_g = -G_pv * OP * cos_phi
+    M_b = G2 * OB * cos_phi
     return Moments(M_g, M_b, M_b + M_g)
 
 
@@ -297,33 +301,51 @@ def _net_moment_arm(p: Parameters, payload: float, OB: float) -> float:
     return p.m * p.c + payload * p.w - p.m_fixed_cw * p.c_fixed_cw - p.m2 * OB
 
 
-def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
-    """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
-    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
+def _inertia(p: Parameters, payload: float, OB: float, dOB: float, d2OB: float
+             ) -> tuple[float, float]:
+    """J [kg m^2] and dJ/dtheta [kg m^2/rad] for the counterweight geometry (OB, OB', OB'')."""
     J = (p.J_link + payload * p.w ** 2 + p.m_fixed_cw * p.c_fixed_cw ** 2 + p.J_drive
          + p.m2 * (OB * OB + dOB * dOB))
     return J, -2.0 * p.m2 * dOB * (OB + d2OB)
 
 
-def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
-    """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
-    OB, dOB, _ = geometry(p.OA, p.AB, HALF_PI - theta)
+def _gravity(p: Parameters, payload: float, theta: float, OB: float, dOB: float) -> float:
+    """Gravity torque about O along theta, -dE_p/dtheta [N m], for OB(theta) and OB'."""
     return p.g * (math.sin(theta) * _net_moment_arm(p, payload, OB)
                   - math.cos(theta) * p.m2 * dOB)
 
 
+def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
+    """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
+    return _inertia(p, payload, *geometry(p.OA, p.AB, HALF_PI - theta))
+
+
+def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
+    """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
+    OB, dOB, _ = geometry(p.OA, p.AB, HALF_PI - theta)
+    return _gravity(p, payload, theta, OB, dOB)
+
+
+def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
+                 omega: float) -> float:
+    """Angular acceleration [rad/s^2] from the Lagrange equation
+    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d_link omega,
+    with one geometry() evaluation (this runs four times per RK4 sub-step)."""
+    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
+    J, dJ = _inertia(p, payload, OB, dOB, d2OB)
+    return (tau_drive + _gravity(p, payload, theta, OB, dOB) - p.d_link * omega
+            - 0.5 * dJ * omega * omega) / J
+
+
 def derivatives(p: Parameters, u: Inputs, s: State) -> State:
     """Time derivative of the state for constant inputs (Lagrange equation)."""
-    J, dJ = inertia(p, u.payload, s.theta)
-    torque = (u.tau_drive + tau_gravity(p, u.payload, s.theta) - p.d_link * s.omega
-              - 0.5 * dJ * s.omega ** 2)
-    return State(s.omega, torque / J)
+    return State(s.omega, acceleration(p, u.payload, u.tau_drive, s.theta, s.omega))
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    J, dJ = inertia(p, u.payload, s.theta)
     OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - s.theta)
+    J, dJ = _inertia(p, u.payload, OB, dOB, d2OB)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
     return max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega) * (1.0 + abs(dJ) / J))
@@ -331,8 +353,10 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt,
-                     characteristic_rate(p, u, s))
+    payload, tau_drive = u.payload, u.tau_drive
+    return State(*integrate_second_order(
+        lambda theta, omega: acceleration(p, payload, tau_drive, theta, omega),
+        s.theta, s.omega, dt, characteristic_rate(p, u, s)))
 
 
 class Outputs(NamedTuple):
@@ -353,13 +377,13 @@ class Outputs(NamedTuple):
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
     phi = HALF_PI - s.theta
-    OB, dOB, _ = geometry(p.OA, p.AB, phi)
-    M = moments(u.payload * p.g, p.w, p.m2 * p.g, p.OA, p.AB, phi)
+    OB, dOB, d2OB = geometry(p.OA, p.AB, phi)
+    M = _moments(u.payload * p.g, p.w, p.m2 * p.g, OB, math.sin(s.theta))  # cos(phi)
     return Outputs(
         theta=s.theta, omega=s.omega, OB=OB,
-        tau_gravity=tau_gravity(p, u.payload, s.theta),
+        tau_gravity=_gravity(p, u.payload, s.theta, OB, dOB),
         E_p=p.g * math.cos(s.theta) * _net_moment_arm(p, u.payload, OB),
-        E_kin=0.5 * inertia(p, u.payload, s.theta)[0] * s.omega ** 2,
+        E_kin=0.5 * _inertia(p, u.payload, OB, dOB, d2OB)[0] * s.omega ** 2,
         M_g=M.M_g, M_b=M.M_b, M_u=M.M_u,
         M_bar=p.m2 * p.g * dOB * math.sin(phi),
     )

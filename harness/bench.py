@@ -1,13 +1,23 @@
 """Benchmarks: `python -m harness bench` writes one CSV per benchmark to results/bench/.
 
-Each benchmark is a function (steps, repeats) -> table; BENCHMARKS maps the CSV name to it,
-so more (co-simulation real-time factor, parameter sweeps) are added as further functions.
+Each benchmark is a function (steps, repeats) -> table; BENCHMARKS maps the CSV name to it.
 
 `fmu_step`: the cost of one communication step of SelfRegulatingBalancer stepped by FMPy,
 with the calls the co-simulation master makes per step (harness.master: setReal tau_drive,
 doStep, getReal theta and omega), next to the same loop over `BenchFloor`, a pythonfmu
 FMU that only copies its input to its output: the floor that FMI and the embedded
 interpreter impose on any pythonfmu FMU.
+
+`cosim`: wall time of every variant of every shipped scenario at 1 ms, as a real-time
+factor (simulated / wall time), next to the cost of the FMU's own steps in it (steps times
+the fmu_step cost): what the master, drive and controller add. The last row is the sum,
+what `make cosim` spends in simulation.
+
+`convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
+reference (harness.reference): the relative error of each drive energy, which must shrink
+with the step.
+
+`sweep`: runs per second of a parameter sweep with 1 and 2 Dask worker processes.
 """
 
 from __future__ import annotations
@@ -20,7 +30,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness import fmu_build
+from harness import fmu_build, master, reference, scenarios
 from harness.fmi import CoSimFMU
 from harness.results import RESULTS_DIR, write_csv
 from harness.sweep import sweep_benchmark
@@ -44,8 +54,9 @@ STEP_LOOPS = {
     "BenchFloor": StepLoop(
         lambda: fmu_build.fmu_path("BenchFloor", FLOOR_BUILD_DIR, FLOOR_SOURCE_DIR),
         "u", ("y",)),
-    "SelfRegulatingBalancer": StepLoop(
-        lambda: fmu_build.fmu_path("SelfRegulatingBalancer"), "tau_drive", ("theta", "omega")),
+    **{model: StepLoop(lambda model=model: fmu_build.fmu_path(model), "tau_drive",
+                       ("theta", "omega"))
+       for model in ("SelfRegulatingBalancer", "CiupituBalancer")},
 }
 
 
@@ -97,14 +108,70 @@ def fmu_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
     })
 
 
+def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
+    """Wall time and real-time factor of each variant of each shipped scenario at 1 ms.
+
+    Each run is timed as `make cosim` runs it (FMU instantiation included); FMU-only time is
+    the run's step count times the model's best fmu_step cost where that was measured.
+    """
+    step_cost = (fmu_step(steps, repeats).set_index("model").us_per_step * 1e-6).to_dict()
+    rows = []
+    for name in scenarios.available():
+        scenario = scenarios.load(name)
+        for variant in scenario.variants.values():
+            start = time.perf_counter()
+            run = master.run(scenario, variant, STEP_SIZE)
+            wall = time.perf_counter() - start
+            n_steps = round(scenario.duration / STEP_SIZE)
+            rows.append({"scenario": name, "variant": variant.name, "model": run.model,
+                         "simulated_s": scenario.duration, "steps": n_steps, "wall_s": wall,
+                         "real_time_factor": scenario.duration / wall,
+                         "fmu_only_s": n_steps * step_cost.get(run.model, float("nan"))})
+    table = pd.DataFrame(rows)
+    total = {"scenario": "all", "variant": "all", "model": "",
+             **table[["simulated_s", "steps", "wall_s"]].sum().to_dict()}
+    total["real_time_factor"] = total["simulated_s"] / total["wall_s"]
+    total["fmu_only_s"] = float("nan")
+    return pd.concat([table, pd.DataFrame([total])], ignore_index=True)
+
+
+CONVERGENCE_STEPS = (4e-3, 2e-3, 1e-3, 0.5e-3)  # communication steps [s]
+
+
+def convergence(steps: int = 0, repeats: int = 0,
+                scenario_name: str = "franchetti2021") -> pd.DataFrame:
+    """Relative error of each drive energy against the monolithic reference, per step size.
+
+    The error is |E - E_ref| / max(|E_ref|, E_drawn_ref): relative to the metric, or to the
+    run's drawn energy when the metric is a small difference (as in the tests).
+    """
+    scenario = scenarios.load(scenario_name)
+    rows = []
+    for variant in scenario.variants.values():
+        ref = reference.simulate(scenario, variant).metrics
+        scale = {name: max(abs(value), ref["E_drawn"]) for name, value in ref.items()}
+        for step in CONVERGENCE_STEPS:
+            run = master.run(scenario, variant, step)
+            errors = {f"err_{name}": abs(run.metrics[name] - ref[name]) / scale[name]
+                      for name in reference.ENERGIES}
+            rows.append({"scenario": scenario_name, "variant": variant.name, "step_size": step,
+                         **errors, "max_rel_err": max(errors.values())})
+    return pd.DataFrame(rows)
+
+
 BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "fmu_step": fmu_step,
+    # steps and repeats apply to the FMU-only step cost
+    "cosim": cosim,
+    # steps and repeats do not apply
+    "convergence": lambda steps, repeats: convergence(),
     # runs/s of a parameter sweep with 1 and 2 worker processes; steps and repeats do not apply
     "sweep": lambda steps, repeats: sweep_benchmark(),
 }
 
 COMMAND = "bench"
-HELP = "time one FMU communication step against a trivial pythonfmu FMU (results/bench)"
+HELP = ("benchmarks: FMU step cost against a trivial FMU, co-simulation real-time factor, "
+        "step convergence, sweep scaling (results/bench)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -112,7 +179,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=3, help="repeats; the best counts")
     parser.add_argument("--out", type=Path, default=BENCH_DIR, help="output folder")
     parser.add_argument("--only", default="all",
-                        help=f"comma-separated benchmarks from {', '.join(BENCHMARKS)} (default all)")
+                        help=f"comma-separated benchmarks from {', '.join(BENCHMARKS)} "
+                             "(default all)")
 
 
 def run(args: argparse.Namespace) -> int:
