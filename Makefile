@@ -26,6 +26,9 @@ cosim: fmu
 bench: fmu
 	$(PY) -m harness bench
 
+xc: fmu
+	$(PY) -m harness cross-check
+
 sweep: fmu
 	$(PY) -m harness sweep harness/sweeps/table1.toml
 

@@ -1,7 +1,11 @@
-"""Shared pythonfmu base class for the balancer FMUs (standard library only).
+"""Shared pythonfmu base class for the FMUs of this project (standard library only).
+
+`ModelSlave` is a thin FMI layer over a pure model module: the mechanisms, the DC motor
+drive and the position controller all use it (`MechanismSlave` is its name in the mechanism
+slaves).
 
 PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns
-(its issue #33). `MechanismSlave.to_xml` adds them, in the way DNV's component-model does,
+(its issue #33). `ModelSlave.to_xml` adds them, in the way DNV's component-model does,
 from one table of variable metadata that is also used to check inputs at run time.
 
 Error reporting: pythonfmu turns any Python exception into fmi2Fatal and a False return
@@ -21,6 +25,8 @@ from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
+
+from fmu_src.parameters import check_ranges
 
 # unit -> (quantity used as the declared type name, SI base-unit exponents)
 UNITS: dict[str, tuple[str, dict[str, int]]] = {
@@ -45,7 +51,9 @@ UNITS: dict[str, tuple[str, dict[str, int]]] = {
     "Ohm": ("Resistance", {"kg": 1, "m": 2, "s": -3, "A": -2}),
     "H": ("Inductance", {"kg": 1, "m": 2, "s": -2, "A": -2}),
     "N.m/A": ("TorqueConstant", {"kg": 1, "m": 2, "s": -2, "A": -1}),
-    "V.s/rad": ("BackEmfConstant", {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1}),
+    "V/rad": ("VoltagePerAngle", {"kg": 1, "m": 2, "s": -3, "A": -1, "rad": -1}),
+    "V/(rad.s)": ("VoltagePerAngleTime", {"kg": 1, "m": 2, "s": -4, "A": -1, "rad": -1}),
+    "V.s/rad": ("VoltagePerAngularVelocity", {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1}),
 }
 # display units: unit -> (display unit, factor): display = factor * value
 DISPLAY_UNITS = {"rad": ("deg", 180.0 / math.pi), "rad/s": ("deg/s", 180.0 / math.pi)}
@@ -61,14 +69,14 @@ class VariableInfo:
     max: float | None = None
 
 
-class MechanismSlave(Fmi2Slave):
-    """Base of the balancer slaves: a thin FMI layer over a pure physics module.
+class ModelSlave(Fmi2Slave):
+    """Base of the slaves: a thin FMI layer over a pure model module.
 
-    Subclasses set `parameters_type` (a frozen dataclass whose fields carry `unit`,
-    `description`, `min`, `max`, `min_exclusive` metadata and which has a `validate`
-    function; bool fields become Boolean parameters, the others Real parameters), register
-    inputs and outputs with `add_input`/`add_output`, and implement `initialise(params)` and
-    `step(dt)`. Their hidden state is listed in `hidden_state`.
+    Subclasses set `parameters_type` (a frozen dataclass whose fields come from
+    `fmu_src.parameters.parameter`; bool fields become Boolean parameters, the others Real
+    parameters), register inputs and outputs with `add_input`/`add_output`, and implement
+    `initialise(params)` and `step(dt)`; `validate(params)` checks the field ranges unless
+    overridden. Their hidden state is listed in `hidden_state`.
     """
 
     parameters_type: type
@@ -157,8 +165,8 @@ class MechanismSlave(Fmi2Slave):
         self.log(message, Fmi2Status.warning)
 
     def exit_initialization_mode(self) -> None:
-        params = self.read_parameters()
-        try:
+        try:  # a parameters type may check its ranges when it is built
+            params = self.read_parameters()
             self.validate(params)
         except ValueError as error:
             self.fail(f"invalid parameter: {error}")
@@ -192,7 +200,8 @@ class MechanismSlave(Fmi2Slave):
         return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
 
     def validate(self, params: Any) -> None:
-        raise NotImplementedError
+        """Raise ValueError naming the first parameter outside its range."""
+        check_ranges(params)
 
     def initialise(self, params: Any) -> None:
         raise NotImplementedError
@@ -245,6 +254,10 @@ class MechanismSlave(Fmi2Slave):
             for index in initial_unknowns:
                 SubElement(node, "Unknown", attrib={"index": str(index)})
         return root
+
+
+# The mechanism slaves' name for the base.
+MechanismSlave = ModelSlave
 
 
 def _unit_definitions(units: list[str]) -> Element:

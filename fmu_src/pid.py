@@ -41,6 +41,15 @@ def tustin_coefficients(gains: PIDGains, dt: float) -> PIDCoefficients:
     return PIDCoefficients(b0, -b0, (1.0 - tau) / (tau + 1.0), 0.5 * gains.Ki * dt)
 
 
+class PIDState(NamedTuple):
+    """What the PID carries from one sample to the next."""
+
+    integral: float        # integrator output I[k] [V]
+    previous_error: float  # e[k] [rad]
+    derivative: float      # filtered derivative term D[k] [V]
+    saturated: bool        # output at the limit at sample k
+
+
 class DiscretePID:
     """The PID difference equation with output limit and anti-windup."""
 
@@ -71,3 +80,11 @@ class DiscretePID:
             self.integral = candidate
         self._previous_error = error
         return output
+
+    def state(self) -> PIDState:
+        """The state after the last sample (for saving and restoring)."""
+        return PIDState(self.integral, self._previous_error, self._derivative, self.saturated)
+
+    def restore(self, state: PIDState) -> None:
+        """Continue from a state returned by `state`."""
+        self.integral, self._previous_error, self._derivative, self.saturated = state

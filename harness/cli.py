@@ -12,7 +12,8 @@ import sys
 from collections.abc import Sequence
 
 COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.ciupitu_example",
-            "harness.ciupitu_design", "harness.compare", "harness.sweep", "harness.bench")
+            "harness.ciupitu_design", "harness.compare", "harness.sweep", "harness.bench",
+            "harness.cross_check")
 
 
 def parser() -> argparse.ArgumentParser:

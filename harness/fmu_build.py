@@ -9,22 +9,32 @@ embedded files.
 process in one interpreter, each adding its resources folder to sys.path. A namespace
 package's search path follows sys.path, so a second FMU finds its own modules even when an
 earlier FMU imported `fmu_src` first (from a folder that may be deleted since).
+
+Every FMU carries `documentation/index.html`, generated from the built FMU by
+`harness.fmu_docs`. A build writes a temporary file in the destination folder and renames it
+onto `<model>.fmu` only when the FMU and its documentation are complete, so an interrupted or
+failed build never leaves a broken FMU behind (and a concurrent reader sees the old or the
+new FMU, never a partial one).
 """
 
 from __future__ import annotations
 
 import argparse
 import ast
+import os
 import shutil
 import tempfile
 from pathlib import Path
 
 from pythonfmu.builder import FmuBuilder
 
+from harness import fmu_docs
+
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
-MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator")
+MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator", "DcMotorDrive",
+          "PositionController")
 
 
 def _fmu_src_imports(path: Path) -> set[str]:
@@ -50,24 +60,35 @@ def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
     return sorted(SOURCE_DIR / f"{name}.py" for name in found)
 
 
-def build(model: str, dest: Path = DEFAULT_DEST, documentation: Path | None = None,
-          source_dir: Path = SOURCE_DIR) -> Path:
-    """Build the slave script source_dir/<model>.py into dest and return the FMU's path."""
+def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR) -> Path:
+    """Build the slave script source_dir/<model>.py, with its documentation, into
+    dest/<model>.fmu (atomically) and return that path."""
     dest.mkdir(parents=True, exist_ok=True)
+    script = source_dir / f"{model}.py"
     modules = dependencies(model, source_dir)
-    with tempfile.TemporaryDirectory(prefix=f"build_{model}_") as tmp:
-        stage = Path(tmp)
-        package = stage / "fmu_src"
-        package.mkdir()
-        for module in modules:
-            shutil.copy2(module, package)
-        script = shutil.copy2(source_dir / f"{model}.py", stage)
-        fmu = FmuBuilder.build_FMU(
-            script, dest=dest, project_files=[package] if modules else [],
-            documentation_folder=documentation,
-            canGetAndSetFMUstate=True, canSerializeFMUstate=True,
-            canHandleVariableCommunicationStepSize=True)
-    return Path(fmu)
+    fmu = dest / f"{model}.fmu"
+    # pythonfmu takes a destination ending in .fmu as the file to write
+    fd, partial = tempfile.mkstemp(dir=dest, prefix=f".{model}.", suffix=".fmu")
+    os.close(fd)
+    try:
+        with tempfile.TemporaryDirectory(prefix=f"build_{model}_") as tmp:
+            stage = Path(tmp)
+            package = stage / "fmu_src"
+            package.mkdir()
+            for module in modules:
+                shutil.copy2(module, package)
+            FmuBuilder.build_FMU(
+                shutil.copy2(script, stage), dest=partial,
+                project_files=[package] if modules else [],
+                canGetAndSetFMUstate=True, canSerializeFMUstate=True,
+                canHandleVariableCommunicationStepSize=True)
+        fmu_docs.add_documentation(Path(partial), script, modules)
+        os.chmod(partial, 0o644)  # mkstemp creates 0600; FMUs are meant to be shared
+        os.replace(partial, fmu)
+    except BaseException:
+        Path(partial).unlink(missing_ok=True)
+        raise
+    return fmu
 
 
 def build_all(dest: Path = DEFAULT_DEST) -> list[Path]:
@@ -76,9 +97,11 @@ def build_all(dest: Path = DEFAULT_DEST) -> list[Path]:
 
 
 def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR) -> Path:
-    """Path of a built FMU; builds it if it is missing or older than its sources."""
+    """Path of a built FMU; builds it if it is missing or older than its sources (the slave
+    script, the fmu_src modules it uses and the documentation generator)."""
     fmu = dest / f"{model}.fmu"
-    sources = [source_dir / f"{model}.py", *dependencies(model, source_dir)]
+    sources = [source_dir / f"{model}.py", *dependencies(model, source_dir),
+               Path(fmu_docs.__file__)]
     if not fmu.exists() or fmu.stat().st_mtime < max(s.stat().st_mtime for s in sources):
         build(model, dest, source_dir=source_dir)
     return fmu

@@ -1,13 +1,17 @@
 """Quality checks every FMU of harness.fmu_build.MODELS must pass (a new model is covered by
-adding it there): a valid and complete model description, exact state save/restore, reset,
-independent instances, and the same results in DNV's libcosim as in FMPy.
+adding it there): a valid and complete model description, documentation naming every
+variable with its unit, exact state save/restore, reset, independent instances, and the same
+results in DNV's libcosim as in FMPy.
 
-Each model is excited the same generic way: every Real input at 0.1 from initialisation on,
-stepped at its DefaultExperiment step size.
+Each model is excited the same generic way: its n-th Real input at n * 0.1 from
+initialisation on (distinct values, so that a controller sees a non-zero error), stepped at
+its DefaultExperiment step size.
 """
 
 from __future__ import annotations
 
+import zipfile
+from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
@@ -36,9 +40,10 @@ def step_size(path: Path) -> float:
 
 
 def excitation(path: Path) -> dict[str, float]:
-    """Every Real input at INPUT_VALUE."""
-    return {v.name: INPUT_VALUE for v in read_model_description(str(path)).modelVariables
-            if v.causality == "input" and v.type == "Real"}
+    """The n-th Real input (n = 1, 2, ...) at n * INPUT_VALUE."""
+    inputs = [v.name for v in read_model_description(str(path)).modelVariables
+              if v.causality == "input" and v.type == "Real"]
+    return {name: n * INPUT_VALUE for n, name in enumerate(inputs, start=1)}
 
 
 def perturbed_parameters(path: Path) -> dict[str, float]:
@@ -73,6 +78,51 @@ def test_model_description_is_complete(fmu_file: Path) -> None:
     assert experiment is not None
     assert float(experiment.stopTime) > float(experiment.startTime)
     assert 0.0 < float(experiment.stepSize) <= float(experiment.stopTime)
+
+
+class TableRows(HTMLParser):
+    """The text of every table cell, row by row."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rows: list[list[str]] = []
+        self.cell: list[str] | None = None
+
+    def handle_starttag(self, tag: str, attrs: list) -> None:
+        if tag == "tr":
+            self.rows.append([])
+        elif tag in ("td", "th"):
+            self.cell = []
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag in ("td", "th"):
+            self.rows[-1].append("".join(self.cell))
+            self.cell = None
+
+    def handle_data(self, data: str) -> None:
+        if self.cell is not None:
+            self.cell.append(data)
+
+
+def test_documentation_names_every_variable_with_its_unit(fmu_file: Path) -> None:
+    """documentation/index.html has a variables table with one row per model variable
+    (name, unit, causality) and shows the reference plot it ships."""
+    with zipfile.ZipFile(fmu_file) as archive:
+        page = archive.read("documentation/index.html").decode()
+        assert archive.getinfo("documentation/reference.png").file_size > 0
+    assert '<img src="reference.png"' in page
+    parser = TableRows()
+    parser.feed(page)
+    header, *rows = parser.rows
+    documented = {row[header.index("Name")]: row for row in rows}
+    md = read_model_description(str(fmu_file))
+    assert len(rows) == len(md.modelVariables)
+    for v in md.modelVariables:
+        row = documented[v.name]
+        unit = v.declaredType.unit if v.declaredType is not None else ""
+        assert row[header.index("Unit")] == unit, v.name
+        assert row[header.index("Causality")] == v.causality, v.name
+        assert row[header.index("Description")] == v.description, v.name
 
 
 def test_state_restore_replays_exactly(fmu_file: Path) -> None:
@@ -171,3 +221,21 @@ def test_libcosim_gives_the_fmpy_results(fmu_file: Path) -> None:
         assert libcosim[name] == pytest.approx(fmpy[name], rel=1e-9, abs=1e-9), name
     for name in bools:
         assert bool(libcosim[name]) == bool(fmpy[name]), name
+
+
+def test_a_failed_build_leaves_the_previous_fmu(tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """The build writes a temporary file and renames it when the FMU and its documentation
+    are complete: a failure on the way keeps the previous FMU and leaves nothing else."""
+    model = fmu_build.MODELS[-1]
+    fmu = fmu_build.build(model, tmp_path)
+    before = fmu.read_bytes()
+
+    def broken(*_args: object) -> None:
+        raise RuntimeError("interrupted")
+
+    monkeypatch.setattr(fmu_build.fmu_docs, "add_documentation", broken)
+    with pytest.raises(RuntimeError, match="interrupted"):
+        fmu_build.build(model, tmp_path)
+    assert [p.name for p in tmp_path.iterdir()] == [fmu.name]
+    assert fmu.read_bytes() == before
