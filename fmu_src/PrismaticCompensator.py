@@ -41,12 +41,15 @@ class PrismaticCompensator(MechanismSlave):
         for name, _, _ in CALCULATED_PARAMETERS:
             setattr(self, name, getattr(params, name))
         self.state = physics.initial_state(params)
-        self.set_outputs(physics.outputs(params, self.state))
+        self.set_outputs(physics.outputs(params, self.inputs(), self.state))
+
+    def inputs(self) -> physics.Inputs:
+        return physics.Inputs(float(self.tau1), float(self.f2))
 
     def step(self, dt: float) -> None:
-        u = physics.Inputs(float(self.tau1), float(self.f2))
+        u = self.inputs()
         self.state = physics.advance(self.params, u, self.state, dt)
-        self.set_outputs(physics.outputs(self.params, self.state))
+        self.set_outputs(physics.outputs(self.params, u, self.state))
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])
@@ -81,7 +84,7 @@ OUTPUTS = (
      "energies (2 T_wire, plus dE_k3/dq2 when self_locking)"),
     ("E_grav", "J", "Gravitational potential energy of m1 and m2 (0 at q1 = 0)"),
     ("E_springs", "J", "Elastic energy of springs k1, k2, k3"),
-    ("E_kin", "J", "Kinetic energy of the arm"),
+    ("E_kin", "J", "Kinetic energy of the arm and of the drive rotors (J_drive1, m_drive2)"),
     ("W_drive", "J", "Cumulative work of tau1 and f2 on the arm"),
     ("W_worm", "J", "Cumulative work of the worms on the arm (integral of f2_worm q2_dot)"),
     ("E_friction", "J", "Cumulative energy dissipated by d1 and d2"),

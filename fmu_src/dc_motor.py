@@ -120,3 +120,32 @@ class SampledMotor:
         average = avg_a * i0 + avg_b_v * voltage + avg_b_w * omega
         self.current = a * i0 + b_v * voltage + b_w * omega
         return average, self.motor.torque_per_amp * average
+
+
+def copper_energy(p: MotorParameters, dt: float, voltage: float, omega: float,
+                  i_start: float, i_end: float, i_average: float) -> float:
+    """Armature copper loss R_a * integral of i^2 dt [J] over one zero-order-hold step of dt [s].
+
+    Exact for the exact step solution (currents [A] from `SampledMotor.step`), by the
+    armature's energy balance over the step with V [V] and omega [rad/s] held:
+    V i_avg dt = E_copper + K_e N omega i_avg dt + L_a/2 (i_end^2 - i_start^2).
+    """
+    return ((voltage - p.back_emf_per_link_speed * omega) * i_average * dt
+            - 0.5 * p.L_a * (i_end ** 2 - i_start ** 2))
+
+
+# The drive of a prismatic joint: the default motor (same RE 30 data, one motor type for both
+# drives of an arm) coupled directly to a ball screw of lead 40 mm (a high-lead screw), so
+# N = 2 pi / lead = 157.08 motor rad per joint metre, K = N K_t = 4.07 N/A, reflected mass
+# J_rotor N^2 = 0.083 kg (a sixth of demian2022's 0.5 kg slider: the joint's dynamics stay
+# the arm's). Capacity: 14.0 N at the nominal current against the 3.16 N of m2 g sin q1 that
+# the uncompensated demian2022 arm needs at q1 = 0.7 rad (3.37 N for the back-drivable
+# variant's worst residual), plus about 0.1 N to accelerate slider and rotor; 5.9 m/s no-load
+# speed at 24 V against the task's 0.19 m/s. Why so long a lead: the armature's back-EMF
+# damping of the joint, alpha = (N K_t)^2 / (R_a (m2 + J_rotor N^2)), grows with N towards
+# K_t^2 / (R_a J_rotor) = 328 1/s; at 40 mm it is 46 1/s, below the 3 omega_c = 75 1/s that
+# the default PID design places (harness.controller), where a short lead (e.g. 5 mm: 299 1/s)
+# would need a negative derivative gain. Efficiency: a ball screw is back-drivable at about
+# 0.9 both ways, but this linear model would make eta < 1 return more than it takes when the
+# drive regenerates (see the module docstring): eta = 1, losses left to the joint's friction.
+LEAD_SCREW_MOTOR = MotorParameters(N=2.0 * math.pi / 0.040)

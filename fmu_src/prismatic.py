@@ -37,8 +37,14 @@ Static residuals, the efforts a drive must supply to hold the arm at rest (posit
 
 Lagrange equations, J1 = I1 + m1 lc1^2, inputs tau1 and f2:
 
-    (J1 + m2 lc2^2) q1'' + 2 m2 lc2 q1' q2' + tau1_gravity_residual = tau1 - d1 q1'
-    m2 q2'' - m2 lc2 q1'^2 + f2_gravity_residual = f2 - d2 q2'
+    (J1 + J_drive1 + m2 lc2^2) q1'' + 2 m2 lc2 q1' q2' + tau1_gravity_residual = tau1 - d1 q1'
+    (m2 + m_drive2) q2'' - m2 lc2 q1'^2 + f2_gravity_residual = f2 - d2 q2'
+
+J_drive1 and m_drive2 are the drives' rotor inertias reflected to the joints (J_rotor N^2 of a
+gearbox [kg m^2] and of a lead screw [kg]; 0 by default), set by whoever couples the drives:
+each rotor spins with its own joint only, so it adds to that joint's inertia and its kinetic
+energy 1/2 J_drive1 q1'^2 + 1/2 m_drive2 q2'^2 is part of E_kin (the rotors' gyroscopic
+coupling with the arm's rotation is neglected, as in a reflected-inertia model).
 
 There are no end stops: q2 is unbounded (lc2 < 0 puts the slider beyond the pivot); a drive
 keeps it within the link.
@@ -105,11 +111,25 @@ class Parameters:
     q2_0: float = parameter(0.0, "m", "Initial prismatic joint travel")
     q1_dot_0: float = parameter(0.0, "rad/s", "Initial revolute joint speed")
     q2_dot_0: float = parameter(0.0, "m/s", "Initial prismatic joint speed")
+    J_drive1: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the revolute joint "
+                                "(J_rotor N^2)", min=0.0)
+    m_drive2: float = parameter(0.0, "kg", "Drive inertia reflected to the prismatic joint "
+                                "(J_rotor N^2 of a lead screw, N = 2 pi / lead)", min=0.0)
 
     @property
     def J1(self) -> float:
         """Inertia of link 1 about O, I1 + m1 lc1^2 [kg m^2]."""
         return self.I1 + self.m1 * self.lc1 ** 2
+
+    def inertia_1(self, q2: float) -> float:
+        """Inertia of the revolute joint at travel q2, J1 + J_drive1 + m2 (ls0 + q2)^2 [kg m^2]."""
+        lc2 = self.ls0 + q2
+        return self.J1 + self.J_drive1 + self.m2 * lc2 * lc2
+
+    @property
+    def mass_2(self) -> float:
+        """Inertia of the prismatic joint, m2 + m_drive2 [kg]."""
+        return self.m2 + self.m_drive2
 
     @property
     def k1_used(self) -> float:
@@ -199,14 +219,14 @@ def derivatives(p: Parameters, u: Inputs, s: State) -> State:
     eff = efforts(p, q1, q2)
     tau1 = u.tau1 - p.d1 * w1 - 2.0 * p.m2 * lc2 * w1 * w2 - eff.tau1_gravity_residual
     f2 = u.f2 - p.d2 * w2 + p.m2 * lc2 * w1 * w1 - eff.f2_gravity_residual
-    return State(w1, tau1 / (p.J1 + p.m2 * lc2 * lc2), w2, f2 / p.m2,
+    return State(w1, tau1 / p.inertia_1(q2), w2, f2 / p.mass_2,
                  u.tau1 * w1 + u.f2 * w2, eff.f2_worm * w2, p.d1 * w1 * w1 + p.d2 * w2 * w2)
 
 
 def characteristic_rate(p: Parameters, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
     lc2 = p.ls0 + s.q2
-    J = p.J1 + p.m2 * lc2 * lc2
+    J, mass = p.inertia_1(s.q2), p.mass_2
     stiffness_1 = p.g * (p.m1 * p.lc1 + p.m2 * abs(lc2))
     stiffness_2 = p.m2 * p.g / max(abs(lc2), p.ls0)
     if p.compensated:
@@ -214,8 +234,8 @@ def characteristic_rate(p: Parameters, s: State) -> float:
         stiffness_1 += (p.k1_used * p.r * p.r + p.c * p.d * p.k2_used
                         + p.a * abs(p.b + rho * s.q2) * k3)
         stiffness_2 += k3 * rho * rho
-    return max(math.sqrt(stiffness_1 / J), math.sqrt(stiffness_2 / p.m2), p.d1 / J,
-               p.d2 / p.m2, 2.0 * abs(s.q1_dot), abs(s.q2_dot) / max(abs(lc2), p.ls0))
+    return max(math.sqrt(stiffness_1 / J), math.sqrt(stiffness_2 / mass), p.d1 / J,
+               p.d2 / mass, 2.0 * abs(s.q1_dot), abs(s.q2_dot) / max(abs(lc2), p.ls0))
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -255,13 +275,14 @@ def spring_energy(p: Parameters, q1: float, q2: float) -> float:
                   + p.k3_used * (p.a * p.a + e * e - 2.0 * p.a * e * sin_q))
 
 
-def outputs(p: Parameters, s: State) -> Outputs:
-    """All outputs for the state s."""
+def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
+    """All outputs for the state s (the signature of the other mechanisms' `outputs`; none
+    depends on the inputs u here)."""
     q1, w1, q2, w2, W_drive, W_worm, E_friction = s
     lc2 = p.ls0 + q2
     return Outputs(
         q1, w1, q2, w2, *efforts(p, q1, q2),
         E_grav=(p.m1 * p.lc1 + p.m2 * lc2) * p.g * math.sin(q1),
         E_springs=spring_energy(p, q1, q2),
-        E_kin=0.5 * (p.J1 + p.m2 * lc2 * lc2) * w1 * w1 + 0.5 * p.m2 * w2 * w2,
+        E_kin=0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2,
         W_drive=W_drive, W_worm=W_worm, E_friction=E_friction)

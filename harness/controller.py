@@ -8,12 +8,16 @@ plant from voltage to angle is
     G(s) = beta / (s (s + alpha)),  beta = K_tau / (J R_a),
     alpha = (R_a d_link + K_tau K_e N) / (J R_a),
 
-with K_tau = eta N K_t and J the total link-side inertia. With C(s) = Kp + Ki/s + Kd s the
-closed loop is s^3 + (alpha + beta Kd) s^2 + beta Kp s + beta Ki; placing its three poles
-at -omega_c gives Kd = (3 omega_c - alpha)/beta, Kp = 3 omega_c^2/beta, Ki = omega_c^3/beta.
-The derivative is filtered with T_f = 1/(derivative_filter_ratio omega_c). There is no gravity
-feedforward: what balancing saves must show up in the drive. The full model (inductance,
-filter) is checked with python-control (closed-loop poles, margins) in `design_report`.
+with K_tau = eta N K_t and J the total link-side inertia. The same rule holds for a
+prismatic joint driven through a lead screw (N in rad/m): J is then the joint's mass plus
+the reflected rotor J_rotor N^2 [kg], d_link its viscous friction [N s/m], K_tau a force per
+ampere [N/A], and the gains are volts per metre of error; alpha stays in 1/s.
+With C(s) = Kp + Ki/s + Kd s the closed loop is s^3 + (alpha + beta Kd) s^2 + beta Kp s
++ beta Ki; placing its three poles at -omega_c gives Kd = (3 omega_c - alpha)/beta,
+Kp = 3 omega_c^2/beta, Ki = omega_c^3/beta. The derivative is filtered with
+T_f = 1/(derivative_filter_ratio omega_c). There is no gravity feedforward: what balancing
+saves must show up in the drive. The full model (inductance, filter) is checked with
+python-control (closed-loop poles, margins) in `design_report`.
 
 Discretisation: Tustin (ct.c2d) of each term at the communication step; the difference
 equation, voltage limit and anti-windup are `fmu_src.pid.DiscretePID` (shared with the
@@ -40,7 +44,11 @@ class ControllerDesign:
 
 
 def reduced_plant(motor: MotorParameters, inertia: float, d_link: float) -> tuple[float, float]:
-    """(alpha [1/s], beta [rad/(V s^2)]) of G(s) = beta / (s (s + alpha))."""
+    """(alpha [1/s], beta [rad/(V s^2)] or [m/(V s^2)]) of G(s) = beta / (s (s + alpha)).
+
+    inertia: joint-side inertia [kg m^2], or mass [kg] for a lead-screw joint; d_link: its
+    viscous friction [N m s/rad] or [N s/m].
+    """
     k_tau = motor.torque_per_amp
     alpha = (motor.R_a * d_link + k_tau * motor.back_emf_per_link_speed) / (inertia * motor.R_a)
     return alpha, k_tau / (inertia * motor.R_a)
@@ -48,7 +56,14 @@ def reduced_plant(motor: MotorParameters, inertia: float, d_link: float) -> tupl
 
 def design_pid(motor: MotorParameters, inertia: float, d_link: float,
                design: ControllerDesign = ControllerDesign()) -> PIDGains:
-    """PID gains placing the reduced closed loop's poles at -omega_c (triple)."""
+    """PID gains placing the reduced closed loop's poles at -omega_c (triple).
+
+    inertia [kg m^2 or kg] and d_link [N m s/rad or N s/m] as in `reduced_plant`. The plant's
+    own damping alpha should stay below 3 omega_c, else the rule gives a negative Kd.
+    """
+    if not (inertia > 0.0 and d_link >= 0.0):
+        raise ValueError(f"joint inertia = {inertia} must be in (0, inf) and friction = "
+                         f"{d_link} in [0, inf)")
     alpha, beta = reduced_plant(motor, inertia, d_link)
     w = design.omega_c
     return PIDGains(Kp=3 * w ** 2 / beta, Ki=w ** 3 / beta, Kd=(3 * w - alpha) / beta,

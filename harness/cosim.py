@@ -44,7 +44,7 @@ def run_scenario(scenario: scenarios.Scenario, variants: list[str], step: float,
         for name in variants:
             bar.set_postfix_str(name)
             runs.append(master.run(scenario, scenario.variant(name), step, progress=bar.update))
-    for path in results.write_run(runs, scenario.baselines, out / scenario.name):
+    for path in results.write_run(runs, scenario, out / scenario.name):
         print(path)
     return runs
 
@@ -55,5 +55,5 @@ def run(args: argparse.Namespace) -> int:
         scenario = scenarios.load(name)
         variants = selected_variants(scenario, args.variants)
         run_scenario(scenario, variants, args.step, args.out, args.quiet)
-        print(results.summary_text(args.out / scenario.name / "summary.csv"))
+        print(results.summary_text(args.out / scenario.name / "summary.csv", scenario))
     return 0

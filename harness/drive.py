@@ -2,22 +2,44 @@
 
 The model and its default parameters are defined once, in `fmu_src.dc_motor` (standard
 library only, so the `DcMotorDrive` FMU runs the same model); here it becomes a named
-python-control state-space system and is discretised with `control.c2d`.
+python-control state-space system and is discretised with `control.c2d`. MOTORS names the
+drives a scenario's joint can declare (`fmu_src.scenario.MOTORS`).
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 import control as ct
 import numpy as np
 
 from fmu_src.dc_motor import (
+    LEAD_SCREW_MOTOR,
     MotorParameters,
     SampledMotor,
     StepCoefficients,
     armature_matrices,
 )
 
-__all__ = ["MotorParameters", "SampledMotor", "motor_system", "sampled_motor"]
+__all__ = ["MOTORS", "MotorParameters", "SampledMotor", "motor_system", "motors",
+           "sampled_motor"]
+
+# joint-side units: N m and rad for "geared", N and m for "lead_screw"
+MOTORS = {"geared": MotorParameters(), "lead_screw": LEAD_SCREW_MOTOR}
+
+
+def motors(motor: MotorParameters | Mapping[str, MotorParameters] | None = None
+           ) -> dict[str, MotorParameters]:
+    """The drives by name: MOTORS; one MotorParameters replaces the geared motor (the motor of
+    one-joint scenarios, e.g. a sweep's `motor.N`); a mapping replaces the named ones."""
+    if motor is None:
+        return dict(MOTORS)
+    if isinstance(motor, MotorParameters):
+        return MOTORS | {"geared": motor}
+    unknown = sorted(set(motor) - set(MOTORS))
+    if unknown:
+        raise ValueError(f"unknown motor(s) {', '.join(unknown)}; known: {', '.join(MOTORS)}")
+    return MOTORS | dict(motor)
 
 
 def motor_system(motor: MotorParameters) -> ct.StateSpace:

@@ -1,22 +1,24 @@
-"""Co-simulation master: a fixed-step loop over one mechanism FMU, the sampled DC motor and
-the discrete PID.
+"""Co-simulation master: a fixed-step loop over one mechanism FMU and, per driven joint of
+the scenario, a sampled DC motor and a discrete PID.
 
-Per communication step k (time t = k dt), with the FMU's outputs at t:
-  1. controller: V = PID(theta_ref(t) - theta(t)), limited to +-V_supply;
-  2. motor: V and omega(t) held over the step -> step-average current and torque;
-  3. FMU: set tau_drive and the scenario inputs of t, doStep(t, dt), read theta, omega.
-Every output of the FMU is read at the recording rate only (100 Hz by default).
+Per communication step k (time t = k dt), with the FMU's outputs at t, for each joint j:
+  1. controller: V_j = PID_j(q_ref_j(t) - q_j(t)), limited to +-V_supply;
+  2. motor: V_j and the joint speed held over the step -> step-average current and effort;
+then the FMU: set every joint's effort and the scenario inputs of t, doStep(t, dt), read the
+joints' positions and speeds. Every output of the FMU is read at the recording rate only
+(100 Hz by default).
 
-The run starts in equilibrium: the link at rest at the initial angle and the PID integrator
-and motor current holding the static load the FMU reports at t = 0 (tau_gravity). That is
-an initial condition, not a feedforward: during the task the drive gets only the error.
+The run starts in equilibrium: the mechanism at rest at the initial positions and each
+joint's PID integrator and motor current holding the static effort the FMU reports for that
+joint at t = 0 (the joint's `static_effort` or `static_load` output, e.g. tau_gravity). That is
+an initial condition, not a feedforward: during the task each drive gets only its error.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,9 +26,9 @@ import pandas as pd
 
 from harness import fmu_build, metrics
 from harness.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
-from harness.drive import MotorParameters, sampled_motor
+from harness.drive import MotorParameters, motors, sampled_motor
 from harness.fmi import CoSimFMU
-from harness.scenarios import Scenario, Variant
+from harness.scenarios import Joint, Scenario, Variant
 
 DEFAULT_STEP = 1e-3       # communication step [s]
 RECORD_INTERVAL = 0.01    # CSV sampling interval [s] (100 Hz)
@@ -42,37 +44,47 @@ class RunResult:
     step_size: float
     series: pd.DataFrame
     metrics: dict[str, float]
-    gains: PIDGains
-    parameters: dict[str, float]
-    phase_work: dict[str, float] = field(default_factory=dict)
+    gains: dict[str, PIDGains]      # by joint name
+    parameters: dict[str, float | bool]
+    joint_phase_work: dict[str, dict[str, float]] = field(default_factory=dict)
     messages: list[str] = field(default_factory=list)
 
+    @property
+    def phase_work(self) -> dict[str, float]:
+        """Net work of the drives on the mechanism in each phase [J], summed over joints."""
+        works = list(self.joint_phase_work.values())
+        return {phase: sum(w[phase] for w in works) for phase in works[0]} if works else {}
 
-def _parameter(fmu: CoSimFMU, parameters: dict[str, float], name: str) -> float:
-    """A parameter's value in this run: the override, else the FMU's start value."""
-    return parameters.get(name, float(fmu.variables[name].start))
+
+def suffix(scenario: Scenario, joint: Joint) -> str:
+    """Suffix of a joint's drive columns and metrics: none with one joint, else _<joint>."""
+    return "" if len(scenario.joints) == 1 else f"_{joint.name}"
 
 
 def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
-        motor: MotorParameters = MotorParameters(),
+        motor: MotorParameters | Mapping[str, MotorParameters] | None = None,
         design: ControllerDesign = ControllerDesign(),
         progress: Callable[[int], None] | None = None,
         fmu: CoSimFMU | None = None) -> RunResult:
     """Co-simulate one variant of a scenario and return its series and metrics.
 
-    fmu: an instance of the variant's model to reuse (it is reset first and left open),
-    e.g. one per worker in a parameter sweep; by default a new instance is made and freed.
+    motor: the drives by name (`harness.drive.motors`; default MOTORS, one MotorParameters
+    replaces the geared motor). fmu: an instance of the variant's model to reuse (it is
+    reset first and left open), e.g. one per worker in a parameter sweep; by default a new
+    instance is made and freed.
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
         raise ValueError(f"step size = {step_size} s is outside (0, inf)")
-    joint = scenario.joint
+    joints = scenario.joints
+    drive_motors = [motors(motor)[joint.motor] for joint in joints]
     model = variant.model or scenario.model
-    parameters = {**scenario.parameters, **variant.parameters,
-                  joint["initial_angle"]: scenario.initial_angle,
-                  joint["drive_inertia"]: motor.J_drive}
+    parameters = {**scenario.parameters, **variant.parameters}
+    for joint, initial, drive_motor in zip(joints, scenario.initial_angle, drive_motors,
+                                           strict=True):
+        parameters |= {joint.start_parameter: initial, joint.drive_inertia: drive_motor.J_drive}
     n_steps = round(scenario.duration / step_size)
     times = np.arange(n_steps + 1) * step_size
-    reference = scenario.reference(times)
+    references = [scenario.reference(times, j) for j in range(len(joints))]
     inputs = scenario.inputs(times, variant)
     record_every = max(1, round(RECORD_INTERVAL / step_size))
 
@@ -86,64 +98,103 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         context = contextlib.nullcontext(fmu)
     with context as fmu:
         first_message = len(fmu.messages)
-        unknown = [n for n in inputs if n not in fmu.variables]
-        if unknown:
-            raise ValueError(f"model {model} has no input {', '.join(unknown)}: drop it in "
-                             f"variant {variant.name} (drop_inputs)")
+        _check_names(fmu, model, variant, inputs, joints)
         fmu.set({name: signal[0] for name, signal in inputs.items()})
         fmu.initialize(parameters, stop_time=scenario.duration)
-        friction = _parameter(fmu, parameters, joint["friction"])
-        inertia = _parameter(fmu, parameters, joint["inertia"]) + motor.J_drive
-        gains = design_pid(motor, inertia, friction, design)
-        pid = discrete_pid(gains, step_size, motor.V_supply)
+
+        # per joint: the PID designed for its inertia and friction, and the motor starting in
+        # equilibrium (holding the static effort at the initial position)
+        state_names = [name for joint in joints for name in (joint.position, joint.speed)]
+        state = fmu.slave.getReal(fmu.references(state_names))
+        gains, pids, drives = {}, [], []
+        for j, (joint, drive_motor) in enumerate(zip(joints, drive_motors, strict=True)):
+            values = fmu.get([joint.inertia, joint.friction, joint.static_output])
+            gains[joint.name] = design_pid(
+                drive_motor, values[joint.inertia] + drive_motor.J_drive,
+                values[joint.friction], design)
+            hold_current = (joint.hold_effort(values[joint.static_output])
+                            / drive_motor.torque_per_amp)
+            drives.append(sampled_motor(drive_motor, step_size, current=hold_current))
+            pid = discrete_pid(gains[joint.name], step_size, drive_motor.V_supply)
+            pid.reset(references[j][0] - state[2 * j], integral=hold_current * drive_motor.R_a)
+            pids.append(pid)
 
         outputs = fmu.names("output")
         record_names = outputs + list(inputs)
-        state_refs = fmu.references([joint["angle"], joint["speed"]])
-        torque_ref = fmu.references([joint["torque"]])
+        state_refs = fmu.references(state_names)
+        effort_refs = fmu.references([joint.effort for joint in joints])
         slave = fmu.slave
-
-        # start in equilibrium: hold the static load at the initial angle
-        initial = fmu.get([joint["angle"], joint["speed"], "tau_gravity"])
-        theta, omega = initial[joint["angle"]], initial[joint["speed"]]
-        hold_current = -initial["tau_gravity"] / motor.torque_per_amp
-        drive = sampled_motor(motor, step_size, current=hold_current)
-        pid.reset(reference[0] - theta, integral=hold_current * motor.R_a)
-
         changes = _input_changes(fmu, inputs)
-        voltage, current, torque, angle = [], [], [], [theta]
+        records = [([], [], []) for _ in joints]  # per joint: voltage, current, effort
+        channels = [(pid.update, drive.step, reference.tolist(), 2 * j, voltage.append,
+                     current.append, effort.append)
+                    for j, (pid, drive, reference, (voltage, current, effort))
+                    in enumerate(zip(pids, drives, references, records, strict=True))]
+        states = [state]
         rows = [fmu.get(record_names)]
-        reference_list = reference.tolist()
         for k in range(n_steps):
-            v = pid.update(reference_list[k] - theta)
-            i_avg, tau = drive.step(v, omega)
-            slave.setReal(torque_ref, [tau])
+            efforts = []
+            for update, step, reference, index, add_v, add_i, add_effort in channels:
+                v = update(reference[k] - state[index])
+                i_avg, effort = step(v, state[index + 1])
+                add_v(v)
+                add_i(i_avg)
+                add_effort(effort)
+                efforts.append(effort)
+            slave.setReal(effort_refs, efforts)
             for setter, refs, value in changes.get(k, ()):
                 setter(refs, [value])
             slave.doStep(times[k], step_size)
-            theta, omega = slave.getReal(state_refs)
-            voltage.append(v)
-            current.append(i_avg)
-            torque.append(tau)
-            angle.append(theta)
+            state = slave.getReal(state_refs)
+            states.append(state)
             if (k + 1) % record_every == 0:
                 rows.append(fmu.get(record_names))
                 if progress is not None:
                     progress(record_every)
         messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
-    voltage, current, torque, angle = map(np.asarray, (voltage, current, torque, angle))
-    dtheta = np.diff(angle)
-    error = reference[:n_steps] - angle[:n_steps]
-    result_metrics = metrics.drive_metrics(step_size, voltage, current, torque, dtheta, error,
-                                           motor.R_a, motor.L_a, drive.current)
-    series = _series(times[::record_every], rows, reference[::record_every],
-                     voltage, current, torque, record_every, step_size)
-    work = torque * dtheta
-    phase_work = {name: float(np.sum(work[round(t0 / step_size):round(t1 / step_size)]))
-                  for name, t0, t1 in scenario.phase_times()}
-    return RunResult(scenario.name, variant.name, model, step_size, series, result_metrics,
-                     gains, parameters, phase_work, messages)
+    positions = np.asarray(states)[:, 0::2]
+    series = pd.DataFrame(rows)
+    series.insert(0, "time", times[::record_every][:len(series)])
+    per_joint, joint_phase_work = {}, {}
+    for j, (joint, drive_motor, drive, reference, (voltage, current, effort)) in enumerate(
+            zip(joints, drive_motors, drives, references, records, strict=True)):
+        voltage, current, effort = map(np.asarray, (voltage, current, effort))
+        position = positions[:, j]
+        travel = np.diff(position)
+        per_joint[joint.name] = metrics.drive_metrics(
+            step_size, voltage, current, effort, travel, reference[:n_steps] - position[:n_steps],
+            drive_motor.R_a, drive_motor.L_a, drive.current)
+        work = effort * travel
+        joint_phase_work[joint.name] = {
+            name: float(np.sum(work[round(t0 / step_size):round(t1 / step_size)]))
+            for name, t0, t1 in scenario.phase_times()}
+        _add_drive_columns(series, joint, suffix(scenario, joint), reference[::record_every],
+                           voltage, current, effort, record_every, step_size)
+    if len(joints) > 1:
+        _add_total_columns(series, [suffix(scenario, joint) for joint in joints])
+    for column in series.columns:
+        if series[column].dtype == bool:
+            series[column] = series[column].astype(int)
+    return RunResult(scenario.name, variant.name, model, step_size, series,
+                     metrics.run_metrics(per_joint), gains, parameters, joint_phase_work,
+                     messages)
+
+
+def _check_names(fmu: CoSimFMU, model: str, variant: Variant, inputs: dict[str, np.ndarray],
+                 joints: tuple[Joint, ...]) -> None:
+    """ValueError naming scenario inputs and joint variables the model does not have."""
+    unknown = [n for n in inputs if n not in fmu.variables]
+    if unknown:
+        raise ValueError(f"model {model} has no input {', '.join(unknown)}: drop it in "
+                         f"variant {variant.name} (drop_inputs)")
+    for joint in joints:
+        names = (joint.position, joint.speed, joint.effort, joint.start_parameter,
+                 joint.inertia, joint.friction, joint.drive_inertia, joint.static_output)
+        unknown = [n for n in names if n not in fmu.variables]
+        if unknown:
+            raise ValueError(f"model {model} has no variable {', '.join(unknown)} "
+                             f"(named by joint {joint.name})")
 
 
 def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:
@@ -163,28 +214,30 @@ def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, li
     return changes
 
 
-def _series(times: np.ndarray, rows: list[dict], reference: np.ndarray, voltage: np.ndarray,
-            current: np.ndarray, torque: np.ndarray, every: int, dt: float) -> pd.DataFrame:
-    """Recorded FMU variables plus drive signals at the recording instants.
+def _add_drive_columns(frame: pd.DataFrame, joint: Joint, suffix: str, reference: np.ndarray,
+                       voltage: np.ndarray, current: np.ndarray, effort: np.ndarray,
+                       every: int, dt: float) -> None:
+    """One drive's columns at the recording instants: `<position>_ref`, then V, i, the effort
+    (named after the FMU input), P_elec, E_in and E_drawn with the joint's suffix.
 
     The drive columns at time t_j hold the values of the step that starts at t_j (the last
     row holds those of the final step); cumulative energies are integrated up to t_j.
     """
-    frame = pd.DataFrame(rows)
-    frame.insert(0, "time", times[:len(frame)])
+    rows = len(frame)
     power = voltage * current
-    index = np.minimum(np.arange(len(frame)) * every, len(voltage) - 1)
-    frame["theta_ref"] = reference[:len(frame)]
-    frame["V"] = voltage[index]
-    frame["i"] = current[index]
-    frame["tau_drive"] = torque[index]
-    frame["P_elec"] = power[index]
+    index = np.minimum(np.arange(rows) * every, len(voltage) - 1)
+    frame[f"{joint.position}_ref"] = reference[:rows]
+    frame[f"V{suffix}"] = voltage[index]
+    frame[f"i{suffix}"] = current[index]
+    frame[joint.effort] = effort[index]
+    frame[f"P_elec{suffix}"] = power[index]
     cumulative = np.concatenate([[0.0], np.cumsum(power) * dt])
     drawn = np.concatenate([[0.0], np.cumsum(np.maximum(power, 0.0)) * dt])
-    frame["E_in"] = cumulative[np.arange(len(frame)) * every]
-    frame["E_drawn"] = drawn[np.arange(len(frame)) * every]
-    for column in frame.columns:
-        if frame[column].dtype == bool:
-            frame[column] = frame[column].astype(int)
-    return frame
+    frame[f"E_in{suffix}"] = cumulative[np.arange(rows) * every]
+    frame[f"E_drawn{suffix}"] = drawn[np.arange(rows) * every]
 
+
+def _add_total_columns(frame: pd.DataFrame, suffixes: list[str]) -> None:
+    """P_elec, E_in and E_drawn summed over the drives."""
+    for name in ("P_elec", "E_in", "E_drawn"):
+        frame[name] = sum(frame[f"{name}{s}"] for s in suffixes)

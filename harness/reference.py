@@ -1,18 +1,20 @@
 """Monolithic reference: the co-simulated system as one ODE solved by scipy's solve_ivp.
 
 The same equations as the co-simulation, without FMI and without sampling: the
-mechanism's `derivatives` from its physics module, the motor's armature equation, and the
-continuous-time PID (filtered derivative) that the discrete controller approximates. With
-the continuous controller and no zero-order holds, this is the limit the co-simulation
-converges to as the communication step shrinks; `harness bench` and the tests measure that.
+mechanism's `derivatives` from its physics module, each joint's motor armature equation, and
+the continuous-time PID (filtered derivative) that each discrete controller approximates.
+With the continuous controllers and no zero-order holds, this is the limit the
+co-simulation converges to as the communication step shrinks; `harness bench` and the tests
+measure that.
 
-The drive's energies are integrated as extra states. The run is split at phase boundaries,
+The drives' energies are integrated as extra states. The run is split at phase boundaries,
 where the discrete inputs (locks) change; within a phase inputs are constant or ramps.
 """
 
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from types import ModuleType
 from typing import Any
@@ -21,22 +23,26 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from harness.controller import ControllerDesign, design_pid
-from harness.drive import MotorParameters
-from harness.scenarios import RAMP_SHAPES, Scenario, Variant, quintic
+from harness.drive import MotorParameters, motors
+from harness.metrics import run_metrics
+from harness.scenarios import Scenario, Variant, ramp
 
 # model identifier -> its pure physics module in fmu_src
 PHYSICS = {"SelfRegulatingBalancer": "fmu_src.self_regulating",
-           "CiupituBalancer": "fmu_src.ciupitu"}
+           "CiupituBalancer": "fmu_src.ciupitu",
+           "PrismaticCompensator": "fmu_src.prismatic"}
 ENERGIES = ("E_in", "E_drawn", "E_copper", "E_mech", "W_link")
+DRIVE_STATES = 3  # per joint: armature current, PID integral, filtered error
 
 
 @dataclass
 class ReferenceResult:
-    """Energies [J] of the monolithic run and its trajectory at the phase ends."""
+    """Energies [J] of the monolithic run (metric names as in the co-simulation) and the
+    trajectory at the solver's time points."""
 
     metrics: dict[str, float]
-    times: np.ndarray   # solver time points [s]
-    angle: np.ndarray   # joint angle at those times [rad]
+    times: np.ndarray       # solver time points [s]
+    positions: np.ndarray   # joint positions at those times [rad or m], one row per joint
 
 
 def physics_module(model: str) -> ModuleType:
@@ -49,87 +55,97 @@ def physics_module(model: str) -> ModuleType:
 
 
 def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,
-               motor: MotorParameters = MotorParameters()) -> Any:
+               motor: MotorParameters | Mapping[str, MotorParameters] | None = None) -> Any:
     """The physics module's validated Parameters of a run: defaults, then the scenario's and
-    the variant's values, the initial angle and the drive's reflected inertia."""
-    joint = scenario.joint
+    the variant's values, the initial positions and the drives' reflected inertias (motor as
+    in `harness.drive.motors`)."""
     values = {f.name: f.default for f in fields(physics.Parameters)}
     values.update(scenario.parameters)
     values.update(variant.parameters)
-    values[joint["initial_angle"]] = scenario.initial_angle
-    values[joint["drive_inertia"]] = motor.J_drive
+    drives = motors(motor)
+    for joint, initial in zip(scenario.joints, scenario.initial_angle, strict=True):
+        values[joint.start_parameter] = initial
+        values[joint.drive_inertia] = drives[joint.motor].J_drive
     p = physics.Parameters(**values)
     physics.validate(p)
     return p
 
 
-def simulate(scenario: Scenario, variant: Variant, motor: MotorParameters = MotorParameters(),
+def simulate(scenario: Scenario, variant: Variant,
+             motor: MotorParameters | Mapping[str, MotorParameters] | None = None,
              design: ControllerDesign = ControllerDesign(), rtol: float = 1e-9) -> ReferenceResult:
     """Solve the whole task as one ODE; returns the drive energies of SPEC section 7."""
     physics = physics_module(variant.model or scenario.model)
-    joint = scenario.joint
+    joints = scenario.joints
+    drives = [motors(motor)[joint.motor] for joint in joints]
     p = parameters(physics, scenario, variant, motor)
-    gains = design_pid(motor, getattr(p, joint["inertia"]) + motor.J_drive,
-                       getattr(p, joint["friction"]), design)
+    gains = [design_pid(m, getattr(p, joint.inertia) + m.J_drive, getattr(p, joint.friction),
+                        design) for joint, m in zip(joints, drives, strict=True)]
     state_names = physics.State._fields
-    angle_index = state_names.index(joint["angle"])
-    speed_index = state_names.index(joint["speed"])
-    n_mech = len(state_names)
-    k_tau, k_e = motor.torque_per_amp, motor.back_emf_per_link_speed
+    position_index = [state_names.index(joint.position) for joint in joints]
+    speed_index = [state_names.index(joint.speed) for joint in joints]
+    n_mech, n_joints = len(state_names), len(joints)
+    energy_start = n_mech + DRIVE_STATES * n_joints
 
     # start in equilibrium, as the co-simulation does
     mech0 = physics.initial_state(p)
     segments = scenario.input_segments(variant)
-    tau_gravity0 = physics.outputs(p, _phase_inputs(physics, segments[0], 0.0, 0.0),
-                                   mech0).tau_gravity
-    i0 = -tau_gravity0 / k_tau
-    x = np.array([*mech0, i0, i0 * motor.R_a, scenario.initial_angle - mech0[angle_index],
-                  *np.zeros(len(ENERGIES))])
-    times, angles = [0.0], [mech0[angle_index]]
-    start_angle = scenario.initial_angle
+    out0 = physics.outputs(p, _inputs(physics, joints, segments[0], 0.0, [0.0] * n_joints),
+                           mech0)
+    x = [*mech0]
+    for joint, m, i, initial in zip(joints, drives, position_index, scenario.initial_angle,
+                                    strict=True):
+        current = joint.hold_effort(getattr(out0, joint.static_output)) / m.torque_per_amp
+        x += [current, current * m.R_a, initial - mech0[i]]
+    x = np.array(x + [0.0] * (len(ENERGIES) * n_joints))
+    times, positions = [0.0], [[mech0[i] for i in position_index]]
 
-    for (_, t0, t1), phase, segment in zip(scenario.phase_times(), scenario.phases, segments,
-                                           strict=True):
-        a0, a1 = start_angle, phase.target
+    for k, ((_, t0, t1), segment) in enumerate(zip(scenario.phase_times(), segments,
+                                                   strict=True)):
+        targets = [scenario.reference_segments(j)[k][2:] for j in range(n_joints)]
 
-        def rhs(t: float, y: np.ndarray, t0=t0, t1=t1, a0=a0, a1=a1,
+        def rhs(t: float, y: np.ndarray, t0=t0, t1=t1, targets=targets,
                 segment=segment) -> np.ndarray:
             s = (t - t0) / (t1 - t0)
-            reference = a0 + (a1 - a0) * float(quintic(np.float64(s)))
-            mech, current, integral, filtered = y[:n_mech], y[n_mech], y[n_mech + 1], y[n_mech + 2]
-            error = reference - mech[angle_index]
-            voltage = (gains.Kp * error + integral
-                       + gains.Kd / gains.T_f * (error - filtered))
-            voltage = min(max(voltage, -motor.V_supply), motor.V_supply)
-            omega = mech[speed_index]
-            torque = k_tau * current
-            u = _phase_inputs(physics, segment, s, torque)
-            d_mech = physics.derivatives(p, u, physics.State(*mech))
-            power = voltage * current
-            return np.array([
-                *d_mech,
-                (voltage - motor.R_a * current - k_e * omega) / motor.L_a,
-                gains.Ki * error,
-                (error - filtered) / gains.T_f,
-                power, max(power, 0.0), motor.R_a * current ** 2, abs(torque * omega),
-                torque * omega])
+            mech = y[:n_mech]
+            efforts, d_drive, d_energy = [], [], []
+            for j, (m, g) in enumerate(zip(drives, gains, strict=True)):
+                current, integral, filtered = y[n_mech + DRIVE_STATES * j:
+                                                n_mech + DRIVE_STATES * (j + 1)]
+                error = ramp(*targets[j], "quintic", s) - mech[position_index[j]]
+                voltage = g.Kp * error + integral + g.Kd / g.T_f * (error - filtered)
+                voltage = min(max(voltage, -m.V_supply), m.V_supply)
+                speed = mech[speed_index[j]]
+                effort = m.torque_per_amp * current
+                power = voltage * current
+                efforts.append(effort)
+                d_drive += [(voltage - m.R_a * current - m.back_emf_per_link_speed * speed)
+                            / m.L_a, g.Ki * error, (error - filtered) / g.T_f]
+                d_energy += [power, max(power, 0.0), m.R_a * current ** 2,
+                             abs(effort * speed), effort * speed]
+            u = _inputs(physics, joints, segment, s, efforts)
+            return np.array([*physics.derivatives(p, u, physics.State(*mech)), *d_drive,
+                             *d_energy])
 
         solution = solve_ivp(rhs, (t0, t1), x, method="Radau", rtol=rtol,
                              atol=1e-10, dense_output=False)
         if not solution.success:
-            raise RuntimeError(f"reference solve failed in phase {phase.name}: "
+            raise RuntimeError(f"reference solve failed in phase {scenario.phases[k].name}: "
                                f"{solution.message}")
         x = solution.y[:, -1]
         times.extend(solution.t[1:])
-        angles.extend(solution.y[angle_index, 1:])
-        start_angle = phase.target
-    energies = dict(zip(ENERGIES, x[-len(ENERGIES):].tolist(), strict=True))
-    return ReferenceResult(energies, np.array(times), np.array(angles))
+        positions.extend(solution.y[position_index, 1:].T.tolist())
+    energies = x[energy_start:].reshape(n_joints, len(ENERGIES))
+    per_joint = {joint.name: dict(zip(ENERGIES, row.tolist(), strict=True))
+                 for joint, row in zip(joints, energies, strict=True)}
+    return ReferenceResult(run_metrics(per_joint), np.array(times), np.array(positions).T)
 
 
-def _phase_inputs(physics: ModuleType, segment: dict[str, tuple], s: float,
-                  torque: float) -> tuple:
-    """The mechanism's Inputs at fraction s of a phase (see Scenario.input_segments)."""
-    values = {name: (start if start == end else start + (end - start) * RAMP_SHAPES[shape](s))
-              for name, (start, end, shape) in segment.items() if name in physics.Inputs._fields}
-    return physics.Inputs(**values)._replace(tau_drive=torque)
+def _inputs(physics: ModuleType, joints: tuple, segment: dict[str, tuple], s: float,
+            efforts: list[float]) -> tuple:
+    """The mechanism's Inputs at fraction s of a phase (see Scenario.input_segments) with the
+    drives' efforts [N m or N]."""
+    values = {name: ramp(start, end, shape, s) for name, (start, end, shape) in segment.items()
+              if name in physics.Inputs._fields}
+    values.update((joint.effort, effort) for joint, effort in zip(joints, efforts, strict=True))
+    return physics.Inputs(**values)

@@ -20,9 +20,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 
-from harness.master import RunResult  # noqa: E402
+from harness.master import RunResult, suffix  # noqa: E402
 from harness.metrics import METRICS, efficaciousness  # noqa: E402
+from harness.scenarios import Scenario  # noqa: E402
 
 RESULTS_DIR = Path(__file__).resolve().parent.parent / "results"
 SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size")
@@ -52,18 +54,25 @@ def write_csv(frame: pd.DataFrame, path: Path) -> Path:
     return write_atomic(path, write)
 
 
+def summary_columns(results: list[RunResult]) -> list[str]:
+    """Columns of a summary: SUMMARY_COLUMNS for one-joint runs; with several joints the
+    totals, eps, then each drive's metrics (see harness.metrics), then the rest."""
+    return ["variant", *results[0].metrics, "eps", "W_phases", "eps_W", "model", "step_size"]
+
+
 def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> pd.DataFrame:
     """One row per variant with the metrics of SPEC section 7 and the per-phase work.
 
-    W_phases [J] is the sum over the task's phases of |net mechanical work of the drive on the
-    link in the phase|: the paper's stroke energy |integral of M dphi| summed over strokes.
-    eps (on E_drawn, SPEC section 7) and eps_W (on W_phases) are computed against the
-    baseline: one variant name, or a baseline per variant (Scenario.baselines); NaN where the
-    baseline was not run.
+    W_phases [J] is the sum over the task's phases (and drives) of |net mechanical work of the
+    drive on its joint in the phase|: the paper's stroke energy |integral of M dphi| summed
+    over strokes. eps (on E_drawn, SPEC section 7) and eps_W (on W_phases) are computed
+    against the baseline: one variant name, or a baseline per variant (Scenario.baselines);
+    NaN where the baseline was not run.
     """
     results = list(results)
     rows = [{"variant": r.variant, **r.metrics,
-             "W_phases": sum(abs(w) for w in r.phase_work.values()),
+             "W_phases": sum(abs(w) for works in r.joint_phase_work.values()
+                             for w in works.values()),
              "model": r.model, "step_size": r.step_size} for r in results]
     table = pd.DataFrame(rows)
     baselines = table.variant.map(
@@ -71,68 +80,119 @@ def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> 
     indexed = table.set_index("variant")
     for metric, column in (("E_drawn", "eps"), ("W_phases", "eps_W")):
         table[column] = efficaciousness(table[metric], baselines.map(indexed[metric]))
-    return table[list(SUMMARY_COLUMNS)]
+    return table[summary_columns(results)]
 
 
-def write_run(results: list[RunResult], baseline: str | Mapping[str, str],
-              out_dir: Path) -> list[Path]:
+def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path) -> list[Path]:
     """Write <variant>.csv for each run, summary.csv and the plot into out_dir."""
     written = [write_csv(r.series, out_dir / f"{r.variant}.csv") for r in results]
-    written.append(write_csv(summary(results, baseline), out_dir / "summary.csv"))
-    written.append(plot(results, out_dir / f"{results[0].scenario}.png"))
+    written.append(write_csv(summary(results, scenario.baselines), out_dir / "summary.csv"))
+    written.append(plot(results, scenario, out_dir / f"{scenario.name}.png"))
     return written
 
 
 # ---- plots -------------------------------------------------------------------------------
+def _to_mm(values: np.ndarray) -> np.ndarray:
+    return 1e3 * values
+
+
+# panels: (title, unit, [(column, conversion or None), ...]); a column ending in _ref is the
+# reference, drawn once in black
 MECHANISM_PANELS = (
     ("(a) link angle", "deg", [("theta", np.degrees), ("theta_ref", np.degrees)]),
     ("(b) energies", "J", [("E_p", None), ("E_e", None), ("E_t", None)]),
-    ("(c) slider travel and payload", "mm | kg", [("delta_b", lambda v: 1e3 * v),
-                                                  ("payload", None)]),
-    ("(d) spring length x, counterweight distance OB", "mm", [("x", lambda v: 1e3 * v),
-                                                              ("OB", lambda v: 1e3 * v)]),
+    ("(c) slider travel and payload", "mm | kg", [("delta_b", _to_mm), ("payload", None)]),
+    ("(d) spring length x, counterweight distance OB", "mm", [("x", _to_mm), ("OB", _to_mm)]),
 )
+# the mechanism panels of multi-joint models, after one tracking panel per joint
+MODEL_PANELS = {
+    "PrismaticCompensator": (
+        ("gravity residuals: efforts to hold the arm", "N m | N",
+         [("tau1_gravity_residual", None), ("f2_gravity_residual", None)]),
+        ("energies", "J", [("E_grav", None), ("E_springs", None), ("E_kin", None),
+                           ("W_worm", None)]),
+    ),
+}
 DRIVE_PANELS = (
     ("drive torque", "N m", "tau_drive"),
     ("motor current", "A", "i"),
     ("electrical power", "W", "P_elec"),
     ("energy drawn", "J", "E_drawn"),
 )
+STYLES = ("-", "--", ":", "-.")
 
 
-def plot(results: list[RunResult], path: Path) -> Path:
-    """Franchetti Figure 5's four panels per variant (left; a model's other quantities share
-    them, e.g. Ciupitu's OB in (d)) and the drive per variant (right)."""
-    fig, axes = plt.subplots(4, 2, figsize=(13, 12), sharex=True)
+def panels(scenario: Scenario, model: str) -> tuple[tuple, tuple]:
+    """(mechanism panels, drive panels) of a scenario's plot: Franchetti Figure 5's four
+    panels for one-joint scenarios; per joint tracking, MODEL_PANELS and per drive efforts,
+    total power and energy drawn for several joints."""
+    if len(scenario.joints) == 1:
+        return MECHANISM_PANELS, DRIVE_PANELS
+    tracking, efforts = [], []
+    for joint in scenario.joints:
+        revolute = joint.kind == "revolute"
+        convert, unit = (np.degrees, "deg") if revolute else (_to_mm, "mm")
+        tracking.append((f"joint {joint.name}", unit, [(joint.position, convert),
+                                                       (f"{joint.position}_ref", convert)]))
+        efforts.append((f"drive effort {joint.effort} ({joint.motor} motor)",
+                        "N m" if revolute else "N", joint.effort))
+    return ((*tracking, *MODEL_PANELS.get(model, ())),
+            (*efforts, ("electrical power, all drives", "W", "P_elec"),
+             ("energy drawn, all drives", "J", "E_drawn")))
+
+
+def plot(results: list[RunResult], scenario: Scenario, path: Path) -> Path:
+    """The mechanism per variant (left; a model's other quantities share a panel, e.g.
+    Ciupitu's OB in Franchetti's (d)) and the drives per variant (right), see `panels`."""
+    mechanism, drives = panels(scenario, results[0].model)
+    rows = max(len(mechanism), len(drives))
+    fig, axes = plt.subplots(rows, 2, figsize=(13, 3 * rows), sharex=True, squeeze=False)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for row, (title, unit, signals) in enumerate(MECHANISM_PANELS):
+    for row, (title, unit, signals) in enumerate(mechanism):
         ax = axes[row, 0]
         for colour, r in zip(colours, results, strict=False):
-            for style, (name, convert) in zip(("-", "--", ":"), signals, strict=False):
-                if name not in r.series or (name == "theta_ref" and r is not results[0]):
+            for style, (name, convert) in zip(STYLES, signals, strict=False):
+                reference = name.endswith("_ref")
+                if name not in r.series or (reference and r is not results[0]):
                     continue
                 values = r.series[name].to_numpy()
                 ax.plot(r.series.time, convert(values) if convert else values, style,
-                        color="k" if name == "theta_ref" else colour, lw=1.2,
-                        label=f"{name} ({r.variant})" if name != "theta_ref" else "reference")
-        ax.set_title(title, loc="left", fontsize=10)
-        ax.set_ylabel(unit)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2)
-    for row, (title, unit, name) in enumerate(DRIVE_PANELS):
+                        color="k" if reference else colour, lw=1.2)
+        # one legend entry per signal shown (line style) and per variant (colour)
+        shown = [(style, name) for style, (name, _) in zip(STYLES, signals, strict=False)
+                 if any(name in r.series for r in results)]
+        handles = [Line2D([], [], ls=style, color="0.4", label=name)
+                   for style, name in shown if not name.endswith("_ref")]
+        handles += [Line2D([], [], color=colour, label=r.variant)
+                    for colour, r in zip(colours, results, strict=False)
+                    if any(name in r.series for _, name in shown)]
+        handles += [Line2D([], [], ls=style, color="k", label="reference")
+                    for style, name in shown if name.endswith("_ref")]
+        ax.legend(handles=handles, fontsize=7, ncol=2)
+        _decorate(ax, title, unit)
+    for row, (title, unit, name) in enumerate(drives):
         ax = axes[row, 1]
         for colour, r in zip(colours, results, strict=False):
             ax.plot(r.series.time, r.series[name], color=colour, lw=1.2, label=r.variant)
-        ax.set_title(title, loc="left", fontsize=10)
-        ax.set_ylabel(unit)
-        ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    for ax in axes[-1]:
+        _decorate(ax, title, unit)
+    for ax in axes[rows - 1:, :].ravel():
         ax.set_xlabel("time [s]")
-    fig.suptitle(f"{results[0].scenario}: mechanism (panels of Franchetti et al. 2021, Fig. 5) "
-                 "and drive")
+    for row in range(len(mechanism), rows):
+        axes[row, 0].set_visible(False)
+    for row in range(len(drives), rows):
+        axes[row, 1].set_visible(False)
+    fig.suptitle(f"{scenario.name}: mechanism (panels of Franchetti et al. 2021, Fig. 5) "
+                 "and drive" if len(scenario.joints) == 1 else
+                 f"{scenario.name}: joints, mechanism and drives")
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+def _decorate(ax: plt.Axes, title: str, unit: str) -> None:
+    ax.set_title(title, loc="left", fontsize=10)
+    ax.set_ylabel(unit)
+    ax.grid(alpha=0.3)
 
 
 def save_figure(fig: plt.Figure, path: Path) -> Path:
@@ -144,12 +204,18 @@ def save_figure(fig: plt.Figure, path: Path) -> Path:
     return path
 
 
-def summary_text(path: Path) -> str:
-    """A summary CSV as a readable table: energies in J, torque in N m, errors in deg."""
+def summary_text(path: Path, scenario: Scenario) -> str:
+    """A summary CSV as a readable table: energies in J, efforts in N m or N, tracking errors
+    in deg (revolute joints) or mm (prismatic joints)."""
     table = pd.read_csv(path)
-    for column in ("track_err_max", "track_err_rms"):
-        table[column] = np.degrees(table[column])
-    shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech", "tau_peak", "tau_rms",
-             "i_rms", "track_err_max", "track_err_rms", "eps", "W_phases", "eps_W"]
-    return (f"{path.parent.name} (tracking errors in deg)\n"
+    shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech"]
+    per_drive = ["tau_peak", "tau_rms", "i_rms", "V_peak", "track_err_max", "track_err_rms"]
+    suffixes = {suffix(scenario, joint): joint for joint in scenario.joints}
+    shown += [f"{metric}{s}" for s in suffixes for metric in per_drive]
+    for s, joint in suffixes.items():
+        for column in (f"track_err_max{s}", f"track_err_rms{s}"):
+            table[column] = np.degrees(table[column]) if joint.kind == "revolute" else (
+                1e3 * table[column])
+    shown += ["eps", "W_phases", "eps_W"]
+    return (f"{path.parent.name} (tracking errors in deg, or mm for prismatic joints)\n"
             + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))

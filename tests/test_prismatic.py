@@ -141,15 +141,43 @@ def test_energy_balance_drives_off(fmu: CoSimFMU, mode: str,
     ("back_drivable", {"q1_0": 0.2, "q2_0": 0.14}, {"tau1": 0.1, "f2": 1.0}),
 ])
 @pytest.mark.parametrize("friction", [{"d1": 0.0, "d2": 0.0}, {"d1": 0.05, "d2": 0.5}])
+@pytest.mark.parametrize("rotors", [{}, {"J_drive1": 0.04, "m_drive2": 0.08}])
 def test_energy_balance_with_drives(fmu: CoSimFMU, mode: str, initial: dict[str, float],
-                                    inputs: dict[str, float], friction: dict[str, float]) -> None:
-    """Constant drive efforts keep the arm in the workspace; W_drive and W_worm both count."""
-    drift, ranges, out = simulate(fmu, {**MODES[mode], **initial, **friction}, inputs)
+                                    inputs: dict[str, float], friction: dict[str, float],
+                                    rotors: dict[str, float]) -> None:
+    """Constant drive efforts keep the arm in the workspace; W_drive and W_worm both count,
+    and the drives' rotors' kinetic energy is part of E_kin."""
+    drift, ranges, out = simulate(fmu, {**MODES[mode], **initial, **friction, **rotors},
+                                  inputs)
     assert drift < 1e-6
     assert 0.0 <= ranges["q1"][0] and ranges["q1"][1] <= 0.7
     assert 0.0 <= ranges["q2"][0] and ranges["q2"][1] <= 0.3
     assert abs(out["W_drive"]) > 1e-3 and abs(out["W_worm"]) > 1e-2
     assert (out["E_friction"] > 1e-3) == (friction["d1"] > 0.0)
+
+
+@pytest.mark.parametrize("rotors", [{"J_drive1": 0.0, "m_drive2": 0.0},
+                                    {"J_drive1": 0.05, "m_drive2": 0.2}])
+def test_drive_inertias_add_to_the_joint_inertias(fmu: CoSimFMU,
+                                                  rotors: dict[str, float]) -> None:
+    """From rest at q1 = q2 = 0, where the self-locking compensator leaves no residual, the
+    efforts accelerate the joints by tau1 / (J1 + J_drive1 + m2 ls0^2) and
+    f2 / (m2 + m_drive2); E_kin holds the rotors' energy."""
+    start(fmu, {**MODES["self_locking"], **rotors})
+    tau1, f2, t = 0.1, 0.1, 0.01
+    fmu.set({"tau1": tau1, "f2": f2})
+    for n in range(10):
+        fmu.step(n * 1e-3, 1e-3)
+    out = fmu.get(["q1", "q2", "q1_dot", "q2_dot", "E_kin"])
+    inertia_1 = M1 / 12 + M1 * LC1 ** 2 + rotors["J_drive1"] + M2 * LS0 ** 2
+    mass_2 = M2 + rotors["m_drive2"]
+    # over 10 ms the arm moves 1e-5 rad: the residual efforts it meets are 1e-5 of the inputs
+    assert out["q1"] == pytest.approx(0.5 * tau1 / inertia_1 * t ** 2, rel=1e-3)
+    assert out["q2"] == pytest.approx(0.5 * f2 / mass_2 * t ** 2, rel=1e-3)
+    lc2 = LS0 + out["q2"]
+    expected = (0.5 * (M1 / 12 + M1 * LC1 ** 2 + rotors["J_drive1"] + M2 * lc2 ** 2)
+                * out["q1_dot"] ** 2 + 0.5 * mass_2 * out["q2_dot"] ** 2)
+    assert out["E_kin"] == pytest.approx(expected, rel=1e-12)
 
 
 def test_state_get_set_restores_parameters_and_motion(fmu: CoSimFMU) -> None:

@@ -32,7 +32,7 @@ def test_configure_sets_paths_without_touching_the_scenario() -> None:
     phases = {p.name: p for p in scenario.phases}
     assert phases["III regulate"].inputs["payload"] == Ramp(3.0)
     assert phases["III regulate"].inputs["counterweight_added"] == Ramp(1.0)
-    assert [math.degrees(p.target) for p in scenario.phases] == pytest.approx(
+    assert [math.degrees(p.target[0]) for p in scenario.phases] == pytest.approx(
         [60.0, 150.0, 150.0, 150.0, 340.0, 340.0])
     assert scenario.duration == pytest.approx(17.5)
     assert scenario.parameters["L0"] == 0.02 and motor.N == 80.0

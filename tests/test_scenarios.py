@@ -1,0 +1,281 @@
+"""Scenario files: the standard-library core (fmu_src.scenario) and the harness's vectorised
+evaluation give the same signals, the expected values come out at known instants, bad files
+are rejected with clear messages, and the ScenarioSequencer FMU plays a scenario as the
+harness does."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+from fmu_src import scenario as core
+from fmu_src import sequencer_scenario
+from harness import drive, fmu_build, scenarios
+from harness.fmi import CoSimFMU
+
+SHIPPED = [(name, variant) for name in scenarios.available()
+           for variant in scenarios.load(name).variants]
+
+
+def sample_times(scenario: scenarios.Scenario) -> np.ndarray:
+    """2001 times over and beyond the task, plus every phase boundary exactly [s]."""
+    boundaries = [t for _, t0, t1 in scenario.phase_times() for t in (t0, t1)]
+    return np.unique(np.concatenate([np.linspace(-0.5, scenario.duration + 0.5, 2001),
+                                     boundaries, np.arange(0.0, scenario.duration, 1e-3)]))
+
+
+@pytest.mark.parametrize("name, variant", SHIPPED)
+def test_core_scalar_evaluation_equals_harness_vectorised(name: str, variant: str) -> None:
+    scenario = scenarios.load(name)
+    times = sample_times(scenario)
+    references = np.array([scenario.reference_at(float(t)) for t in times])
+    for j in range(len(scenario.joints)):
+        np.testing.assert_allclose(references[:, j], scenario.reference(times, j),
+                                   rtol=0.0, atol=1e-12)
+    segments = scenario.input_segments(scenario.variant(variant))
+    scalar = [scenario.inputs_at(float(t), segments) for t in times]
+    for input_name, signal in scenario.inputs(times, scenario.variant(variant)).items():
+        values = np.array([row[input_name] for row in scalar])
+        if signal.dtype == bool:
+            assert values.dtype == bool and np.array_equal(values, signal), input_name
+        else:
+            np.testing.assert_allclose(values, signal, rtol=0.0, atol=1e-12,
+                                       err_msg=input_name)
+
+
+def test_franchetti_values_at_known_instants() -> None:
+    """Phase II (4-14 s) moves 60 -> 180 deg: half way at 9 s (the quintic is 1/2 at s = 1/2);
+    phase III (14-17 s) ramps the payload linearly to 1 kg with the pulley free."""
+    scenario = scenarios.load("franchetti2021")
+    assert scenario.reference_at(9.0) == pytest.approx((math.radians(120.0),), abs=1e-15)
+    assert scenario.reference_at(40.0) == (math.radians(340.0),)
+    assert scenario.reference_at(-1.0) == (math.radians(60.0),)
+    segments = scenario.input_segments(scenario.variant("self_regulating"))
+    assert scenario.inputs_at(15.5, segments) == {
+        "slider_locked": False, "pulley_locked": False, "payload": 0.5,
+        "counterweight_added": 0.5}
+    assert scenario.inputs_at(33.0, segments)["slider_locked"] is True
+    unregulated = scenario.input_segments(scenario.variant("unregulated"))
+    assert scenario.inputs_at(15.5, unregulated)["counterweight_added"] == 0.0
+
+
+def test_ciupitu_payload_follows_the_angle() -> None:
+    """quintic_ease_out at the middle of the down stroke: ease_out(quintic(1/2)) = 3/4."""
+    scenario = scenarios.load("ciupitu2018")
+    segments = scenario.input_segments(scenario.variant("parabolic_balanced"))
+    payload_max = 4.0 / 9.81
+    assert scenario.inputs_at(11.0, segments)["payload"] == pytest.approx(0.75 * payload_max,
+                                                                         rel=1e-12)
+
+
+def test_demian_joints_and_targets() -> None:
+    scenario = scenarios.load("demian2022")
+    q1, q2 = scenario.joints
+    assert (q1.kind, q1.motor, q1.effort) == ("revolute", "geared", "tau1")
+    assert (q2.kind, q2.motor, q2.effort, q2.unit) == ("prismatic", "lead_screw", "f2", "m")
+    assert q2.hold_effort(1.5) == 1.5                       # a static effort, held as it is
+    assert scenario.joints[0].name == "q1" and scenario.duration == 8.0
+    assert scenario.reference_at(1.5) == pytest.approx((0.35, 0.15), abs=1e-15)
+    assert scenario.reference_at(3.5) == (0.7, 0.3)
+    assert scenario.reference_at(5.5) == pytest.approx((0.35, 0.15), abs=1e-15)
+    assert scenario.reference_at(8.0) == (0.0, 0.0)
+    assert scenario.baselines == dict.fromkeys(scenario.variants, "uncompensated")
+    assert scenario.variant("uncompensated").parameters == {"compensated": False}
+
+
+def test_default_joint_holds_the_negative_load() -> None:
+    (joint,) = scenarios.load("franchetti2021").joints
+    assert (joint.position, joint.static_output, joint.static_is_load) == (
+        "theta", "tau_gravity", True)
+    assert joint.hold_effort(2.0) == -2.0
+
+
+def test_joint_table_renames_the_default_joint(tmp_path: Path) -> None:
+    path = tmp_path / "renamed.toml"
+    path.write_text(FRANCHETTI.replace('baseline = "unbalanced"', 'baseline = "unbalanced"\n'
+                                       '[joint]\nstatic_effort = "holding_torque"\n'
+                                       'motor = "lead_screw"', 1))
+    (joint,) = scenarios.load(path).joints
+    assert (joint.static_output, joint.static_is_load, joint.motor) == (
+        "holding_torque", False, "lead_screw")
+    assert joint.position == "theta" and joint.hold_effort(2.0) == 2.0
+
+
+def test_motor_names_are_the_harness_drives() -> None:
+    assert tuple(drive.MOTORS) == core.MOTORS
+
+
+def test_sweep_paths_keep_working() -> None:
+    """A sweep sets one number as a one-joint scenario's target; two joints need two."""
+    franchetti = scenarios.load("franchetti2021")
+    phase = replace(franchetti.phases[1], target=math.pi)
+    assert phase.target == (math.pi,)
+    moved = replace(franchetti, phases=(franchetti.phases[0], phase, *franchetti.phases[2:]))
+    assert isinstance(moved, scenarios.Scenario)
+    assert moved.reference(np.array([14.0]))[0] == math.pi
+    demian = scenarios.load("demian2022")
+    with pytest.raises(ValueError, match="1 phase out targets for 2 joint"):
+        replace(demian, phases=(replace(demian.phases[0], target=0.5), *demian.phases[1:]))
+
+
+DEMIAN = (scenarios.SCENARIO_DIR / "demian2022.toml").read_text()
+FRANCHETTI = (scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text()
+
+
+@pytest.mark.parametrize("text, message", [
+    (DEMIAN.replace('targets = { q1 = 0.7, q2 = 0.3 }', "target_deg = 40.0"),
+     "phase out: target_deg is for a scenario with one revolute joint"),
+    (DEMIAN.replace('targets = { q1 = 0.7, q2 = 0.3 }', "targets = { q1 = 0.7, q3 = 0.3 }"),
+     "phase out: targets name no joint q3"),
+    (DEMIAN.replace('effort = "f2"\n', ""), r"joint q2 needs .* \(missing or doubled: effort\)"),
+    (DEMIAN.replace('effort = "f2"\n', 'effort = "f2"\nstatic_load = "f2_gravity"\n'),
+     "joint q2 needs .*missing or doubled: static_effort, static_load"),
+    (DEMIAN.replace('kind = "prismatic"', 'kind = "helical"'),
+     "joint q2: kind = 'helical' is not one of revolute, prismatic"),
+    (DEMIAN.replace('motor = "lead_screw"', 'motor = "hydraulic"'),
+     "joint q2: motor = 'hydraulic' is not one of geared, lead_screw"),
+    (DEMIAN.replace('motor = "lead_screw"', 'motr = "lead_screw"'),
+     "joint q2: unknown key.* motr"),
+    (DEMIAN.replace("initial = 0.0            # m", 'initial = "zero"'),
+     "joint q2: initial = 'zero' is not a finite number"),
+    (DEMIAN.replace("duration = 3.0\ntargets = { q1 = 0.7", "duration = 0.0\ntargets = { q1 = 0.7"),
+     r"phase out: duration = 0.0 s is outside \(0, inf\)"),
+    (FRANCHETTI.replace("initial_angle_deg = 60.0", ""), "initial_angle_deg is missing"),
+    (FRANCHETTI.replace("target_deg = 180.0\n", "target_deg = 180.0\ntargt = 1\n", 1),
+     "phase II move: unknown key.* targt"),
+    (FRANCHETTI.replace('baseline = "unbalanced"', 'baseline = "balanced"'),
+     "baseline balanced names no variant; choose from self_regulating"),
+])
+def test_bad_files_are_rejected_with_clear_messages(tmp_path: Path, text: str,
+                                                    message: str) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=f"bad.toml: {message}"):
+        scenarios.load(path)
+
+
+# ---- the ScenarioSequencer FMU -------------------------------------------------------------
+SEQUENCER_STEP = 1.0 / 64.0  # [s], a binary fraction: every phase boundary is a step time
+
+
+@pytest.fixture(scope="module")
+def sequencer() -> Path:
+    return fmu_build.fmu_path("ScenarioSequencer")
+
+
+def start_sequencer(fmu: CoSimFMU, variant: str) -> None:
+    """Initialise with the String parameter `variant` (CoSimFMU.set takes Real and Boolean)."""
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    fmu.slave.setString(fmu.references(["variant"]), [variant])
+    fmu.slave.exitInitializationMode()
+
+
+def test_embedded_scenario_is_the_file() -> None:
+    assert sequencer_scenario.NAME == "franchetti2021"
+    assert sequencer_scenario.TOML == (scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text()
+    assert scenarios.EMBEDDED.read_text() == scenarios.embedded_source("franchetti2021")
+
+
+def test_sequencer_model_description(sequencer: Path) -> None:
+    assert validate_fmu(str(sequencer)) == []
+    md = read_model_description(str(sequencer))
+    variables = {v.name: v for v in md.modelVariables}
+    variant = variables["variant"]
+    assert (variant.type, variant.causality, variant.start) == ("String", "parameter",
+                                                                "self_regulating")
+    assert [v.name for v in md.modelVariables if v.causality == "output"] == [
+        "theta_ref", "slider_locked", "pulley_locked", "payload", "counterweight_added"]
+    assert variables["theta_ref"].declaredType.unit == "rad"
+    assert variables["slider_locked"].type == "Boolean"
+    assert variables["slider_locked"].variability == "discrete"
+    # the Real inputs carry the units of the mechanism's inputs they feed
+    mechanism = {v.name: v for v in read_model_description(
+        str(fmu_build.fmu_path("SelfRegulatingBalancer"))).modelVariables}
+    for name in ("payload", "counterweight_added"):
+        assert variables[name].declaredType.unit == mechanism[name].declaredType.unit == "kg"
+
+
+@pytest.mark.parametrize("variant", list(scenarios.load("franchetti2021").variants))
+def test_sequencer_plays_the_scenario_as_the_harness(sequencer: Path, variant: str) -> None:
+    scenario = scenarios.load("franchetti2021")
+    n = round(scenario.duration / SEQUENCER_STEP)
+    times = np.arange(n + 1) * SEQUENCER_STEP
+    with CoSimFMU(sequencer, variant) as fmu:
+        start_sequencer(fmu, variant)
+        outputs = fmu.names("output")
+        rows = [fmu.get(outputs)]
+        for k in range(n):
+            fmu.step(k * SEQUENCER_STEP, SEQUENCER_STEP)
+            rows.append(fmu.get(outputs))
+        assert not fmu.messages
+    played = {name: np.array([row[name] for row in rows]) for name in outputs}
+    np.testing.assert_allclose(played["theta_ref"], scenario.reference(times), rtol=0.0,
+                               atol=1e-12)
+    inputs = scenario.inputs(times, scenario.variant(variant))
+    for name in outputs[1:]:
+        if name not in inputs:  # dropped by the variant: stays at its default
+            assert not played[name].any(), name
+        elif inputs[name].dtype == bool:
+            assert np.array_equal(played[name], inputs[name]), name
+        else:
+            np.testing.assert_allclose(played[name], inputs[name], rtol=0.0, atol=1e-12,
+                                       err_msg=name)
+
+
+def test_sequencer_state_restore_replays(sequencer: Path) -> None:
+    with CoSimFMU(sequencer, "state") as fmu:
+        start_sequencer(fmu, "unregulated")
+        outputs = fmu.names("output")
+        dt = SEQUENCER_STEP
+        for k in range(800):  # to 12.5 s, in phase II
+            fmu.step(k * dt, dt)
+        state = fmu.slave.getFMUstate()
+
+        def replay() -> list[dict]:
+            rows = []
+            for k in range(800, 1200):  # across phases III and IV
+                fmu.step(k * dt, dt)
+                rows.append(fmu.get(outputs))
+            return rows
+
+        first = replay()
+        fmu.slave.setFMUstate(state)
+        assert replay() == first
+        fmu.slave.freeFMUstate(state)
+
+
+UNKNOWN_VARIANT_SCRIPT = """
+import os, sys
+from harness.fmi import CoSimFMU, FMICallException
+with CoSimFMU(sys.argv[1], "unknown") as fmu:
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    fmu.slave.setString(fmu.references(["variant"]), ["self_regulated"])
+    try:
+        fmu.slave.exitInitializationMode()
+    except FMICallException as error:
+        fmu.fatal = error.status == 4  # fmi2Fatal: close() must not call the FMU again
+        print("fatal" if fmu.fatal else "error")
+    print(*(m.message for m in fmu.messages if m.status == "Error"), sep="\\n", flush=True)
+os._exit(0)
+"""
+
+
+def test_sequencer_rejects_an_unknown_variant(sequencer: Path) -> None:
+    """In a child process: pythonfmu 0.7.0 can crash the process after an fmi2Fatal."""
+    result = subprocess.run([sys.executable, "-c", UNKNOWN_VARIANT_SCRIPT, str(sequencer)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == "fatal"
+    assert any("no variant 'self_regulated'; choose from self_regulating, unregulated, "
+               "unbalanced, ciupitu" in line for line in lines[1:])
