@@ -11,9 +11,9 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.ciupitu_example",
-            "harness.ciupitu_design", "harness.compare", "harness.sweep", "harness.bench",
-            "harness.cross_check")
+COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.system", "harness.compare",
+            "harness.ciupitu_example", "harness.ciupitu_design", "harness.sweep",
+            "harness.bench", "harness.cross_check")
 
 
 def parser() -> argparse.ArgumentParser:

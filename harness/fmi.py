@@ -69,26 +69,38 @@ class CoSimFMU:
         except KeyError as error:
             raise KeyError(f"{self.path.name} has no variable {error.args[0]!r}") from None
 
-    def set(self, values: Mapping[str, float | bool]) -> None:
-        """Set Real and Boolean variables by name."""
+    def set(self, values: Mapping[str, float | bool | str]) -> None:
+        """Set Real, Boolean and String variables by name."""
         reals = {n: v for n, v in values.items() if self.variables[n].type == "Real"}
         bools = {n: v for n, v in values.items() if self.variables[n].type == "Boolean"}
+        strings = {n: v for n, v in values.items() if self.variables[n].type == "String"}
+        unsupported = set(values) - set(reals) - set(bools) - set(strings)
+        if unsupported:
+            raise ValueError(f"{self.path.name}: cannot set {', '.join(sorted(unsupported))} "
+                             "(only Real, Boolean and String variables)")
         if reals:
             self.slave.setReal(self.references(reals), [float(v) for v in reals.values()])
         if bools:
             self.slave.setBoolean(self.references(bools), [bool(v) for v in bools.values()])
+        if strings:
+            self.slave.setString(self.references(strings),
+                                 [str(v) for v in strings.values()])
 
-    def get(self, names: Iterable[str]) -> dict[str, float | bool]:
-        """Current values of Real and Boolean variables by name."""
+    def get(self, names: Iterable[str]) -> dict[str, float | bool | str]:
+        """Current values of Real, Boolean and String variables by name."""
         names = list(names)
         reals = [n for n in names if self.variables[n].type == "Real"]
         bools = [n for n in names if self.variables[n].type == "Boolean"]
-        out: dict[str, float | bool] = {}
+        strings = [n for n in names if self.variables[n].type == "String"]
+        out: dict[str, float | bool | str] = {}
         if reals:
             out.update(zip(reals, self.slave.getReal(self.references(reals))))
         if bools:
             out.update((n, bool(v)) for n, v in
                        zip(bools, self.slave.getBoolean(self.references(bools))))
+        if strings:
+            out.update((n, v.decode() if isinstance(v, bytes) else v) for n, v in
+                       zip(strings, self.slave.getString(self.references(strings))))
         return {n: out[n] for n in names}
 
     def initialize(self, parameters: Mapping[str, float | bool] | None = None,

@@ -78,10 +78,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     joints = scenario.joints
     drive_motors = [motors(motor)[joint.motor] for joint in joints]
     model = variant.model or scenario.model
-    parameters = {**scenario.parameters, **variant.parameters}
-    for joint, initial, drive_motor in zip(joints, scenario.initial_angle, drive_motors,
-                                           strict=True):
-        parameters |= {joint.start_parameter: initial, joint.drive_inertia: drive_motor.J_drive}
+    parameters = run_parameters(scenario, variant, drive_motors)
     n_steps = round(scenario.duration / step_size)
     times = np.arange(n_steps + 1) * step_size
     references = [scenario.reference(times, j) for j in range(len(joints))]
@@ -108,12 +105,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         state = fmu.slave.getReal(fmu.references(state_names))
         gains, pids, drives = {}, [], []
         for j, (joint, drive_motor) in enumerate(zip(joints, drive_motors, strict=True)):
-            values = fmu.get([joint.inertia, joint.friction, joint.static_output])
-            gains[joint.name] = design_pid(
-                drive_motor, values[joint.inertia] + drive_motor.J_drive,
-                values[joint.friction], design)
-            hold_current = (joint.hold_effort(values[joint.static_output])
-                            / drive_motor.torque_per_amp)
+            gains[joint.name], hold_current = joint_drive(fmu, joint, drive_motor, design)
             drives.append(sampled_motor(drive_motor, step_size, current=hold_current))
             pid = discrete_pid(gains[joint.name], step_size, drive_motor.V_supply)
             pid.reset(references[j][0] - state[2 * j], integral=hold_current * drive_motor.R_a)
@@ -153,32 +145,73 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                     progress(record_every)
         messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
-    positions = np.asarray(states)[:, 0::2]
+    return assemble(scenario, variant, model, step_size, rows, np.asarray(states)[:, 0::2],
+                    references, records, drive_motors, [drive.current for drive in drives],
+                    gains, parameters, messages)
+
+
+def assemble(scenario: Scenario, variant: Variant, model: str, step_size: float,
+             rows: list[dict], positions: np.ndarray, references: list[np.ndarray],
+             records: list[tuple], drive_motors: list[MotorParameters],
+             final_currents: list[float], gains: dict[str, PIDGains],
+             parameters: dict[str, float | bool], messages: list[str]) -> RunResult:
+    """A RunResult from a run's records, whatever master produced them.
+
+    rows: the recorded FMU variables every RECORD_INTERVAL from t = 0; positions[k, j]: joint
+    j at t_k (k = 0..n); references[j]: its reference at t_k; records[j]: per step k < n the
+    voltage the drive held, its average current and the effort the mechanism received.
+    """
+    n_steps = len(positions) - 1
+    record_every = max(1, round(RECORD_INTERVAL / step_size))
+    times = np.arange(n_steps + 1) * step_size
     series = pd.DataFrame(rows)
     series.insert(0, "time", times[::record_every][:len(series)])
     per_joint, joint_phase_work = {}, {}
-    for j, (joint, drive_motor, drive, reference, (voltage, current, effort)) in enumerate(
-            zip(joints, drive_motors, drives, references, records, strict=True)):
+    for j, (joint, drive_motor, final_current, reference, (voltage, current, effort)) in \
+            enumerate(zip(scenario.joints, drive_motors, final_currents, references, records,
+                          strict=True)):
         voltage, current, effort = map(np.asarray, (voltage, current, effort))
         position = positions[:, j]
         travel = np.diff(position)
         per_joint[joint.name] = metrics.drive_metrics(
             step_size, voltage, current, effort, travel, reference[:n_steps] - position[:n_steps],
-            drive_motor.R_a, drive_motor.L_a, drive.current)
+            drive_motor.R_a, drive_motor.L_a, final_current)
         work = effort * travel
         joint_phase_work[joint.name] = {
             name: float(np.sum(work[round(t0 / step_size):round(t1 / step_size)]))
             for name, t0, t1 in scenario.phase_times()}
         _add_drive_columns(series, joint, suffix(scenario, joint), reference[::record_every],
                            voltage, current, effort, record_every, step_size)
-    if len(joints) > 1:
-        _add_total_columns(series, [suffix(scenario, joint) for joint in joints])
+    if len(scenario.joints) > 1:
+        _add_total_columns(series, [suffix(scenario, joint) for joint in scenario.joints])
     for column in series.columns:
         if series[column].dtype == bool:
             series[column] = series[column].astype(int)
     return RunResult(scenario.name, variant.name, model, step_size, series,
                      metrics.run_metrics(per_joint), gains, parameters, joint_phase_work,
                      messages)
+
+
+def run_parameters(scenario: Scenario, variant: Variant,
+                   drive_motors: list[MotorParameters]) -> dict[str, float | bool]:
+    """The mechanism FMU's parameters in a run: the scenario's, the variant's, each joint's
+    initial position and the inertia its drive reflects to it."""
+    parameters = {**scenario.parameters, **variant.parameters}
+    for joint, initial, drive_motor in zip(scenario.joints, scenario.initial_angle,
+                                           drive_motors, strict=True):
+        parameters |= {joint.start_parameter: initial, joint.drive_inertia: drive_motor.J_drive}
+    return parameters
+
+
+def joint_drive(fmu: CoSimFMU, joint: Joint, drive_motor: MotorParameters,
+                design: ControllerDesign) -> tuple[PIDGains, float]:
+    """For an initialised mechanism FMU: the joint's PID, designed for its inertia (plus the
+    drive's) and friction, and the motor current [A] that holds the static effort the FMU
+    reports for the joint, the run's equilibrium start."""
+    values = fmu.get([joint.inertia, joint.friction, joint.static_output])
+    gains = design_pid(drive_motor, values[joint.inertia] + drive_motor.J_drive,
+                       values[joint.friction], design)
+    return gains, joint.hold_effort(values[joint.static_output]) / drive_motor.torque_per_amp
 
 
 def _check_names(fmu: CoSimFMU, model: str, variant: Variant, inputs: dict[str, np.ndarray],

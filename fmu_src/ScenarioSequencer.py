@@ -1,0 +1,135 @@
+"""FMI 2.0 Co-Simulation slave that plays a task scenario: the joints' references and the
+inputs the scenario drives, as outputs to connect to a mechanism FMU and its controllers.
+
+A thin layer over `fmu_src.scenario`, the definitions the harness uses. The scenario is the
+file embedded at build time as the module `fmu_src/sequencer_scenario.py` of the FMU's
+resources: franchetti2021 by default (`harness.scenarios.embed`), or any scenario file with
+`python -m harness build-fmus --sequencer-scenario FILE`. The String parameter `variant`
+picks one of its variants. Each instance reads the module from its own resources folder by
+path rather than importing it by name: pythonfmu runs every FMU of a process in one
+interpreter, which caches modules by name, so two sequencers playing different scenarios
+would otherwise both play the one imported first.
+
+Outputs at a communication point t (after fmi2DoStep(t - h, h); at the start time after
+initialisation), with t on the scenario's clock (t = 0 is its start):
+- `<position>_ref` per joint [rad or m]: the quintic reference (`Scenario.reference_at`);
+- every input that a phase or a variant of the scenario sets (`Scenario.inputs_at`), Real or
+  Boolean as in the file; an input the chosen variant drops stays at 0 or false.
+"""
+
+from __future__ import annotations
+
+import runpy
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pythonfmu import Fmi2Causality, Fmi2Variability, String
+from pythonfmu.default_experiment import DefaultExperiment
+
+from fmu_src import scenario as core
+from fmu_src.fmi_base import ModelSlave, VariableInfo
+
+# units of the Real inputs scenarios drive: those of the mechanism FMUs' inputs
+INPUT_UNITS = {"payload": "kg", "counterweight_added": "kg"}
+
+
+@dataclass(frozen=True)
+class NoParameters:
+    """The sequencer has no Real or Boolean parameters (its `variant` is a String)."""
+
+
+def embedded_scenario(resources: str | None) -> core.Scenario:
+    """The scenario embedded in the FMU with this resources folder (outside an FMU, None: the
+    module `fmu_src.sequencer_scenario` of the source tree)."""
+    path = None if resources is None else Path(resources) / "fmu_src" / "sequencer_scenario.py"
+    if path is not None and path.is_file():
+        module = runpy.run_path(str(path))  # not cached in sys.modules (see the docstring)
+        name, toml = module["NAME"], module["TOML"]
+    else:
+        from fmu_src import sequencer_scenario
+        name, toml = sequencer_scenario.NAME, sequencer_scenario.TOML
+    return core.parse(tomllib.loads(toml), f"{name}.toml")
+
+
+def scenario_inputs(scenario: core.Scenario) -> dict[str, bool | float]:
+    """Every input any variant of the scenario drives, with its value before the start."""
+    inputs: dict[str, bool | float] = {}
+    for variant in scenario.variants.values():
+        for name, (_, end, _) in scenario.input_segments(variant)[0].items():
+            inputs.setdefault(name, False if isinstance(end, bool) else 0.0)
+    return inputs
+
+
+def input_units(scenario: core.Scenario) -> dict[str, str | None]:
+    """The unit of each input the scenario drives (None for a Boolean); ValueError naming a
+    Real input that INPUT_UNITS gives no unit."""
+    inputs = scenario_inputs(scenario)
+    units = {name: None if isinstance(value, bool) else INPUT_UNITS.get(name)
+             for name, value in inputs.items()}
+    missing = [name for name, value in inputs.items()
+               if not isinstance(value, bool) and units[name] is None]
+    if missing:
+        raise ValueError(
+            f"scenario {scenario.name} drives the Real input(s) {', '.join(missing)}, which "
+            f"ScenarioSequencer.INPUT_UNITS gives no unit (it knows "
+            f"{', '.join(f'{n} [{u}]' for n, u in INPUT_UNITS.items())}): add "
+            "them there with the unit of the mechanism FMU's input")
+    return units
+
+
+class ScenarioSequencer(ModelSlave):
+    """Plays one task scenario: joint references and mechanism inputs over time."""
+
+    parameters_type = NoParameters
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.scenario = scenario = embedded_scenario(kwargs.get("resources"))
+        self.default_experiment = DefaultExperiment(start_time=0.0,
+                                                    stop_time=scenario.duration, step_size=1e-3)
+        self.description = (f"Scenario sequencer: plays scenario {scenario.name} "
+                            f"({scenario.description})")
+        choices = ", ".join(scenario.variants)
+        self.variant = next(iter(scenario.variants))
+        description = f"Variant of scenario {scenario.name} to play: one of {choices}"
+        self._add(String("variant", causality=Fmi2Causality.parameter,
+                         variability=Fmi2Variability.fixed, description=description),
+                  VariableInfo(None, description))
+        self.reference_names = [f"{joint.position}_ref" for joint in scenario.joints]
+        for name, joint in zip(self.reference_names, scenario.joints, strict=True):
+            self.add_output(name, joint.unit, f"Reference position of joint {joint.name} "
+                            "(quintic between the phases' targets)")
+        self.defaults = scenario_inputs(scenario)
+        for name, unit in input_units(scenario).items():
+            self.add_output(name, unit, f"Scenario input {name} for the mechanism")
+        self.start_time = 0.0
+        self.step_start = 0.0
+        self.segments: list[dict[str, tuple]] = []
+
+    def validate(self, params: NoParameters) -> None:
+        self.scenario.variant(str(self.variant))  # ValueError naming the choices
+
+    def setup_experiment(self, start_time: float, stop_time: float | None,
+                         tolerance: float | None) -> None:
+        self.start_time = start_time
+
+    def initialise(self, params: NoParameters) -> None:
+        self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
+        self.show(self.start_time)
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        self.step_start = current_time
+        return super().do_step(current_time, step_size)
+
+    def step(self, dt: float) -> None:
+        self.show(self.step_start + dt)
+
+    def show(self, time: float) -> None:
+        """Set the outputs to the scenario's values at time [s]."""
+        self.__dict__.update(zip(self.reference_names, self.scenario.reference_at(time)))
+        self.__dict__.update(self.defaults | self.scenario.inputs_at(time, self.segments))
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
