@@ -7,7 +7,8 @@ For every FMU of `harness.fmu_build.MODELS` it writes, under the destination fol
 - `<Model>_in.csv`: its input signals, if it has inputs (every input; linear interpolation
   between rows, a repeated time is a step);
 - `<Model>_ref.csv`: the reference result, simulated with FMPy (time, then up to ten
-  recorded variables);
+  recorded variables; Booleans as 0 and 1, which the cross-check's CSV reader takes as
+  numbers);
 - `<Model>_ref.opt`: StartTime, StopTime, StepSize, RelTol and OutputIntervalLength;
 - `ReadMe.md`: what the model is and how the reference was made,
 
@@ -61,7 +62,9 @@ def ref_opt(md: ModelDescription, run: fmu_docs.ReferenceRun) -> str:
 def readme(md: ModelDescription, run: fmu_docs.ReferenceRun) -> str:
     """The ReadMe.md of one exported FMU."""
     name = md.modelName
-    inputs = "" if run.inputs is None else f"`{name}_in.csv` (inputs), "
+    inputs = ("the model has no inputs" if run.inputs is None else
+              f"the inputs of `{name}_in.csv` interpolated linearly and applied at each "
+              "communication point")
     return f"""# {name}
 
 {md.description}
@@ -75,10 +78,10 @@ units and start values, and a plot of the reference result are in the FMU's
 
 {run.description}
 
-`{name}_ref.csv` was simulated with FMPy {fmpy.__version__} using {inputs}and the settings of
-`{name}_ref.opt`: a fixed communication step of StepSize, the inputs interpolated linearly
-and applied at each communication point, results recorded every OutputIntervalLength. The
-model steps with its own fixed schemes (RelTol is passed to fmi2SetupExperiment but unused).
+`{name}_ref.csv` was simulated with FMPy {fmpy.__version__} with the settings of
+`{name}_ref.opt`: a fixed communication step of StepSize, {inputs}, results
+recorded every OutputIntervalLength (Booleans as 0 and 1). The model steps with its own
+fixed schemes (RelTol is passed to fmi2SetupExperiment but unused).
 
 ## Requirements
 

@@ -15,6 +15,11 @@ Every FMU carries `documentation/index.html`, generated from the built FMU by
 onto `<model>.fmu` only when the FMU and its documentation are complete, so an interrupted or
 failed build never leaves a broken FMU behind (and a concurrent reader sees the old or the
 new FMU, never a partial one).
+
+The ScenarioSequencer plays the scenario embedded in its module `sequencer_scenario`: the
+committed `fmu_src/sequencer_scenario.py` (franchetti2021), or, with `--sequencer-scenario
+FILE` (`build(..., sequencer_scenario=FILE)`), a module generated from that file into the
+build's staging folder only, so the source tree keeps its default.
 """
 
 from __future__ import annotations
@@ -28,13 +33,14 @@ from pathlib import Path
 
 from pythonfmu.builder import FmuBuilder
 
-from harness import fmu_docs
+from harness import fmu_docs, scenarios
 
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
 MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator", "DcMotorDrive",
-          "PositionController")
+          "PositionController", "ScenarioSequencer")
+SEQUENCER = "ScenarioSequencer"
 
 
 def _fmu_src_imports(path: Path) -> set[str]:
@@ -60,9 +66,31 @@ def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
     return sorted(SOURCE_DIR / f"{name}.py" for name in found)
 
 
-def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR) -> Path:
+def sequencer_module(scenario: str | Path) -> str:
+    """The source of the ScenarioSequencer's module `sequencer_scenario` for a scenario (name
+    or file); ValueError if the file does not load or the sequencer cannot play it (a Real
+    input without a unit in its INPUT_UNITS)."""
+    from fmu_src.ScenarioSequencer import input_units  # pythonfmu: only for this model
+
+    source = scenarios.embedded_source(scenario)  # loads the file: ValueError on a problem
+    try:
+        input_units(scenarios.load(scenario))
+    except ValueError as error:
+        raise ValueError(f"{scenarios.scenario_file(scenario).name}: {error}") from None
+    return source
+
+
+def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
+          sequencer_scenario: str | Path | None = None) -> Path:
     """Build the slave script source_dir/<model>.py, with its documentation, into
-    dest/<model>.fmu (atomically) and return that path."""
+    dest/<model>.fmu (atomically) and return that path.
+
+    sequencer_scenario (ScenarioSequencer only): the scenario (shipped name or TOML file) the
+    FMU plays instead of the committed default.
+    """
+    if sequencer_scenario is not None and model != SEQUENCER:
+        raise ValueError(f"a sequencer scenario is for the {SEQUENCER}, not {model}")
+    embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
     dest.mkdir(parents=True, exist_ok=True)
     script = source_dir / f"{model}.py"
     modules = dependencies(model, source_dir)
@@ -77,12 +105,16 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR) 
             package.mkdir()
             for module in modules:
                 shutil.copy2(module, package)
+            if embedded is not None:
+                (package / "sequencer_scenario.py").write_text(embedded)
             FmuBuilder.build_FMU(
                 shutil.copy2(script, stage), dest=partial,
                 project_files=[package] if modules else [],
                 canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 canHandleVariableCommunicationStepSize=True)
-        fmu_docs.add_documentation(Path(partial), script, modules)
+            # the documentation reads the staged modules: those the FMU carries
+            fmu_docs.add_documentation(Path(partial), script,
+                                       [package / module.name for module in modules])
         os.chmod(partial, 0o644)  # mkstemp creates 0600; FMUs are meant to be shared
         os.replace(partial, fmu)
     except BaseException:
@@ -113,9 +145,17 @@ HELP = "build every FMU of fmu_src into build/fmus"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dest", type=Path, default=DEFAULT_DEST, help="output folder")
+    parser.add_argument(
+        "--sequencer-scenario", metavar="NAME_OR_FILE",
+        help=f"build only the {SEQUENCER}, playing this scenario (a name of "
+             f"harness/scenarios or a TOML file) instead of franchetti2021, into "
+             f"DEST/{SEQUENCER}.fmu")
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.sequencer_scenario is not None:
+        print(build(SEQUENCER, args.dest, sequencer_scenario=args.sequencer_scenario))
+        return 0
     for fmu in build_all(args.dest):
         print(fmu)
     return 0

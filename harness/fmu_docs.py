@@ -96,6 +96,12 @@ REFERENCE_RUNS = {
         input_table(("theta_ref", "theta"), [
             (0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 0.5, 0.0), (0.6, 0.5, 0.5),
             (1.0, 0.5, 0.5)]), output_interval=1e-3),
+    "ScenarioSequencer": ReferenceRun(
+        "The embedded scenario over its default experiment (its duration), played with the "
+        "default variant (the start value of `variant`); the sequencer has no inputs. "
+        "Recorded every 1/8 s (a binary fraction: the phase boundaries of the shipped "
+        "scenarios fall on it) and on both sides of every switch of a Boolean output.",
+        output_interval=0.125),
 }
 
 
@@ -126,7 +132,8 @@ def output_interval(md: ModelDescription, run: ReferenceRun) -> float:
 
 def simulate_reference(fmu: Path, run: ReferenceRun) -> np.ndarray:
     """The run simulated with FMPy at the default step size and recorded every
-    output_interval; Booleans as 0/1."""
+    output_interval, and at the steps before and after every switch of a Boolean (so a
+    switch between two recorded times keeps its time); Booleans as 0/1."""
     md = read_model_description(str(fmu))
     result = simulate_fmu(str(fmu), stop_time=stop_time(md, run), output_interval=step_size(md),
                           relative_tolerance=RELATIVE_TOLERANCE, input=run.inputs,
@@ -134,6 +141,11 @@ def simulate_reference(fmu: Path, run: ReferenceRun) -> np.ndarray:
     interval = output_interval(md, run)
     time = result["time"]
     keep = np.abs(time - np.round(time / interval) * interval) < 1e-9 * interval
+    keep[[0, -1]] = True
+    for name in result.dtype.names[1:]:
+        if result.dtype[name] == np.bool_:
+            switch = np.flatnonzero(np.diff(result[name])) + 1
+            keep[switch] = keep[switch - 1] = True
     return result[keep].astype([(n, np.float64) for n in result.dtype.names])
 
 
@@ -223,8 +235,9 @@ def plot_reference(md: ModelDescription, run: ReferenceRun, result: np.ndarray,
         for name in members:
             if run.inputs is not None and name in run.inputs.dtype.names:
                 ax.plot(run.inputs["time"], run.inputs[name], "--", label=f"{name} (input)")
-            else:
-                ax.plot(result["time"], result[name], label=name)
+            else:  # a Boolean holds its value until the next recorded time
+                ax.plot(result["time"], result[name], label=name, drawstyle=(
+                    "steps-post" if variables[name].type == "Boolean" else "default"))
         ax.set_ylabel(unit)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize="small")

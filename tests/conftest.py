@@ -23,7 +23,7 @@ def srb_fmu() -> Path:
     return fmu_build.fmu_path(SRB)
 
 
-def open_fmu(path: Path, parameters: Mapping[str, float | bool] | None = None,
+def open_fmu(path: Path, parameters: Mapping[str, float | bool | str] | None = None,
              instance_name: str = "test") -> CoSimFMU:
     """An initialised instance; parameters and input start values are set in initialisation."""
     fmu = CoSimFMU(path, instance_name=instance_name)

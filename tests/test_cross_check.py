@@ -7,11 +7,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
+from fmpy.cross_check import validate_vendor_repo
 from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
-from harness import cli, cross_check, fmu_build, fmu_docs
+from harness import cli, cross_check, fmu_build, fmu_docs, scenarios
 
 
 @pytest.fixture(scope="module")
@@ -64,3 +66,31 @@ def test_an_importer_reproduces_the_reference(repo: Path, model: str) -> None:
                           input=read_csv(in_csv) if in_csv.exists() else None,
                           output=list(reference.dtype.names[1:]))
     assert validate_result(result, reference, stop_time=opts["StopTime"]) == 0
+
+
+def test_sequencer_reference_is_small_and_keeps_its_switches(repo: Path) -> None:
+    """The ScenarioSequencer's reference covers its default experiment in a few hundred rows
+    (1/8 s apart, plus both sides of every switch); its Boolean outputs are 0/1 numbers that
+    the cross-check's own CSV reader reads as such, and switch where the scenario does."""
+    model = "ScenarioSequencer"
+    folder = cross_check.model_dir(repo, model)
+    md = read_model_description(str(folder / f"{model}.fmu"))
+    path = folder / f"{model}_ref.csv"
+    reference = validate_vendor_repo.read_csv(str(path), [v.name for v in md.modelVariables])
+    assert path.stat().st_size < 20e3 and len(reference) < 400
+    assert reference["time"][-1] == float(md.defaultExperiment.stopTime)
+    booleans = [v.name for v in md.modelVariables
+                if v.causality == "output" and v.type == "Boolean"]
+    assert booleans and set(reference.dtype.names[1:]) == {
+        v.name for v in md.modelVariables if v.causality == "output"}
+    scenario = scenarios.load("franchetti2021")
+    variant = next(v.start for v in md.modelVariables if v.name == "variant")
+    segments = scenario.input_segments(scenario.variant(variant))
+    for name in booleans:
+        assert set(np.unique(reference[name])) == {0.0, 1.0}, name
+        expected = [float(scenario.inputs_at(float(t), segments)[name])
+                    for t in reference["time"]]
+        np.testing.assert_array_equal(reference[name], expected, err_msg=name)
+    # slider and pulley are released at the start of phase III (14 s): recorded 1 ms before
+    switch = np.flatnonzero(np.diff(reference["slider_locked"]))[0]
+    assert reference["time"][switch:switch + 2] == pytest.approx([13.999, 14.0], abs=1e-9)

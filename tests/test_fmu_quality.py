@@ -5,7 +5,9 @@ results in DNV's libcosim as in FMPy.
 
 Each model is excited the same generic way: its n-th Real input at n * 0.1 from
 initialisation on (distinct values, so that a controller sees a non-zero error), stepped at
-its DefaultExperiment step size.
+its DefaultExperiment step size (or its TEST_STEP). A different valid model is its first
+non-zero Real parameter 5 % larger, or for a model without Real parameters (the
+ScenarioSequencer: its one parameter is the String `variant`) its entry of PERTURBATIONS.
 """
 
 from __future__ import annotations
@@ -28,6 +30,19 @@ from harness import fmu_build
 
 STEPS = 200
 INPUT_VALUE = 0.1
+# Step sizes [s] of models whose first 50 + STEPS default steps would not exercise them. The
+# ScenarioSequencer is a function of time only and holds still over the first 4 s of
+# franchetti2021, so it steps at 1/8 s: 50 + STEPS steps reach 31.25 s, through phases I-V.
+# A binary fraction, so every phase boundary is a step time, in FMPy's float seconds and in
+# libcosim's integer nanoseconds alike.
+TEST_STEP = {"ScenarioSequencer": 0.125}
+# A different, valid model for the models without a Real parameter: the sequencer playing
+# unregulated (slider and pulley stay locked, no counterweight added) instead of its
+# default self_regulating.
+PERTURBATIONS: dict[str, dict[str, float | bool | str]] = {
+    "ScenarioSequencer": {"variant": "unregulated"}}
+# libcosim runs 1 s, or a model's whole default experiment where 1 s shows too little
+LIBCOSIM_WHOLE_RUN = ("ScenarioSequencer",)
 
 
 @pytest.fixture(scope="module", params=fmu_build.MODELS)
@@ -36,7 +51,9 @@ def fmu_file(request: pytest.FixtureRequest) -> Path:
 
 
 def step_size(path: Path) -> float:
-    return float(read_model_description(str(path)).defaultExperiment.stepSize)
+    """The step [s] the tests take: the model's TEST_STEP, else its default experiment's."""
+    md = read_model_description(str(path))
+    return TEST_STEP.get(md.modelName, float(md.defaultExperiment.stepSize))
 
 
 def excitation(path: Path) -> dict[str, float]:
@@ -46,14 +63,23 @@ def excitation(path: Path) -> dict[str, float]:
     return {name: n * INPUT_VALUE for n, name in enumerate(inputs, start=1)}
 
 
-def perturbed_parameters(path: Path) -> dict[str, float]:
-    """The first Real parameter with a non-zero default, 5 % larger (a valid, different model)."""
-    first = next(v for v in read_model_description(str(path)).modelVariables
-                 if v.causality == "parameter" and v.type == "Real" and float(v.start) != 0.0)
-    return {first.name: 1.05 * float(first.start)}
+def perturbed_parameters(path: Path) -> dict[str, float | bool | str]:
+    """A valid, different model: the first Real parameter with a non-zero default 5 % larger;
+    for a model without one, its PERTURBATIONS (each value different from the default)."""
+    md = read_model_description(str(path))
+    first = next((v for v in md.modelVariables if v.causality == "parameter"
+                  and v.type == "Real" and float(v.start) != 0.0), None)
+    if first is not None:
+        return {first.name: 1.05 * float(first.start)}
+    assert md.modelName in PERTURBATIONS, f"{md.modelName} needs an entry in PERTURBATIONS"
+    variables = {v.name: v for v in md.modelVariables}
+    for name, value in PERTURBATIONS[md.modelName].items():
+        assert variables[name].causality == "parameter", name
+        assert str(value) != variables[name].start, name  # it changes something
+    return PERTURBATIONS[md.modelName]
 
 
-def outputs_of_run(path: Path, parameters: dict[str, float] | None = None,
+def outputs_of_run(path: Path, parameters: dict[str, float | bool | str] | None = None,
                    steps: int = STEPS) -> np.ndarray:
     """All outputs after each step of a run from initialisation."""
     with open_fmu(path, {**excitation(path), **(parameters or {})}) as fmu:
@@ -156,6 +182,21 @@ def test_reset_then_initialisation_reproduces_the_first_run(fmu_file: Path) -> N
     np.testing.assert_array_equal(second, first)
 
 
+def test_reset_restores_the_default_parameters(fmu_file: Path) -> None:
+    """After a run of a different model (perturbed parameters), fmi2Reset and an
+    initialisation without them give the run of the default model."""
+    dt, inputs = step_size(fmu_file), excitation(fmu_file)
+    default = outputs_of_run(fmu_file)
+    with open_fmu(fmu_file, {**inputs, **perturbed_parameters(fmu_file)}) as fmu:
+        outputs = fmu.names("output")
+        changed = run(fmu, STEPS, dt, outputs)
+        fmu.reset()
+        fmu.initialize(inputs)
+        after_reset = run(fmu, STEPS, dt, outputs)
+    assert not np.array_equal(changed, default)
+    np.testing.assert_array_equal(after_reset, default)
+
+
 def test_two_instances_do_not_interfere(fmu_file: Path) -> None:
     """Interleaved stepping of two instances with different parameters gives the results of
     two separate runs (pythonfmu runs both slaves in one interpreter)."""
@@ -192,13 +233,19 @@ def test_all_models_share_one_process() -> None:
 
 
 def test_libcosim_gives_the_fmpy_results(fmu_file: Path) -> None:
-    """DNV libcosim (libcosimpy) runs the same slave code: all outputs after 1 s agree with
-    FMPy to 1e-9 (libcosim's step is an integer number of nanoseconds converted back to
-    seconds, so results may differ in the last bits, nothing more)."""
+    """DNV libcosim (libcosimpy) runs the same slave code: with the perturbed parameters set
+    as initial values (Real, Boolean or String), all outputs, Real and Boolean, after every
+    step of a run (1 s, or the whole default experiment for the models of
+    LIBCOSIM_WHOLE_RUN) agree with FMPy's to 1e-9 (libcosim's step is an integer number of
+    nanoseconds converted back to seconds, so results may differ in the last bits, nothing
+    more), and FMPy's differ clearly from the default model's (so libcosim set them)."""
+    md = read_model_description(str(fmu_file))
     dt = step_size(fmu_file)
-    outputs = [v for v in read_model_description(str(fmu_file)).modelVariables
-               if v.causality == "output"]
-    steps = round(1.0 / dt)
+    outputs = [v for v in md.modelVariables if v.causality == "output"]
+    duration = (float(md.defaultExperiment.stopTime) if md.modelName in LIBCOSIM_WHOLE_RUN
+                else 1.0)
+    steps = round(duration / dt)
+    parameters = perturbed_parameters(fmu_file)
     log_output_level(CosimLogLevel.ERROR)
     execution = CosimExecution.from_step_size(step_size=round(dt * 1e9))
     index = execution.add_local_slave(CosimLocalSlave(fmu_path=str(fmu_file),
@@ -206,21 +253,34 @@ def test_libcosim_gives_the_fmpy_results(fmu_file: Path) -> None:
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer=observer)
     references = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
-    for name, value in excitation(fmu_file).items():
-        execution.real_initial_value(index, references[name], value)
-    assert execution.simulate_until(target_time=steps * round(dt * 1e9))
+    setters = {"Real": execution.real_initial_value, "Boolean": execution.boolean_initial_value,
+               "String": execution.string_initial_value}
+    types = {v.name: v.type for v in md.modelVariables}
+    for name, value in {**excitation(fmu_file), **parameters}.items():
+        assert setters[types[name]](index, references[name], value), name
 
     reals = [v.name for v in outputs if v.type == "Real"]
     bools = [v.name for v in outputs if v.type == "Boolean"]
-    libcosim = dict(zip(reals, observer.last_real_values(index, [references[n] for n in reals])))
-    if bools:  # libcosimpy refuses an empty list
-        libcosim.update(zip(bools, observer.last_boolean_values(
-            index, [references[n] for n in bools])))
-    fmpy = dict(zip((v.name for v in outputs), outputs_of_run(fmu_file, steps=steps)[-1]))
-    for name in reals:
-        assert libcosim[name] == pytest.approx(fmpy[name], rel=1e-9, abs=1e-9), name
-    for name in bools:
-        assert bool(libcosim[name]) == bool(fmpy[name]), name
+    libcosim = []
+    for k in range(1, steps + 1):
+        assert execution.simulate_until(target_time=k * round(dt * 1e9))
+        values = dict(zip(reals, observer.last_real_values(index, [references[n]
+                                                                   for n in reals])))
+        if bools:  # libcosimpy refuses an empty list
+            values.update(zip(bools, observer.last_boolean_values(
+                index, [references[n] for n in bools])))
+        libcosim.append(values)
+
+    names = [v.name for v in outputs]
+    fmpy = outputs_of_run(fmu_file, parameters, steps=steps)
+    default = outputs_of_run(fmu_file, steps=steps)
+    assert np.abs(fmpy - default).max() > 1e-6
+    for values, row in zip(libcosim, fmpy, strict=True):
+        expected = dict(zip(names, row))
+        for name in reals:
+            assert values[name] == pytest.approx(expected[name], rel=1e-9, abs=1e-9), name
+        for name in bools:
+            assert bool(values[name]) == bool(expected[name]), name
 
 
 def test_a_failed_build_leaves_the_previous_fmu(tmp_path: Path,

@@ -172,11 +172,8 @@ def sequencer() -> Path:
 
 
 def start_sequencer(fmu: CoSimFMU, variant: str) -> None:
-    """Initialise with the String parameter `variant` (CoSimFMU.set takes Real and Boolean)."""
-    fmu.slave.setupExperiment(startTime=0.0)
-    fmu.slave.enterInitializationMode()
-    fmu.slave.setString(fmu.references(["variant"]), [variant])
-    fmu.slave.exitInitializationMode()
+    """Initialise with the String parameter `variant`."""
+    fmu.initialize({"variant": variant})
 
 
 def test_embedded_scenario_is_the_file() -> None:
