@@ -1,4 +1,5 @@
-"""Shared helpers for the FMU tests: built FMUs, runs through FMPy, FMI status codes."""
+"""Shared helpers for the tests: built FMUs, runs through FMPy, FMI status codes, and the
+regression checks against the committed results."""
 
 from __future__ import annotations
 
@@ -6,10 +7,14 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from harness import fmu_build
+from harness import fmu_build, results
+from harness.compare import compare, read_result, report
 from harness.fmi import CoSimFMU
+from harness.master import RunResult
+from harness.scenarios import Scenario
 
 # fmi2Status codes (FMI 2.0 standard, section 2.1.3)
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR, FMI_FATAL = range(5)
@@ -57,3 +62,24 @@ def run(fmu: CoSimFMU, steps: int, step_size: float, names: Iterable[str],
 def warnings(fmu: CoSimFMU) -> list[str]:
     """The Warning-status messages the FMU has logged."""
     return [m.message for m in fmu.messages if m.status == "Warning"]
+
+
+def assert_reproduces_committed_summary(scenario: Scenario, runs: Iterable[RunResult]) -> None:
+    """The summary rows of these runs equal those of results/<scenario>/summary.csv."""
+    committed = pd.read_csv(results.RESULTS_DIR / scenario.name / "summary.csv")
+    fresh = results.summary(runs, scenario.baselines).set_index("variant")
+    assert list(fresh.columns) == [c for c in committed.columns if c != "variant"]
+    committed = committed.set_index("variant").loc[fresh.index]
+    numeric = [c for c in committed.columns if c != "model"]
+    # the loop is deterministic; 1e-6 allows for another CPU's floating-point library
+    np.testing.assert_allclose(fresh[numeric].to_numpy(float),
+                               committed[numeric].to_numpy(float), rtol=1e-6, atol=1e-9)
+
+
+def assert_reproduces_committed_series(scenario: Scenario, run: RunResult,
+                                       signals: list[str]) -> None:
+    """The run's series equals results/<scenario>/<variant>.csv in these signals (through
+    `python -m harness compare`'s comparison)."""
+    committed = read_result(results.RESULTS_DIR / scenario.name / f"{run.variant}.csv")
+    comparisons = compare(committed, run.series, signals, rtol=1e-6, atol=1e-9)
+    assert all(c.passed for c in comparisons), report(comparisons)

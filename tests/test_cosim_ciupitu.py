@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 from scipy.integrate import quad
 
 from harness import ciupitu_design, master, reference, results, scenarios
@@ -172,3 +173,13 @@ def test_franchetti_ciupitu_matches_monolithic_reference(
         franchetti: dict[str, master.RunResult]) -> None:
     assert_matches_reference(franchetti["ciupitu"],
                              reference.simulate(FRANCHETTI, FRANCHETTI.variant("ciupitu")))
+
+
+def test_rerun_reproduces_committed_results(cycle: dict[str, master.RunResult],
+                                            franchetti: dict[str, master.RunResult]) -> None:
+    assert_reproduces_committed_summary(CYCLE, cycle.values())
+    for run in cycle.values():
+        assert_reproduces_committed_series(CYCLE, run, ["theta", "payload", "tau_drive", "E_drawn"])
+    assert_reproduces_committed_summary(FRANCHETTI, franchetti.values())
+    assert_reproduces_committed_series(FRANCHETTI, franchetti["ciupitu"],
+                                       ["theta", "OB", "tau_drive", "E_drawn"])

@@ -7,11 +7,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pandas as pd
 import pytest
+from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 
-from harness import master, reference, results, scenarios
-from harness.compare import compare, read_result, report
+from harness import master, reference, scenarios
 from harness.drive import MOTORS
 
 SCENARIO = scenarios.load("demian2022")
@@ -139,20 +138,11 @@ def test_cosimulation_matches_monolithic_reference(
 
 
 def test_rerun_reproduces_committed_summary(runs: dict[str, master.RunResult]) -> None:
-    committed = pd.read_csv(results.RESULTS_DIR / "demian2022" / "summary.csv")
-    fresh = results.summary(runs.values(), SCENARIO.baselines)
-    assert list(fresh.columns) == list(committed.columns)
-    committed, fresh = committed.set_index("variant"), fresh.set_index("variant")
-    numeric = [c for c in committed.columns if c != "model"]
-    # the loop is deterministic; 1e-6 allows for another CPU's floating-point library
-    np.testing.assert_allclose(fresh.loc[committed.index, numeric].to_numpy(float),
-                               committed[numeric].to_numpy(float), rtol=1e-6, atol=1e-9)
+    assert_reproduces_committed_summary(SCENARIO, runs.values())
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_rerun_reproduces_committed_series(runs: dict[str, master.RunResult],
                                            variant: str) -> None:
-    committed = read_result(results.RESULTS_DIR / "demian2022" / f"{variant}.csv")
-    signals = ["q1", "q2", "tau1", "f2", "i_q1", "i_q2", "E_drawn", "W_worm"]
-    comparisons = compare(committed, runs[variant].series, signals, rtol=1e-6, atol=1e-9)
-    assert all(c.passed for c in comparisons), report(comparisons)
+    assert_reproduces_committed_series(
+        SCENARIO, runs[variant], ["q1", "q2", "tau1", "f2", "i_q1", "i_q2", "E_drawn", "W_worm"])

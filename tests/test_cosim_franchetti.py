@@ -6,12 +6,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pandas as pd
 import pytest
+from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 
 from fmu_src.self_regulating import Parameters
-from harness import master, reference, results, scenarios
-from harness.compare import compare, read_result, report
+from harness import master, reference, scenarios
 from harness.drive import MotorParameters
 
 SCENARIO = scenarios.load("franchetti2021")
@@ -115,20 +114,11 @@ def test_cosimulation_error_shrinks_with_the_step(
 
 
 def test_rerun_reproduces_committed_summary(runs: dict[str, master.RunResult]) -> None:
-    committed = pd.read_csv(results.RESULTS_DIR / "franchetti2021" / "summary.csv")
-    fresh = results.summary(runs.values(), SCENARIO.baseline)
-    committed = committed[committed.variant.isin(VARIANTS)].set_index("variant")
-    fresh = fresh.set_index("variant").loc[committed.index]
-    numeric = [c for c in results.SUMMARY_COLUMNS if c not in ("variant", "model")]
-    # the loop is deterministic; 1e-6 allows for another CPU's floating-point library
-    np.testing.assert_allclose(fresh[numeric].to_numpy(float),
-                               committed[numeric].to_numpy(float), rtol=1e-6, atol=1e-9)
+    assert_reproduces_committed_summary(SCENARIO, runs.values())
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_rerun_reproduces_committed_series(runs: dict[str, master.RunResult],
                                            variant: str) -> None:
-    committed = read_result(results.RESULTS_DIR / "franchetti2021" / f"{variant}.csv")
-    signals = ["theta", "b", "E_t", "tau_drive", "i", "E_drawn"]
-    comparisons = compare(committed, runs[variant].series, signals, rtol=1e-6, atol=1e-9)
-    assert all(c.passed for c in comparisons), report(comparisons)
+    assert_reproduces_committed_series(SCENARIO, runs[variant],
+                                       ["theta", "b", "E_t", "tau_drive", "i", "E_drawn"])
