@@ -23,7 +23,7 @@ class SelfRegulatingBalancer(MechanismSlave):
     a pulley-counterweight (Franchetti et al. 2021)."""
 
     parameters_type = physics.Parameters
-    hidden_state = ("state", "previous_inputs", "stop_reported")
+    hidden_state = ("state", "previous_inputs", "stop_reported", "off_angle_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=35.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:
@@ -48,6 +48,7 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.state = None
         self.previous_inputs = None
         self.stop_reported = False
+        self.off_angle_reported = False     # once per regulation (slider and pulley free)
 
     def validate(self, params: physics.Parameters) -> None:
         physics.validate(params)
@@ -62,6 +63,7 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.payload_max = params.payload_max
         self.state = physics.initial_state(params)
         self.previous_inputs = self.inputs()
+        self.stop_reported = self.off_angle_reported = False
         self.set_outputs(physics.outputs(params, self.previous_inputs, self.state))
 
     def step(self, dt: float) -> None:
@@ -88,18 +90,21 @@ class SelfRegulatingBalancer(MechanismSlave):
         if released and u.pulley_locked:
             self.warn("slider released with the pulley locked: nothing holds it against the "
                       f"spring, which pulls it towards b_min = {p.b_min} m")
-        if not u.slider_locked and not u.pulley_locked and (
-                released or before.pulley_locked or u.payload != before.payload):
+        regulating = not u.slider_locked and not u.pulley_locked
+        if not regulating:
+            self.off_angle_reported = False
+        elif not self.off_angle_reported:
             theta = self.state.theta
             off = abs(math.remainder(theta - math.pi, 2.0 * math.pi))
             if off > REGULATION_ANGLE_TOLERANCE:
                 b_end = physics.regulated_slider_position(p, u, theta)
                 self.warn(f"regulating at theta = {math.degrees(theta):.2f} deg instead of 180 "
-                          f"deg: the slider settles at b = {b_end:.4f} m, not at the balancing "
-                          "position")
-            if u.payload > p.payload_max and before.payload <= p.payload_max:
-                self.warn(f"payload = {u.payload} kg exceeds payload_max = "
-                          f"{p.payload_max:.4f} kg: the slider will stop at b_max")
+                          f"deg: the slider settles away from the balancing position (at "
+                          f"b = {b_end:.4f} m for payload = {u.payload} kg)")
+                self.off_angle_reported = True
+        if regulating and u.payload > p.payload_max >= before.payload:
+            self.warn(f"payload = {u.payload} kg exceeds payload_max = {p.payload_max:.4f} kg: "
+                      "the slider will stop at b_max")
         if u.counterweight_added != before.counterweight_added and u.pulley_locked:
             self.warn("counterweight_added changed with the pulley locked: it acts only once "
                       "the pulley is released")
@@ -108,6 +113,7 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.state = physics.State(*hidden["state"])
         self.previous_inputs = physics.Inputs(*hidden["previous_inputs"])
         self.stop_reported = bool(hidden["stop_reported"])
+        self.off_angle_reported = bool(hidden["off_angle_reported"])
 
 
 OUTPUTS = (
