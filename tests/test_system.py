@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 from fmpy.ssp.ssd import read_ssd
 
-from harness import cli, master, results, scenarios, system
+from harness import cli, fmu_build, master, results, scenarios, system
 from harness.drive import motors
 
 SCENARIO = scenarios.load("franchetti2021")
@@ -132,3 +132,17 @@ def test_multi_joint_scenarios_are_refused() -> None:
     demian = scenarios.load("demian2022")
     with pytest.raises(ValueError, match="one-joint"):
         system.describe(demian, demian.variant("compensated"))
+
+
+@pytest.mark.parametrize("variant", list(SCENARIO.variants))
+def test_every_input_is_connected(variant: str) -> None:
+    """An unconnected input would take its start value in libcosim but may be wired to another
+    signal by FMPy's SSP runner: the systems leave none unconnected."""
+    from fmpy import read_model_description
+
+    described = system.describe(SCENARIO, SCENARIO.variant(variant))
+    connected = {(component, name) for _, _, component, name in described.connections}
+    for component, model in described.models.items():
+        variables = read_model_description(fmu_build.fmu_path(model)).modelVariables
+        inputs = {v.name for v in variables if v.causality == "input"}
+        assert {(component, name) for name in inputs} <= connected, component
