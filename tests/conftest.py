@@ -59,6 +59,20 @@ def run(fmu: CoSimFMU, steps: int, step_size: float, names: Iterable[str],
     return rows
 
 
+def play_sequencer(fmu: CoSimFMU, variant: str, steps: int,
+                   step_size: float) -> dict[str, np.ndarray]:
+    """Initialise a ScenarioSequencer instance with `variant` and step it `steps` times: every
+    output (in the model's order) at t = 0 and after each step. The FMU must log nothing."""
+    fmu.initialize({"variant": variant})
+    outputs = fmu.names("output")
+    rows = [fmu.get(outputs)]
+    for k in range(steps):
+        fmu.step(k * step_size, step_size)
+        rows.append(fmu.get(outputs))
+    assert not fmu.messages
+    return {name: np.array([row[name] for row in rows]) for name in outputs}
+
+
 def warnings(fmu: CoSimFMU) -> list[str]:
     """The Warning-status messages the FMU has logged."""
     return [m.message for m in fmu.messages if m.status == "Warning"]

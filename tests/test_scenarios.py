@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import play_sequencer
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
@@ -207,14 +208,8 @@ def test_sequencer_plays_the_scenario_as_the_harness(sequencer: Path, variant: s
     n = round(scenario.duration / SEQUENCER_STEP)
     times = np.arange(n + 1) * SEQUENCER_STEP
     with CoSimFMU(sequencer, variant) as fmu:
-        start_sequencer(fmu, variant)
-        outputs = fmu.names("output")
-        rows = [fmu.get(outputs)]
-        for k in range(n):
-            fmu.step(k * SEQUENCER_STEP, SEQUENCER_STEP)
-            rows.append(fmu.get(outputs))
-        assert not fmu.messages
-    played = {name: np.array([row[name] for row in rows]) for name in outputs}
+        played = play_sequencer(fmu, variant, n, SEQUENCER_STEP)
+    outputs = list(played)
     np.testing.assert_allclose(played["theta_ref"], scenario.reference(times), rtol=0.0,
                                atol=1e-12)
     inputs = scenario.inputs(times, scenario.variant(variant))

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import play_sequencer
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
@@ -29,18 +30,6 @@ def demian(tmp_path_factory: pytest.TempPathFactory) -> Path:
     assert scenarios.EMBEDDED.read_bytes() == committed  # the default stays as it is
     assert [p.name for p in dest.iterdir()] == ["ScenarioSequencer.fmu"]
     return dest / "ScenarioSequencer.fmu"
-
-
-def play(fmu: CoSimFMU, variant: str, steps: int) -> dict[str, np.ndarray]:
-    """Every output at t = 0 and after each of `steps` steps of STEP."""
-    fmu.initialize({"variant": variant})
-    outputs = fmu.names("output")
-    rows = [fmu.get(outputs)]
-    for k in range(steps):
-        fmu.step(k * STEP, STEP)
-        rows.append(fmu.get(outputs))
-    assert not fmu.messages
-    return {name: np.array([row[name] for row in rows]) for name in outputs}
 
 
 def test_the_built_fmu_declares_the_scenario(demian: Path) -> None:
@@ -76,8 +65,8 @@ def test_it_plays_the_references_of_the_scenario(demian: Path, variant: str) -> 
     times = np.arange(steps + 1) * STEP
     with (CoSimFMU(fmu_build.fmu_path("ScenarioSequencer"), "default") as default,
           CoSimFMU(demian, "demian") as fmu):
-        franchetti = play(default, "self_regulating", 64)
-        played = play(fmu, variant, steps)
+        franchetti = play_sequencer(default, "self_regulating", 64, STEP)
+        played = play_sequencer(fmu, variant, steps, STEP)
     assert set(franchetti) == {"theta_ref", "slider_locked", "pulley_locked", "payload",
                                "counterweight_added"}
     for j, joint in enumerate(scenario.joints):

@@ -9,6 +9,7 @@ summary metric and 0.2 deg on theta.
 
 from __future__ import annotations
 
+import functools
 import zipfile
 from pathlib import Path
 
@@ -26,21 +27,15 @@ METRIC_RTOL = 0.01
 THETA_TOL = np.radians(0.2)
 
 
-@pytest.fixture(scope="module")
-def harness_runs() -> dict[str, master.RunResult]:
-    return {}
-
-
-def harness_run_of(harness_runs: dict[str, master.RunResult], variant: str) -> master.RunResult:
-    """The harness's own run of the variant (computed once per module)."""
-    if variant not in harness_runs:
-        harness_runs[variant] = master.run(SCENARIO, SCENARIO.variant(variant))
-    return harness_runs[variant]
+@functools.cache
+def harness_run_of(variant: str) -> master.RunResult:
+    """The harness's own run of the variant (computed once)."""
+    return master.run(SCENARIO, SCENARIO.variant(variant))
 
 
 @pytest.fixture(scope="module")
-def harness_run(harness_runs: dict[str, master.RunResult]) -> master.RunResult:
-    return harness_run_of(harness_runs, VARIANT)
+def harness_run() -> master.RunResult:
+    return harness_run_of(VARIANT)
 
 
 @pytest.fixture(scope="module")
@@ -73,8 +68,8 @@ def assert_agrees(summary: pd.DataFrame, series: pd.DataFrame,
 # payload and counterweight ramps, and the slider regulates within the system
 @pytest.mark.parametrize("variant", [VARIANT, "self_regulating"])
 def test_libcosim_runs_the_osp_system_like_the_harness(
-        tmp_path: Path, harness_runs: dict[str, master.RunResult], variant: str) -> None:
-    harness_run = harness_run_of(harness_runs, variant)
+        tmp_path: Path, variant: str) -> None:
+    harness_run = harness_run_of(variant)
     summary = run_command("libcosim", tmp_path, variant)
     series = pd.read_csv(tmp_path / f"{variant}.csv")
     assert_agrees(summary, series, harness_run)
