@@ -169,13 +169,12 @@ BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "sweep": lambda steps, repeats: sweep_benchmark(),
 }
 
-COMMAND = "bench"
-HELP = ("benchmarks: FMU step cost against a trivial FMU, co-simulation real-time factor, "
-        "step convergence, sweep scaling (results/bench)")
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--steps", type=int, default=20_000, help="steps per repeat")
+    parser.add_argument("--step-count", dest="steps", type=int, default=20_000, metavar="N",
+                        help="FMU steps per repeat")
+    parser.add_argument("--steps", dest="steps", type=int, default=argparse.SUPPRESS,
+                        help=argparse.SUPPRESS)  # former spelling
     parser.add_argument("--repeats", type=int, default=3, help="repeats; the best counts")
     parser.add_argument("--out", type=Path, default=BENCH_DIR, help="output folder")
     parser.add_argument("--only", default="all",
@@ -185,7 +184,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.steps < 1 or args.repeats < 1:
-        raise ValueError("--steps and --repeats must be at least 1")
+        raise ValueError("--step-count and --repeats must be at least 1")
     names = list(BENCHMARKS) if args.only == "all" else [n.strip() for n in args.only.split(",")]
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:

@@ -39,9 +39,6 @@ from fmu_src import ciupitu
 from harness import reference, scenarios
 from harness.drive import MotorParameters
 
-COMMAND = "ciupitu-design"
-HELP = "choose the Ciupitu counterweight (m2, OA, AB) of franchetti2021 by minimising E_drawn"
-
 SCENARIO = "franchetti2021"
 VARIANT = "ciupitu"
 MODEL = "CiupituBalancer"

@@ -14,9 +14,6 @@ from dataclasses import fields
 
 from fmu_src import ciupitu
 
-COMMAND = "ciupitu-example"
-HELP = "Ciupitu 2018 Section 4 example: eps and max |M_u| for parabolic and linear payloads"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     for f in fields(ciupitu.ExampleData):

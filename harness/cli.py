@@ -1,7 +1,9 @@
 """Command line: `python -m harness <command>`.
 
-Each command lives in its own module, which defines COMMAND (its name), HELP,
-add_arguments(parser) and run(args) -> exit code; COMMANDS lists those modules.
+Each command lives in its own module, which defines add_arguments(parser) and
+run(args) -> exit code; COMMANDS names those modules with the command's one-line help.
+Only the module of the command being run is imported, so `python -m harness --help` does
+not pay for numpy, pandas, FMPy and Dask.
 """
 
 from __future__ import annotations
@@ -10,25 +12,85 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
-
-COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.system", "harness.compare",
-            "harness.ciupitu_example", "harness.ciupitu_design", "harness.sweep",
-            "harness.bench", "harness.cross_check")
+from pathlib import Path
+from typing import NamedTuple
 
 
-def parser() -> argparse.ArgumentParser:
-    top = argparse.ArgumentParser(prog="python -m harness", description=__doc__.splitlines()[0])
-    commands = top.add_subparsers(dest="command", required=True)
-    for name in COMMANDS:
-        module = importlib.import_module(name)
-        sub = commands.add_parser(module.COMMAND, help=module.HELP, description=module.HELP)
+class Command(NamedTuple):
+    module: str
+    help: str
+
+
+COMMANDS = {
+    "build-fmus": Command("harness.fmu_build", "build every FMU of fmu_src into build/fmus"),
+    "cosim": Command("harness.cosim",
+                     "co-simulate scenario variants and write CSV series, summary and plots"),
+    "system": Command("harness.system",
+                      "run scenario variants as a system of FMUs (SSP/OSP) in libcosim or "
+                      "FMPy's SSP runner; results as the harness writes them"),
+    "compare": Command("harness.compare",
+                       "compare two result CSV files signal by signal within tolerances"),
+    "ciupitu-example": Command("harness.ciupitu_example",
+                               "Ciupitu 2018 Section 4 example: eps and max |M_u| for "
+                               "parabolic and linear payloads"),
+    "ciupitu-design": Command("harness.ciupitu_design",
+                              "choose the Ciupitu counterweight (m2, OA, AB) of franchetti2021 "
+                              "by minimising E_drawn"),
+    "sweep": Command("harness.sweep", "run a parameter sweep file on Dask and write "
+                     "results/sweeps/<name>.parquet/.csv/plots"),
+    "bench": Command("harness.bench",
+                     "benchmarks: FMU step cost against a trivial FMU, co-simulation real-time "
+                     "factor, step convergence, sweep scaling (results/bench)"),
+    "cross-check": Command("harness.cross_check",
+                           "write every FMU with its reference result in the FMI cross-check "
+                           "layout (build/cross-check) and validate it"),
+}
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Appends '(default: ...)' to an option's help unless the help already states its
+    default or the option has none (a flag, or None: the help says what happens then);
+    a default path is shown relative to the working directory when inside it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if ("default" in text or not action.option_strings
+                or action.default in (None, False, argparse.SUPPRESS)):
+            return text
+        default = action.default
+        if isinstance(default, Path) and default.is_relative_to(Path.cwd()):
+            default = default.relative_to(Path.cwd())
+        return f"{text} (default: {str(default).replace('%', '%%')})"
+
+
+def add_command(commands: argparse._SubParsersAction, name: str,
+                load: bool) -> argparse.ArgumentParser:
+    """The sub-parser of command `name`; with load, its module is imported and its options
+    and run function added."""
+    command = COMMANDS[name]
+    sub = commands.add_parser(name, help=command.help, description=command.help,
+                              formatter_class=HelpFormatter)
+    if load:
+        module = importlib.import_module(command.module)
         module.add_arguments(sub)
         sub.set_defaults(run=module.run)
+    return sub
+
+
+def parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line, with the options of `command` only (None: the command list)."""
+    top = argparse.ArgumentParser(prog="python -m harness", description=__doc__.splitlines()[0])
+    commands = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        add_command(commands, name, load=name == command)
     return top
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    # the top level has no options that take a value: the first other word is the command
+    command = next((word for word in argv if not word.startswith("-")), None)
+    args = parser(command).parse_args(argv)
     try:
         return args.run(args)
     except ValueError as error:  # bad input data: one clear line, non-zero exit

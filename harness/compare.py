@@ -17,9 +17,6 @@ import numpy as np
 import pandas as pd
 from fmpy.util import validate_signal
 
-COMMAND = "compare"
-HELP = "compare two result CSV files signal by signal within tolerances"
-
 
 @dataclass(frozen=True)
 class SignalComparison:
@@ -117,9 +114,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", type=Path, help="result CSV to check")
     parser.add_argument("--signals", help="comma-separated signal names (default: all shared)")
     parser.add_argument("--rtol", type=float, default=1e-3,
-                        help="relative tolerance, of the signal's largest |value| (1e-3)")
-    parser.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (1e-9)")
-    parser.add_argument("--plot", type=Path, help="write a report plot (PNG) here")
+                        help="relative tolerance, of the signal's largest |value|")
+    parser.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance")
+    parser.add_argument("--plot", type=Path, help="write a report plot (PNG) here (default: none)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -9,9 +9,6 @@ from tqdm import tqdm
 
 from harness import master, results, scenarios
 
-COMMAND = "cosim"
-HELP = "co-simulate scenario variants and write CSV series, summary and plots"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="all",

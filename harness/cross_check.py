@@ -107,14 +107,11 @@ def export(model: str, dest: Path) -> Path:
     return folder
 
 
-COMMAND = "cross-check"
-HELP = ("write every FMU with its reference result in the FMI cross-check layout "
-        "(build/cross-check) and validate it")
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--dest", type=Path, default=DEFAULT_DEST,
+    parser.add_argument("--out", dest="dest", type=Path, default=DEFAULT_DEST, metavar="DIR",
                         help="cross-check repository folder (fmus/ is written inside)")
+    parser.add_argument("--dest", dest="dest", type=Path, default=argparse.SUPPRESS,
+                        help=argparse.SUPPRESS)  # former spelling
 
 
 def run(args: argparse.Namespace) -> int:

@@ -139,17 +139,16 @@ def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DI
     return fmu
 
 
-COMMAND = "build-fmus"
-HELP = "build every FMU of fmu_src into build/fmus"
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--dest", type=Path, default=DEFAULT_DEST, help="output folder")
+    parser.add_argument("--out", dest="dest", type=Path, default=DEFAULT_DEST, metavar="DIR",
+                        help="output folder")
+    parser.add_argument("--dest", dest="dest", type=Path, default=argparse.SUPPRESS,
+                        help=argparse.SUPPRESS)  # former spelling
     parser.add_argument(
         "--sequencer-scenario", metavar="NAME_OR_FILE",
         help=f"build only the {SEQUENCER}, playing this scenario (a name of "
              f"harness/scenarios or a TOML file) instead of franchetti2021, into "
-             f"DEST/{SEQUENCER}.fmu")
+             f"DIR/{SEQUENCER}.fmu (default: build every FMU)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -709,16 +709,14 @@ def sweep_benchmark(runs: int = 12, workers: Sequence[int] = (1, 2)) -> pd.DataF
 
 
 # ---- command ------------------------------------------------------------------------------
-COMMAND = "sweep"
-HELP = "run a parameter sweep file on Dask and write results/sweeps/<name>.parquet/.csv/plots"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", help="sweep TOML file, or the name of one in harness/sweeps")
     parser.add_argument("--workers", type=int, default=2,
                         help="local worker processes (default 2; ignored with --scheduler)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help="dask.distributed scheduler address, e.g. tcp://host:8786")
+                        help="dask.distributed scheduler address, e.g. tcp://host:8786 "
+                             "(default: local workers)")
     parser.add_argument("--chunk-size", type=int,
                         help="runs per task (default: the file's chunk_size, at most 8, and "
                              f"at least {CHUNKS_PER_WORKER} tasks per worker)")

@@ -396,17 +396,15 @@ def run_fmpy_ssp(system: System, ssp: Path) -> master.RunResult:
     return _result(system, frame, booleans, [])
 
 
-COMMAND = "system"
-HELP = ("run scenario variants as a system of FMUs (SSP/OSP) in libcosim or FMPy's SSP "
-        "runner; results as the harness writes them")
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--engine", choices=ENGINES, default="libcosim")
+    parser.add_argument("--engine", choices=ENGINES, default="libcosim",
+                        help="the master that runs the system")
     parser.add_argument("--scenario", default="franchetti2021",
                         help="one-joint scenario the ScenarioSequencer FMU plays")
-    parser.add_argument("--variant", default="all",
+    parser.add_argument("--variants", dest="variant", default="all", metavar="VARIANTS",
                         help="'all' or a comma-separated list (eps baselines are added)")
+    parser.add_argument("--variant", dest="variant", default=argparse.SUPPRESS,
+                        help=argparse.SUPPRESS)  # former spelling
     parser.add_argument("--step", type=float, default=master.DEFAULT_STEP,
                         help="communication step [s] (default 1e-3)")
     parser.add_argument("--source", choices=("osp", "ssp"), default="osp",
