@@ -3,13 +3,15 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+# exact versions of every dependency, so a fresh clone reproduces the committed results
+LOCK := constraints.txt
 
-.PHONY: venv fmu test cosim bench lint xc sweep clean
+.PHONY: venv fmu test cosim bench lint xc sweep clean lock
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[dev]"
+	$(PY) -m pip install --quiet --upgrade pip -c $(LOCK)
+	$(PY) -m pip install --quiet -e ".[dev]" -c $(LOCK)
 	touch $@
 
 venv: $(STAMP)
@@ -34,6 +36,18 @@ sweep: fmu
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check fmu_src harness tests
+
+# Re-resolve pyproject.toml's dependencies in a fresh venv (newest versions that satisfy it)
+# and pin what got installed; then `make venv` installs exactly those.
+lock:
+	rm -rf build/lock-venv
+	$(PYTHON) -m venv build/lock-venv
+	build/lock-venv/bin/python -m pip install --quiet --upgrade pip
+	build/lock-venv/bin/python -m pip install --quiet -e ".[dev]"
+	{ echo "# Pinned by 'make lock' with $$($(PYTHON) --version) on $$(uname -sm): do not edit."; \
+	  build/lock-venv/bin/python -m pip freeze --all --exclude-editable; } > $(LOCK).tmp
+	mv $(LOCK).tmp $(LOCK)
+	rm -rf build/lock-venv
 
 clean:
 	rm -rf build
