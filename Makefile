@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 # exact versions of every dependency, so a fresh clone reproduces the committed results
 LOCK := constraints.txt
 
-.PHONY: venv fmu test cosim bench lint xc sweep clean lock
+.PHONY: venv fmu test cosim bench lint xc sweep clean lock docs
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,10 @@ xc: fmu
 
 sweep: fmu
 	$(PY) -m harness sweep harness/sweeps/table1.toml
+
+# docs/variables/<Model>.md from the built FMUs' model descriptions
+docs: fmu
+	$(PY) -m harness.fmu_docs
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check fmu_src harness tests

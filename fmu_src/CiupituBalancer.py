@@ -1,5 +1,5 @@
-"""FMI 2.0 Co-Simulation slave of Ciupitu's passive translational counterweight (SPEC.md
-section 4).
+"""FMI 2.0 Co-Simulation slave of Ciupitu's passive translational counterweight
+(docs/mechanisms.md).
 
 A thin layer over `fmu_src.ciupitu`: it maps FMI variables to the physics and integrates it
 over each communication step.

@@ -1,4 +1,4 @@
-"""FMI 2.0 Co-Simulation slave of the geared DC motor drive (SPEC.md section 6).
+"""FMI 2.0 Co-Simulation slave of the geared DC motor drive (docs/drive_and_controller.md).
 
 A thin layer over `fmu_src.dc_motor`, the model the harness uses: the voltage V, limited to
 +-V_supply, and the joint speed omega are held over each communication step, and the

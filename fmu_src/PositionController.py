@@ -1,4 +1,5 @@
-"""FMI 2.0 Co-Simulation slave of the discrete PID position controller (SPEC.md section 6).
+"""FMI 2.0 Co-Simulation slave of the discrete PID position controller
+(docs/drive_and_controller.md).
 
 A thin layer over `fmu_src.pid`, the controller the harness uses: at fmi2DoStep(t, h) it
 samples the position error e = theta_ref - theta of its inputs at t, and the output V after

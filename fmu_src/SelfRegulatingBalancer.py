@@ -1,4 +1,4 @@
-"""FMI 2.0 Co-Simulation slave of the self-regulating spring balancer (SPEC.md section 3).
+"""FMI 2.0 Co-Simulation slave of the self-regulating spring balancer (docs/mechanisms.md).
 
 A thin layer over `fmu_src.self_regulating`: it maps FMI variables to the physics,
 integrates it over each communication step, and reports misuse through the FMU log.

@@ -1,12 +1,12 @@
 """Physics of Ciupitu's passive translational counterweight (Ciupitu 2018, Figure 4a).
 
 Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
-`CiupituBalancer`, the harness command `ciupitu-example` and the tests (SPEC.md section 4).
+`CiupituBalancer`, the harness command `ciupitu-example` and the tests (docs/mechanisms.md).
 
 Geometry. A counterweight of weight G2 = m2 g slides along the arm on the side opposite to
 the payload; a bar of length AB joins it to the ground pivot A, a distance OA above O. The
 paper's arm angle phi is measured from the horizontal, phi = pi/2 - theta, with theta the
-project's angle (SPEC section 2: from the upward vertical, counter-clockwise; the project's
+project's angle (docs/conventions.md: from the upward vertical, counter-clockwise; the project's
 figure is the paper's Figure 4a mirrored left to right). The counterweight sits at
 
     OB(phi) = sqrt(AB^2 - OA^2 cos^2 phi) - OA sin phi                  (eq. 13, AB > OA)
@@ -32,7 +32,7 @@ max |M_u| = 0.82786 N m at phi = 0.1047 rad (parabolic; paper 0.828 N m at 0.095
 instead, so it is not the paper's reading; for the linear law M_u keeps one sign and both
 readings agree.
 
-Caveat (kept, because the SPEC and the paper define M_b so): M_b is the moment of the
+Caveat (kept, because the paper defines M_b so): M_b is the moment of the
 counterweight's weight alone. The bar AB also pushes the counterweight, along a line through
 A rather than O, so the torque the arm really receives (virtual work, -dE_p/dtheta) has a
 further term, the static moment of the bar force about O:
@@ -360,7 +360,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
 
 
 class Outputs(NamedTuple):
-    """Observable quantities of SPEC section 4 (SI units)."""
+    """Observable quantities (docs/mechanisms.md; SI units)."""
 
     theta: float
     omega: float

@@ -1,7 +1,7 @@
 """DC motor with gearbox: the one definition of the drive model (standard library only).
 
 Armature: L_a di/dt = V - R_a i - K_e N omega; joint-side effort tau_drive = eta N K_t i
-(SPEC.md section 6). Inputs (V, omega), outputs (tau_drive, i), state i. N is the
+(docs/drive_and_controller.md). Inputs (V, omega), outputs (tau_drive, i), state i. N is the
 transmission ratio, motor radians per joint radian (a gearbox) or per joint metre (a lead
 screw, N = 2 pi / lead): the same equations then give a force and a reflected mass.
 

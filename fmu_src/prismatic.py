@@ -1,7 +1,7 @@
 """Physics of the gravity compensator for an RP arm (Demian and Klimchik 2022).
 
 Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
-`PrismaticCompensator`, the harness and the tests. Conventions of SPEC.md section 5: q1 is
+`PrismaticCompensator`, the harness and the tests. Conventions of docs/conventions.md: q1 is
 the angle of link 1 from the horizontal, counter-clockwise positive, u = (cos q1, sin q1);
 q2 is the travel of the prismatic joint along the link; gravity along -y; pivot O at the origin.
 
@@ -62,7 +62,7 @@ from fmu_src.parameters import check_ranges, parameter
 
 @dataclass(frozen=True)
 class Parameters:
-    """Parameters of the arm and compensator: Table 1 of the paper as reconstructed in SPEC.md.
+    """Parameters of the arm and compensator: Table 1 of the paper as read in docs/mechanisms.md.
 
     Ours, not the paper's: r = 0.15 m (follows from Table 1's k1 by eq. 3.6), I1 = m1 l1^2/12
     (uniform rod l1 = 1 m about its centre, for m1 = 1 kg), no friction by default (d1 = d2 = 0
@@ -244,7 +244,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
 
 
 class Outputs(NamedTuple):
-    """Observable quantities of SPEC section 5 (SI units)."""
+    """Observable quantities (docs/mechanisms.md; SI units)."""
 
     q1: float
     q1_dot: float

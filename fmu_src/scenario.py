@@ -23,7 +23,7 @@ effort gravity and springs exert on the joint, which the drive holds with the op
 Phases then give `targets = { <joint> = value, ... }` in SI units: rad for a revolute joint,
 m for a prismatic one (`target_deg` remains for scenarios with one revolute joint).
 
-Variants are configurations of the same run (SPEC.md section 3): they may replace the FMU
+Variants are configurations of the same run (docs/scenarios.md): they may replace the FMU
 (`model`), override its parameters (`parameters`), hold inputs at fixed values for the whole
 run (`inputs`), replace the input changes of named phases (`phase_inputs`, e.g.
 `{ down = { payload = { ramp = 0.4, shape = "quintic" } } }`), drop scenario inputs the model

@@ -1,8 +1,8 @@
 """Physics of the self-regulating spring balancer (Franchetti, Boschetti, Lenzo 2021).
 
 Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
-`SelfRegulatingBalancer`, the harness and the tests. Conventions are those of SPEC.md
-section 2: theta from the upward vertical, counter-clockwise positive, unit vector along
+`SelfRegulatingBalancer`, the harness and the tests. Conventions are those of
+docs/conventions.md: theta from the upward vertical, counter-clockwise positive, unit vector along
 the link e = (-sin theta, cos theta), gravity along -y.
 
 Generalised coordinates: the link angle theta and the slider position b along the link.
@@ -289,7 +289,7 @@ def regulated_slider_position(p: Parameters, u: Inputs, theta: float) -> float:
 
 
 class Outputs(NamedTuple):
-    """Observable quantities of SPEC section 3 (SI units)."""
+    """Observable quantities (docs/mechanisms.md; SI units)."""
 
     theta: float
     omega: float

@@ -8,7 +8,7 @@ s.embed('franchetti2021')"` and rebuild the FMU.
 
 NAME = 'franchetti2021'
 TOML = "\n".join((
-    '# Franchetti, Boschetti, Lenzo 2021, Section 4 and Table 1 (SPEC.md section 8).',
+    '# Franchetti, Boschetti, Lenzo 2021, Section 4 and Table 1 (docs/scenarios.md).',
     'name = "franchetti2021"',
     'description = """Regulation task of the paper: hold 60 deg, move to 180 deg, regulate for a \\',
     '1 kg payload, lock, move to 340 deg, hold."""',

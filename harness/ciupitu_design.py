@@ -1,13 +1,13 @@
 """`python -m harness ciupitu-design`: Ciupitu's counterweight for the franchetti2021 task.
 
-SPEC.md section 4: the `ciupitu` variant of franchetti2021 puts Ciupitu's sliding
+docs/mechanisms.md (Ciupitu): the `ciupitu` variant of franchetti2021 puts Ciupitu's sliding
 counterweight (CiupituBalancer) on the Franchetti link, whose own weight a fixed counterweight
 balances (m_fixed_cw c_fixed_cw = m c); the counterweight's mass m2 (G2 = m2 g) and the bar's
 OA and AB are chosen here, to minimise the drive's energy over the task. The variant's TOML
 holds the chosen values; tests/test_cosim_ciupitu.py checks they equal `design()`.
 
 Objective: E_drawn [J], the energy the drive takes from a supply that cannot take energy
-back (SPEC section 7, the quantity eps is computed on), predicted along the task's reference
+back (docs/results.md, the quantity eps is computed on), predicted along the task's reference
 by inverse dynamics: perfect tracking; the FMU's equation of motion (fmu_src.ciupitu)
 solved for the drive torque; the motor's armature equation without its inductance
 (L/R_a = 0.19 ms) for current and voltage; P = V i integrated where positive (10 ms samples,

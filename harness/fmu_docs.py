@@ -204,18 +204,24 @@ def unit_of(variable: ModelVariable) -> str:
     return variable.unit or (declared.unit if declared is not None else None) or ""
 
 
-def variables_html(md: ModelDescription) -> str:
-    """One table row per model variable."""
+def variable_cells(md: ModelDescription) -> list[tuple[str, ...]]:
+    """Per model variable, its VARIABLE_COLUMNS as text ('' where not given)."""
     rows = []
     for v in md.modelVariables:
         declared = v.declaredType
         low = v.min if v.min is not None else getattr(declared, "min", None)
         high = v.max if v.max is not None else getattr(declared, "max", None)
-        cells = (f"<code>{html.escape(v.name)}</code>", v.causality, v.variability, v.type,
-                 unit_of(v), v.start, low, high, v.description)
-        rows.append("<tr>" + "".join(
-            f"<td>{c if i == 0 else html.escape('' if c is None else str(c))}</td>"
-            for i, c in enumerate(cells)) + "</tr>")
+        rows.append(tuple("" if c is None else str(c) for c in (
+            v.name, v.causality, v.variability, v.type, unit_of(v), v.start, low, high,
+            v.description)))
+    return rows
+
+
+def variables_html(md: ModelDescription) -> str:
+    """One table row per model variable."""
+    rows = ["<tr>" + "".join(
+        f"<td>{f'<code>{html.escape(c)}</code>' if i == 0 else html.escape(c)}</td>"
+        for i, c in enumerate(cells)) + "</tr>" for cells in variable_cells(md)]
     header = "".join(f"<th>{c}</th>" for c in VARIABLE_COLUMNS)
     return f'<table class="variables">\n<tr>{header}</tr>\n' + "\n".join(rows) + "\n</table>"
 
@@ -311,3 +317,47 @@ def add_documentation(fmu: Path, script: Path, modules: list[Path]) -> None:
         with zipfile.ZipFile(fmu, "a", compression=zipfile.ZIP_DEFLATED) as archive:
             for path in sorted(folder.iterdir()):
                 archive.write(path, f"documentation/{path.name}")
+
+
+# ---- docs/variables/<Model>.md -------------------------------------------------------------
+DOCS_VARIABLES = Path(__file__).resolve().parent.parent / "docs" / "variables"
+
+
+def variables_markdown(md: ModelDescription) -> str:
+    """The variable table of a built FMU as a Markdown page (docs/variables/<Model>.md)."""
+    def row(cells: tuple[str, ...]) -> str:
+        return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
+    experiment = md.defaultExperiment
+    default = ("none" if experiment is None else
+               f"start {experiment.startTime} s, stop {experiment.stopTime} s, "
+               f"step {experiment.stepSize} s")
+    table = [row(VARIABLE_COLUMNS), row(tuple("---" for _ in VARIABLE_COLUMNS))]
+    table += [row((f"`{cells[0]}`", *cells[1:])) for cells in variable_cells(md)]
+    return "\n".join([
+        f"# {md.modelName}: variables", "",
+        f"{md.description or ''}", "",
+        "Generated from the built FMU's modelDescription.xml by `make docs`; "
+        "`tests/test_docs.py` fails when this page no longer matches the FMU. SI units, "
+        "angles in radians. The equations are in [../mechanisms.md](../mechanisms.md) and "
+        "[../drive_and_controller.md](../drive_and_controller.md).", "",
+        f"Default experiment: {default}.", "",
+        *table, ""])
+
+
+def write_variable_pages(fmus: list[Path], folder: Path = DOCS_VARIABLES) -> list[Path]:
+    """docs/variables/<Model>.md for each built FMU."""
+    folder.mkdir(parents=True, exist_ok=True)
+    pages = []
+    for fmu in fmus:
+        md = read_model_description(str(fmu))
+        page = folder / f"{md.modelName}.md"
+        page.write_text(variables_markdown(md))
+        pages.append(page)
+    return pages
+
+
+if __name__ == "__main__":  # `make docs`
+    from harness import fmu_build
+
+    for written in write_variable_pages([fmu_build.fmu_path(m) for m in fmu_build.MODELS]):
+        print(written)

@@ -1,4 +1,4 @@
-"""Drive metrics of SPEC.md section 7, from per-step records of a run.
+"""Drive metrics (defined in docs/results.md), from per-step records of a run.
 
 The drive's signals are held over each communication step k of length dt: voltage V[k],
 step-average current i[k] and torque tau[k] (fmu_src.dc_motor.SampledMotor); the link turns by

@@ -74,7 +74,7 @@ def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,
 def simulate(scenario: Scenario, variant: Variant,
              motor: MotorParameters | Mapping[str, MotorParameters] | None = None,
              design: ControllerDesign = ControllerDesign(), rtol: float = 1e-9) -> ReferenceResult:
-    """Solve the whole task as one ODE; returns the drive energies of SPEC section 7."""
+    """Solve the whole task as one ODE; returns the drive energies of docs/results.md."""
     physics = physics_module(variant.model or scenario.model)
     joints = scenario.joints
     drives = [motors(motor)[joint.motor] for joint in joints]

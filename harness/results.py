@@ -1,4 +1,4 @@
-"""Result files (SPEC.md section 9): per-variant CSV series, a summary table, plots.
+"""Result files (docs/results.md): per-variant CSV series, a summary table, plots.
 
 CSVs follow the FMI cross-check conventions (as fmpy.util.write_csv): quoted header,
 `time` first, one column per quantity named after the FMU variable or drive signal, SI units,
@@ -61,11 +61,11 @@ def summary_columns(results: list[RunResult]) -> list[str]:
 
 
 def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> pd.DataFrame:
-    """One row per variant with the metrics of SPEC section 7 and the per-phase work.
+    """One row per variant with the metrics of docs/results.md and the per-phase work.
 
     W_phases [J] is the sum over the task's phases (and drives) of |net mechanical work of the
     drive on its joint in the phase|: the paper's stroke energy |integral of M dphi| summed
-    over strokes. eps (on E_drawn, SPEC section 7) and eps_W (on W_phases) are computed
+    over strokes. eps (on E_drawn, docs/results.md) and eps_W (on W_phases) are computed
     against the baseline: one variant name, or a baseline per variant (Scenario.baselines);
     NaN where the baseline was not run.
     """

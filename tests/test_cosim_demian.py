@@ -1,4 +1,4 @@
-"""The demian2022 co-simulation (SPEC.md section 5): the RP arm with two drives, against
+"""The demian2022 co-simulation (docs/mechanisms.md): the RP arm with two drives, against
 quantities derived here from the reconstructed Table 1 and the quintic reference, against
 the monolithic solve_ivp reference, and against the committed results."""
 

@@ -1,6 +1,6 @@
-"""PrismaticCompensator FMU (SPEC.md section 5), exercised through FMPy.
+"""PrismaticCompensator FMU (docs/mechanisms.md), exercised through FMPy.
 
-Static efforts are checked against eqs. 3.1 and 3.3 and the residuals SPEC section 5 states,
+Static efforts are checked against eqs. 3.1 and 3.3 and the residuals docs/mechanisms.md states,
 computed here independently of `fmu_src.prismatic`. Energy: E_grav + E_springs + E_kin
 - W_drive - W_worm + E_friction must stay constant.
 

@@ -1,4 +1,4 @@
-"""The built SelfRegulatingBalancer FMU (SPEC.md section 3) stepped through FMPy.
+"""The built SelfRegulatingBalancer FMU (docs/mechanisms.md) stepped through FMPy.
 
 Expected numbers come from the paper (Franchetti et al. 2021, Table 1 and eqs. 8, 10, 16),
 from closed forms derived here, or from conservation laws; never from the model itself.
@@ -21,7 +21,7 @@ from harness.fmi import CoSimFMU, FMICallException
 
 # Paper, Table 1
 M, C, W, A, B0, R_CW, R_WIRE, K, G = 3.0, 0.2, 0.35, 0.1, 0.06, 0.035, 0.01, 981.0, 9.81
-J_LINK = 0.16  # our default (SPEC section 3): m (2 c)^2 / 3
+J_LINK = 0.16  # our default (docs/mechanisms.md): m (2 c)^2 / 3
 DEG = math.pi / 180.0
 ENERGY = ("E_t", "E_kin", "E_cw")
 DT = 1e-3
@@ -39,7 +39,7 @@ def test_unbalanced_swing_conserves_energy_and_converges(srb_fmu: Path,
                                                          unbalance: dict[str, float]) -> None:
     """Slider locked, d_link = 0: E_t + E_kin is constant; 1 ms and 10 ms steps agree.
 
-    Both bounds are the issue's. RK4 with rate * h <= 0.05 keeps the energy error near 1e-11 J
+    Bounds: 1e-6 J and 1e-4 rad. RK4 with rate * h <= 0.05 keeps the energy error near 1e-11 J
     at 1 ms; its global error scales with h^4, so the 10 ms run (3 sub-steps of 3.3 ms)
     differs by ~1e-8 to 1e-6 rad: both bounds hold with two orders of magnitude to spare.
     """
@@ -150,7 +150,7 @@ def test_regulation_at_180_deg_balances_the_payload(srb_fmu: Path) -> None:
                      names)
         assert warnings(fmu) == []  # the proper procedure triggers no misuse warning
     b_locked = settle[-1, 1]
-    assert abs(b_locked - 0.095) < 1e-4  # the issue's 0.1 mm
+    assert abs(b_locked - 0.095) < 1e-4  # eq. 8 within 0.1 mm
     assert move[-1, 4] == pytest.approx(340 * DEG, abs=1e-3)
     # E_t(theta) = const + balance_error cos(theta): constant within 1 mJ over cos -1 -> 0.94
     # means |balance_error| < 0.5 mN m

@@ -1,6 +1,6 @@
 """Pure physics of the self-regulating balancer (fmu_src.self_regulating), no FMI: fast.
 
-Expected values are closed forms of SPEC.md section 3 and the paper's Table 1, derivatives
+Expected values are closed forms of docs/mechanisms.md and the paper's Table 1, derivatives
 taken numerically from the energies, or conservation laws.
 """
 

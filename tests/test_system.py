@@ -3,7 +3,7 @@ runs in libcosim and in FMPy's SSP runner, against the harness's own FMPy loop.
 
 The system's masters step the four FMUs in parallel (Jacobi), which delays the control loop by
 two communication steps more than the harness's sequential loop; at 1 ms that moves the
-drive energies by about 1e-4 (relative). The acceptance bands of the issue are 1 % on every
+drive energies by about 1e-4 (relative). The acceptance bands are 1 % on every
 summary metric and 0.2 deg on theta.
 """
 

@@ -1,0 +1,70 @@
+"""The documentation in docs/ stays true to the code, and the repository stands on its own."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+
+from harness import fmu_build, fmu_docs
+from harness.metrics import METRICS
+from harness.results import SUMMARY_COLUMNS
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+# references to documents that are not in the repository (written so that this file does
+# not match them itself)
+OUTSIDE = re.compile(r"\bSPEC\b|(?i:PITFALL[S]|\.\./shar[e]d|/work/shar[e]d|\bthe\s+issue\b)")
+SKIP_DIRS = {".git", ".venv", "build", "results", "__pycache__", ".pytest_cache",
+             ".ruff_cache"}
+TEXT_SUFFIXES = {".py", ".md", ".toml", ".txt", ".c", ".h", ".cfg", ".ini", ".yml", ".yaml",
+                 ".xml", ".json", ".ssd", ""}
+
+
+@pytest.mark.parametrize("model", fmu_build.MODELS)
+def test_variable_pages_match_the_built_fmus(model):
+    """docs/variables/<Model>.md is what `make docs` writes for the FMU as built now."""
+    md = read_model_description(str(fmu_build.fmu_path(model)))
+    page = fmu_docs.DOCS_VARIABLES / f"{model}.md"
+    assert page.is_file(), f"{page} is missing: run `make docs`"
+    assert page.read_text() == fmu_docs.variables_markdown(md), (
+        f"{page.relative_to(ROOT)} is out of date: run `make docs`")
+
+
+def test_every_metric_and_summary_column_is_documented():
+    text = (DOCS / "results.md").read_text()
+    missing = [name for name in (*METRICS, *SUMMARY_COLUMNS) if f"`{name}`" not in text]
+    assert not missing, f"docs/results.md does not explain {missing}"
+
+
+def repository_files() -> list[Path]:
+    """The repository's text files (not its venv, build output or generated results)."""
+    files = []
+    for path in ROOT.rglob("*"):
+        parts = set(path.relative_to(ROOT).parts)
+        if (path.is_file() and not parts & SKIP_DIRS
+                and not any(p.endswith(".egg-info") for p in parts)
+                and path.suffix in TEXT_SUFFIXES):
+            files.append(path)
+    return files
+
+
+def test_nothing_refers_to_documents_outside_the_repository():
+    hits = [f"{path.relative_to(ROOT)}:{number}: {line.strip()}"
+            for path in repository_files()
+            for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1)
+            if OUTSIDE.search(line)]
+    assert not hits, "point these to docs/ instead:\n" + "\n".join(hits)
+
+
+LINK = re.compile(r"\]\(([^)#\s]+)(#[^)\s]*)?\)")
+
+
+def test_relative_links_resolve():
+    pages = [ROOT / "README.md", *DOCS.rglob("*.md")]
+    broken = [f"{page.relative_to(ROOT)}: {target}" for page in pages
+              for target, _ in LINK.findall(page.read_text())
+              if "://" not in target and not (page.parent / target).exists()]
+    assert not broken, f"broken links: {broken}"
