@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.system", "harness.compare",
             "harness.ciupitu_example", "harness.ciupitu_design", "harness.sweep",
-            "harness.bench", "harness.cross_check")
+            "harness.bench", "harness.cross_check", "harness.active_design")
 
 
 def parser() -> argparse.ArgumentParser:
