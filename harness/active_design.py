@@ -27,7 +27,7 @@ import argparse
 import json
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 from scipy.optimize import brentq
 
@@ -37,10 +37,20 @@ COMMAND = "active-design"
 HELP = ("Ciupitu 2018 Fig. 8: the frame joint ordinate Y_B that balances a payload change "
         "(eq. 27, solved numerically)")
 
-# option -> (field of active_spring.Parameters, sign from the paper's frame to the project's)
-GEOMETRY_OPTIONS = {"m1": ("m", 1.0), "OC1": ("c", 1.0), "x1A": ("x1A", 1.0), "w": ("w", 1.0),
-                    "k": ("k", 1.0), "Fs0": ("F_s0", 1.0), "ls0": ("l_s0", 1.0),
-                    "XB": ("X_B", -1.0), "YB": ("Y_B0", 1.0)}
+# option -> (field of active_spring.Parameters, sign from the paper's frame to the project's,
+# help); the defaults are the model's
+GEOMETRY_OPTIONS = {
+    "m1": ("m", 1.0, "link mass m1 [kg]"),
+    "OC1": ("c", 1.0, "distance OC1 from the pivot to the link's centre of mass [m]"),
+    "x1A": ("x1A", 1.0, "distance x1A from the pivot to the spring's link joint A [m]"),
+    "w": ("w", 1.0, "distance from the pivot to the payload (x1A: the paper's payload at A) "
+          "[m]"),
+    "k": ("k", 1.0, "spring stiffness k [N/m]"),
+    "Fs0": ("F_s0", 1.0, "spring force F_s0 at the length l_s0 (eq. 19) [N]"),
+    "ls0": ("l_s0", 1.0, "spring length l_s0 (F_s0 = k l_s0: zero-free-length spring) [m]"),
+    "XB": ("X_B", -1.0, "abscissa X_B of the spring's frame joint B, paper's frame [m]"),
+    "YB": ("Y_B0", 1.0, "present ordinate Y_B of the frame joint B [m]"),
+}
 DEFAULT_PAYLOAD_CHANGE = 1.0   # kg, dm_p: franchetti2021's payload
 DEFAULT_PHI = 0.0              # deg, the horizontal link
 SEARCH_RANGE = 1e4             # the bracket search reaches |Y_B' - Y_B| = SEARCH_RANGE * scale
@@ -102,7 +112,7 @@ def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
     for number, lo, hi in ([] if roots else _brackets(f, p.Y_B0, scale)):
         if found_at is not None and number > found_at:
             break   # later brackets lie farther from Y_B than the roots found
-        root = hi if f(hi) == 0.0 else brentq(f, lo, hi, xtol=1e-15, rtol=4.0 * 2.0 ** -52)
+        root = brentq(f, lo, hi, xtol=1e-15, rtol=4.0 * 2.0 ** -52)  # an end at 0: that end
         if abs(f(root)) <= tolerance:   # not a pole of F_s / l_s, where B meets A
             roots.append(root)
             found_at = number
@@ -111,7 +121,8 @@ def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
             f"no Y_B balances the link: eq. {name} keeps one sign within "
             f"{SEARCH_RANGE * scale:g} m of --YB {p.Y_B0:g} for --phi "
             f"{math.degrees(math.pi / 2 - theta):g} deg, --mp + --dmp = {payload:g} kg at --w "
-            f"{p.w:g} m; the spring (--k, --Fs0, --ls0, --x1A, --XB) cannot hold that load")
+            f"{p.w:g} m; change the spring (--k, --Fs0, --ls0), its joints (--x1A, --XB) or the "
+            f"load (--m1, --OC1, --mp, --dmp, --w)")
     Y_B = min(roots, key=lambda y: abs(y - p.Y_B0))
     spring = active_spring.spring(p, theta, Y_B)
     return Design(Y_B, Y_B - p.Y_B0, f(Y_B), name, spring.l_s, spring.F_s)
@@ -119,16 +130,13 @@ def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     defaults = active_spring.Parameters()
-    info = {f.name: (getattr(defaults, f.name), f.metadata)
-            for f in fields(active_spring.Parameters)}
-    for option, (field, sign) in GEOMETRY_OPTIONS.items():
-        default, meta = info[field]
-        mirrored = " (paper's frame: the project's -X_B)" if sign < 0 else ""
-        parser.add_argument(f"--{option}", type=float, default=sign * default + 0.0,
-                            help=f"{meta['description']}{mirrored} [{meta['unit']}] "
-                                 "(default: %(default)s)")
+    for option, (field, sign, text) in GEOMETRY_OPTIONS.items():
+        default = sign * getattr(defaults, field) + 0.0   # + 0.0: no "-0.0" in the help
+        parser.add_argument(f"--{option}", type=float, default=default,
+                            help=f"{text} (default: %(default)s)")
     parser.add_argument("--mp", type=float, default=0.0,
-                        help="payload mass balanced at Y_B [kg] (default: %(default)s)")
+                        help="payload mass m_p balanced at the present Y_B [kg] "
+                             "(default: %(default)s)")
     parser.add_argument("--dmp", type=float, default=DEFAULT_PAYLOAD_CHANGE,
                         help="payload change dm_p to balance (eq. 22) [kg] (default: %(default)s)")
     parser.add_argument("--phi", type=float, default=DEFAULT_PHI,
@@ -140,8 +148,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def parameters(args: argparse.Namespace) -> active_spring.Parameters:
     """The model parameters from the options; ValueError naming the option when invalid."""
     values = {field: sign * getattr(args, option)
-              for option, (field, sign) in GEOMETRY_OPTIONS.items()}
-    option_of = {field: option for option, (field, _) in GEOMETRY_OPTIONS.items()}
+              for option, (field, sign, _) in GEOMETRY_OPTIONS.items()}
+    option_of = {field: option for option, (field, _, _) in GEOMETRY_OPTIONS.items()}
     p = active_spring.Parameters(**values)
     try:
         active_spring.validate(p)
