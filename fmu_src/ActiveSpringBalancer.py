@@ -2,8 +2,9 @@
 (Ciupitu 2018, Fig. 8).
 
 A thin layer over `fmu_src.active_spring`: it maps FMI variables to the physics, books a
-payload change at the communication point where it happens, and integrates the physics over
-each communication step.
+payload change at the communication point where it happens, integrates the physics over
+each communication step, and warns through the FMU log when the spring is compressed (the
+model's linear force law pushes there, which an extension spring cannot).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ class ActiveSpringBalancer(MechanismSlave):
     moves along the vertical (Ciupitu 2018, Section 3)."""
 
     parameters_type = physics.Parameters
-    hidden_state = ("state", "payload_held")
+    hidden_state = ("state", "payload_held", "compression_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=5.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:
@@ -37,6 +38,7 @@ class ActiveSpringBalancer(MechanismSlave):
             self.add_output(name, unit, description)
         self.state = None
         self.payload_held = 0.0     # the payload the state refers to [kg]
+        self.compression_reported = False   # once per spell of F_s < 0
 
     def validate(self, params: physics.Parameters) -> None:
         physics.validate(params)
@@ -48,6 +50,7 @@ class ActiveSpringBalancer(MechanismSlave):
         u = self.inputs()
         self.state = physics.initial_state(params)
         self.payload_held = u.payload   # the start value is no event
+        self.compression_reported = False
         self.set_outputs(physics.outputs(params, u, self.state))
 
     def step(self, dt: float) -> None:
@@ -56,11 +59,18 @@ class ActiveSpringBalancer(MechanismSlave):
             self.state = physics.change_payload(p, self.state, self.payload_held, u.payload)
             self.payload_held = u.payload
         self.state = physics.advance(p, u, self.state, dt)
-        self.set_outputs(physics.outputs(p, u, self.state))
+        out = physics.outputs(p, u, self.state)
+        if out.F_s < 0.0 and not self.compression_reported:
+            self.warn(f"spring in compression (F_s = {out.F_s:.4g} N at l_s = {out.l_s:.4g} m, "
+                      f"free length {p.free_length:.4g} m): the model's linear law pushes, an "
+                      "extension spring would go slack")
+        self.compression_reported = out.F_s < 0.0
+        self.set_outputs(out)
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])
         self.payload_held = float(hidden["payload_held"])
+        self.compression_reported = bool(hidden["compression_reported"])
 
 
 OUTPUTS = (

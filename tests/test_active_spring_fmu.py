@@ -11,7 +11,7 @@ import sys
 from collections.abc import Iterator, Mapping
 
 import pytest
-from conftest import FMI_DISCARD
+from conftest import FMI_DISCARD, warnings
 from fmpy import read_model_description
 
 from harness.fmi import CoSimFMU, FMICallException
@@ -153,6 +153,25 @@ def test_state_restore_replays_a_payload_change_exactly(fmu: CoSimFMU) -> None:
     assert replay() == first
     fmu.slave.freeFMUstate(saved)
     assert first[-1]["E_added"] != 0.0
+
+
+def test_compressed_spring_is_reported_once_per_spell(fmu: CoSimFMU) -> None:
+    """Misuse the model allows: a spring with free length 0.3 m on a geometry where l_s stays
+    below 0.17 m pushes (F_s < 0). One warning when F_s turns negative; it comes again only
+    after the spring has been in tension in between (the carriage raised, then lowered)."""
+    start(fmu, {"l_s0": 0.3, "F_s0": 0.0, "theta0": 0.5, "d_link": 5.0})
+    earlier = len(warnings(fmu))    # the instance's log holds the earlier tests' messages
+    for n in range(200):
+        fmu.step(n * DT, DT)
+    assert len(warnings(fmu)) == earlier + 1 and "spring in compression" in warnings(fmu)[-1]
+    for force in (200.0, -200.0):   # B up to l_s > 0.3 m, then back down
+        fmu.set({"F_adjust": force})
+        for n in range(200):
+            fmu.step(n * DT, DT)
+        fmu.set({"F_adjust": 0.0})
+        for n in range(200):
+            fmu.step(n * DT, DT)
+    assert len(warnings(fmu)) == earlier + 2
 
 
 @pytest.mark.parametrize(("inputs", "named"), [
