@@ -82,8 +82,9 @@ OUTPUTS = (
     ("l_s", "m", "Spring length A-B (eq. 21)"),
     ("F_s", "N", "Spring force F_s0 + k (l_s - l_s0), tension positive (eq. 19)"),
     ("tau_gravity", "N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta"),
-    ("F_q", "N", "Spring's force on the carriage along +q (held by the self-locking "
-     "transmission)"),
+    ("F_q", "N", "Spring's force on the carriage along +q"),
+    ("F_lock", "N", "Force of the self-locking screw on the carriage along +q (holding it, or "
+     "absorbing a load that would drive it)"),
     ("balance_error", "N.m", "(m c + payload w) g - x1A Y_B F_s / l_s; 0 when balanced "
      "(with X_B = 0, tau_gravity = balance_error sin(theta))"),
     ("E_p", "J", "Gravitational potential energy of link, payload and carriage"),
@@ -93,7 +94,7 @@ OUTPUTS = (
     ("W_drive", "J", "Cumulative work of tau_drive on the link"),
     ("W_adjust", "J", "Cumulative work of F_adjust on the carriage (the actuator's "
      "mechanical work)"),
-    ("W_worm", "J", "Cumulative work of the self-locking transmission's force on the carriage"),
-    ("E_loss", "J", "Energy dissipated so far (d_link, d_q, payload catches)"),
+    ("E_loss", "J", "Energy dissipated so far (d_link, d_q, self-locking screw, payload "
+     "catches)"),
     ("E_added", "J", "Energy brought in (taken out) by payload changes"),
 )

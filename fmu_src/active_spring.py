@@ -26,21 +26,28 @@ Lagrangian, with J = J_link + payload w^2 + J_drive and generalised coordinates 
     V = E_p + E_e,   E_p = (m c + payload w) g cos(theta) + m_q g Y_B
 
     J omega' = tau_drive + tau_gravity - d_link omega,   tau_gravity = -dV/dtheta
-    m_q q_dot' = F_q - m_q g + F_worm + F_adjust - d_q q_dot
+    m_q q_dot' = F_adjust + L + F_lock - d_q q_dot,      L = F_q - m_q g = -dV/dq
 
 with the spring's pull on the carriage along +q, F_q = -dE_e/dq = -F_s (Y_B - Y_A) / l_s, and
 the torques about O
 
     tau_gravity = (m c + payload w) g sin(theta) - x1A F_s (Y_B sin(theta) + X_B cos(theta)) / l_s
 
-Self-locking transmission. The carriage is driven through a self-locking screw or worm, as
-the Demian-Klimchik worm (prismatic.py): it cannot be back-driven, so it carries the load
-on the carriage, F_worm = m_q g - F_q, and the spring holds still without power. F_adjust,
-the actuator's force on q, then only accelerates the carriage against its damping d_q; the
-work the load takes while the carriage moves, W_worm = integral of F_worm q_dot dt, passes
-through the transmission, whose drive supplies it (a real self-locking screw at efficiency
-eta <= 1/2 draws at least W_worm / eta for it). The actuator's mechanical work
-W_adjust = integral of F_adjust q_dot dt covers the rest. No stroke limits: q is unbounded.
+Self-locking transmission (`self_locking`, default true). The actuator's force F_adjust
+reaches the carriage through an ideal self-locking screw: lossless while the actuator drives
+the load (forward efficiency 1), not back-drivable (backward efficiency 0). Its reaction
+F_lock on the carriage:
+- at rest, the carriage moves only when F_adjust pushes it and overcomes a load opposing
+  that push; otherwise F_lock = -(F_adjust + L) holds it: the spring's pull costs no power;
+- moving against the load (L q_dot < 0), F_lock = 0: the actuator does the work on the spring;
+- moving with the load (L q_dot > 0), the load cannot drive the screw: F_lock = -L absorbs it
+  and its power L q_dot is dissipated (E_loss); a carriage whose speed would reverse stops
+  and stays (its remaining kinetic energy, a sub-step's worth, also goes to E_loss).
+So from rest the carriage moves only in the direction F_adjust pushes, and once stopped it
+stays.
+With `self_locking` false the screw is back-drivable: F_lock = 0 and the actuator must hold
+the load. W_adjust = integral of F_adjust q_dot dt is the actuator's mechanical work. No stroke
+limits: q is unbounded.
 
 Balance. With X_B = 0, tau_gravity = balance_error sin(theta) exactly, where
 
@@ -55,8 +62,8 @@ Payload changes (ledger). A payload that joins the link does so at rest at w e: 
 momentum is conserved (omega scales by J_before / J_after), the kinetic energy lost in
 that inelastic catch goes to E_loss, and its potential energy on arrival, dm g w cos(theta),
 to E_added. A payload that leaves takes its potential and kinetic energy with it (E_added
-decreases by them). So E_t + E_kin + E_loss - W_drive - W_adjust - W_worm - E_added stays
-constant, with E_loss also counting the dampers d_link and d_q.
+decreases by them). So E_t + E_kin + E_loss - W_drive - W_adjust - E_added stays constant,
+with E_loss also counting the dampers d_link and d_q and the self-locking screw's losses.
 """
 
 from __future__ import annotations
@@ -65,10 +72,14 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from fmu_src.integration import integrate
+from fmu_src.integration import rk4, substeps
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
+# A moving carriage takes sub-steps this much finer than the rate rule of fmu_src.integration:
+# its load (tens of newtons on a light carriage) multiplies its position error in the energy
+# ledger (1e-9 J per millisecond at the rate rule, 1e-12 J with this factor).
+CARRIAGE_ACCURACY = 4.0
 
 
 @dataclass(frozen=True)
@@ -98,6 +109,9 @@ class Parameters:
     m_q: float = parameter(0.5, "kg", "Moving mass of the prismatic joint (carriage, with the "
                            "actuator's reflected inertia)", min=0.0, min_exclusive=True)
     d_q: float = parameter(100.0, "N.s/m", "Viscous damping of the prismatic joint", min=0.0)
+    self_locking: bool = parameter(True, None, "The prismatic joint is driven through a "
+                                   "self-locking screw (the load cannot move it); false: "
+                                   "back-drivable")
     d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
     theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
@@ -135,8 +149,7 @@ class State(NamedTuple):
     q_dot: float
     W_drive: float = 0.0   # work of tau_drive on the link
     W_adjust: float = 0.0  # work of F_adjust on the carriage
-    W_worm: float = 0.0    # work of the self-locking transmission's force on the carriage
-    E_loss: float = 0.0    # dissipated by d_link, d_q and payload catches
+    E_loss: float = 0.0    # dissipated by d_link, d_q, the self-locking screw, payload catches
     E_added: float = 0.0   # brought in (taken out) by payload changes
 
 
@@ -191,16 +204,40 @@ def balance_error(p: Parameters, payload: float, theta: float, Y_B: float) -> fl
     return gravity_moment(p, payload) - spring(p, theta, Y_B).moment
 
 
-def derivatives(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
-    """Time derivative of the state for constant inputs, in State's field order."""
+def carriage(p: Parameters, F_adjust: float, load: float, q_dot: float,
+             direction: float) -> tuple[float, float]:
+    """Acceleration of the carriage [m/s^2] and the self-locking screw's reaction F_lock [N],
+    for the actuator's force F_adjust and the load L = F_q - m_q g along +q [N].
+
+    direction: the sign of the motion the screw's regime is chosen for (that of q_dot, or of
+    F_adjust from rest), fixed over an integration sub-step so that its stages see one smooth
+    law; `motion_direction` gives it.
+    """
+    if not p.self_locking:
+        return (F_adjust + load - p.d_q * q_dot) / p.m_q, 0.0
+    lock = -load if load * direction > 0.0 else 0.0
+    push = F_adjust + load + lock
+    if q_dot == 0.0 and push * direction <= 0.0:    # held: no drive, or the load wins
+        return 0.0, -(F_adjust + load)
+    return (push - p.d_q * q_dot) / p.m_q, lock
+
+
+def motion_direction(F_adjust: float, q_dot: float) -> float:
+    """The carriage's direction of motion: that of q_dot, from rest that of F_adjust (0: none)."""
+    return q_dot if q_dot != 0.0 else F_adjust
+
+
+def derivatives(p: Parameters, u: Inputs, s: State, direction: float) -> tuple[float, ...]:
+    """Time derivative of the state for constant inputs, in State's field order; direction as
+    for `carriage`."""
     theta, omega, q, q_dot = s[:4]
-    torque = tau_gravity(p, u.payload, theta, p.Y_B0 + q)
+    Y_B = p.Y_B0 + q
+    torque = tau_gravity(p, u.payload, theta, Y_B)
     omega_dot = (u.tau_drive + torque - p.d_link * omega) / link_inertia(p, u.payload)
-    # the transmission carries the carriage's load (F_q - m_q g): only F_adjust and d_q remain
-    q_ddot = (u.F_adjust - p.d_q * q_dot) / p.m_q
-    F_worm = p.m_q * p.g - spring(p, theta, p.Y_B0 + q).F_q
+    load = spring(p, theta, Y_B).F_q - p.m_q * p.g
+    q_ddot, lock = carriage(p, u.F_adjust, load, q_dot, direction)
     return (omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
-            F_worm * q_dot, p.d_link * omega * omega + p.d_q * q_dot * q_dot, 0.0)
+            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -210,13 +247,40 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
     per_length = abs(sp.F_s) / sp.l_s if sp.l_s > 0.0 else p.k
     stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
-    return max(math.sqrt(stiffness / J), p.d_link / J, p.d_q / p.m_q, abs(s.omega),
-               abs(s.q_dot) / max(sp.l_s, p.x1A))
+    rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
+    if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
+        carriage_rate = max(p.d_q / p.m_q, math.sqrt((p.k + per_length) / p.m_q),
+                            abs(s.q_dot) / max(sp.l_s, p.x1A))
+        rate = max(rate, CARRIAGE_ACCURACY * carriage_rate)
+    return rate
+
+
+def _rk4_step(p: Parameters, u: Inputs, s: State, h: float) -> State:
+    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start."""
+    direction = motion_direction(u.F_adjust, s.q_dot)
+    return rk4(lambda state: derivatives(p, u, state, direction), s, h)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
+    """Integrate over one communication step dt [s] with inputs held constant (RK4 sub-steps).
+
+    A self-locking carriage whose speed changes sign within a sub-step stops: the sub-step is
+    split where the speed, interpolated linearly, reaches zero; there the carriage is held
+    at rest (the kinetic energy of the interpolation's residual speed goes to E_loss) and
+    the rest of the sub-step starts from rest.
+    """
+    n = substeps(dt, characteristic_rate(p, u, s))
+    h = dt / n
+    for _ in range(n):
+        new = _rk4_step(p, u, s, h)
+        if p.self_locking and new.q_dot * s.q_dot < 0.0:
+            h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
+            stopped = _rk4_step(p, u, s, h_stop)
+            stopped = stopped._replace(
+                q_dot=0.0, E_loss=stopped.E_loss + 0.5 * p.m_q * stopped.q_dot ** 2)
+            new = _rk4_step(p, u, stopped, h - h_stop)
+        s = new
+    return s
 
 
 def change_payload(p: Parameters, s: State, before: float, after: float) -> State:
@@ -251,6 +315,7 @@ class Outputs(NamedTuple):
     F_s: float
     tau_gravity: float
     F_q: float
+    F_lock: float
     balance_error: float
     E_p: float
     E_e: float
@@ -258,7 +323,6 @@ class Outputs(NamedTuple):
     E_kin: float
     W_drive: float
     W_adjust: float
-    W_worm: float
     E_loss: float
     E_added: float
 
@@ -270,13 +334,15 @@ def elastic_energy(p: Parameters, l_s: float) -> float:
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    theta, omega, q, q_dot, W_drive, W_adjust, W_worm, E_loss, E_added = s
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
     Y_B = p.Y_B0 + q
     sp = spring(p, theta, Y_B)
     moment = gravity_moment(p, u.payload)
     E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
     E_e = elastic_energy(p, sp.l_s)
     E_kin = 0.5 * link_inertia(p, u.payload) * omega ** 2 + 0.5 * p.m_q * q_dot ** 2
+    _, F_lock = carriage(p, u.F_adjust, sp.F_q - p.m_q * p.g, q_dot,
+                         motion_direction(u.F_adjust, q_dot))
     return Outputs(theta, omega, q, q_dot, Y_B, sp.l_s, sp.F_s,
-                   moment * math.sin(theta) + sp.tau, sp.F_q, moment - sp.moment,
-                   E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust, W_worm, E_loss, E_added)
+                   moment * math.sin(theta) + sp.tau, sp.F_q, F_lock, moment - sp.moment,
+                   E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust, E_loss, E_added)
