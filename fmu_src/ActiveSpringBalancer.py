@@ -90,7 +90,7 @@ OUTPUTS = (
     ("E_p", "J", "Gravitational potential energy of link, payload and carriage"),
     ("E_e", "J", "Elastic energy of the spring, 1/2 k (l_s - l_s0 + F_s0/k)^2"),
     ("E_t", "J", "Total potential energy E_p + E_e"),
-    ("E_kin", "J", "Kinetic energy of link, payload, drive rotor and carriage"),
+    ("E_kin", "J", "Kinetic energy of link, payload, carriage and both drive rotors"),
     ("W_drive", "J", "Cumulative work of tau_drive on the link"),
     ("W_adjust", "J", "Cumulative work of F_adjust on the carriage (the actuator's "
      "mechanical work)"),

@@ -22,11 +22,11 @@ paper's case; w is free here.
 
 Lagrangian, with J = J_link + payload w^2 + J_drive and generalised coordinates (theta, q):
 
-    T = 1/2 J omega^2 + 1/2 m_q q_dot^2
+    T = 1/2 J omega^2 + 1/2 M_q q_dot^2,   M_q = m_q + m_drive_q
     V = E_p + E_e,   E_p = (m c + payload w) g cos(theta) + m_q g Y_B
 
     J omega' = tau_drive + tau_gravity - d_link omega,   tau_gravity = -dV/dtheta
-    m_q q_dot' = F_adjust + L + F_lock - d_q q_dot,      L = F_q - m_q g = -dV/dq
+    M_q q_dot' = F_adjust + L + F_lock - d_q q_dot,      L = F_q - m_q g = -dV/dq
 
 with the spring's pull on the carriage along +q, F_q = -dE_e/dq = -F_s (Y_B - Y_A) / l_s, and
 the torques about O
@@ -106,8 +106,10 @@ class Parameters:
     X_B: float = parameter(0.0, "m", "Abscissa of the spring's frame joint B (the paper's "
                            "X_B is -X_B: its figure is mirrored)")
     Y_B0: float = parameter(0.1, "m", "Ordinate of the frame joint B at q = 0")
-    m_q: float = parameter(0.5, "kg", "Moving mass of the prismatic joint (carriage, with the "
-                           "actuator's reflected inertia)", min=0.0, min_exclusive=True)
+    m_q: float = parameter(0.5, "kg", "Mass of the carriage carrying B (moving part of the "
+                           "prismatic joint)", min=0.0, min_exclusive=True)
+    m_drive_q: float = parameter(0.0, "kg", "Drive inertia reflected to the prismatic joint "
+                                 "(J_rotor N^2 of a lead screw, N = 2 pi / lead)", min=0.0)
     d_q: float = parameter(100.0, "N.s/m", "Viscous damping of the prismatic joint", min=0.0)
     self_locking: bool = parameter(True, None, "The prismatic joint is driven through a "
                                    "self-locking screw (the load cannot move it); false: "
@@ -120,6 +122,11 @@ class Parameters:
     q_dot0: float = parameter(0.0, "m/s", "Initial speed of the prismatic joint")
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link "
                                "(J_rotor N^2)", min=0.0)
+
+    @property
+    def carriage_inertia(self) -> float:
+        """Inertia of the prismatic joint, m_q + m_drive_q [kg]."""
+        return self.m_q + self.m_drive_q
 
     @property
     def free_length(self) -> float:
@@ -214,12 +221,12 @@ def carriage(p: Parameters, F_adjust: float, load: float, q_dot: float,
     law; `motion_direction` gives it.
     """
     if not p.self_locking:
-        return (F_adjust + load - p.d_q * q_dot) / p.m_q, 0.0
+        return (F_adjust + load - p.d_q * q_dot) / p.carriage_inertia, 0.0
     lock = -load if load * direction > 0.0 else 0.0
     push = F_adjust + load + lock
     if q_dot == 0.0 and push * direction <= 0.0:    # held: no drive, or the load wins
         return 0.0, -(F_adjust + load)
-    return (push - p.d_q * q_dot) / p.m_q, lock
+    return (push - p.d_q * q_dot) / p.carriage_inertia, lock
 
 
 def motion_direction(F_adjust: float, q_dot: float) -> float:
@@ -249,7 +256,8 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
     rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
     if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
-        carriage_rate = max(p.d_q / p.m_q, math.sqrt((p.k + per_length) / p.m_q),
+        M_q = p.carriage_inertia
+        carriage_rate = max(p.d_q / M_q, math.sqrt((p.k + per_length) / M_q),
                             abs(s.q_dot) / max(sp.l_s, p.x1A))
         rate = max(rate, CARRIAGE_ACCURACY * carriage_rate)
     return rate
@@ -277,7 +285,8 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
             stopped = _rk4_step(p, u, s, h_stop)
             stopped = stopped._replace(
-                q_dot=0.0, E_loss=stopped.E_loss + 0.5 * p.m_q * stopped.q_dot ** 2)
+                q_dot=0.0,
+                E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
             new = _rk4_step(p, u, stopped, h - h_stop)
         s = new
     return s
@@ -340,7 +349,7 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     moment = gravity_moment(p, u.payload)
     E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
     E_e = elastic_energy(p, sp.l_s)
-    E_kin = 0.5 * link_inertia(p, u.payload) * omega ** 2 + 0.5 * p.m_q * q_dot ** 2
+    E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
     _, F_lock = carriage(p, u.F_adjust, sp.F_q - p.m_q * p.g, q_dot,
                          motion_direction(u.F_adjust, q_dot))
     return Outputs(theta, omega, q, q_dot, Y_B, sp.l_s, sp.F_s,

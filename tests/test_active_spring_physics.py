@@ -93,7 +93,8 @@ def test_ledger_closes_with_drives_dampers_and_payload_changes(spring: dict[str,
     push, the carriage raised against the spring and then lowered with it (actuator forces
     a few newtons either side of the load at the start): E_t + E_kin + E_loss - W_drive -
     W_adjust - E_added is constant to 1e-9 J (measured 1e-11 to 9e-11 J)."""
-    p = physics.Parameters(**spring, omega0=0.5, q_dot0=0.02, self_locking=self_locking)
+    p = physics.Parameters(**spring, omega0=0.5, q_dot0=0.02, self_locking=self_locking,
+                           J_drive=0.05, m_drive_q=0.3)
     load = physics.spring(p, 1.0, p.Y_B0).F_q - p.m_q * G   # -71 N (real spring: -53 N)
     schedule = [(0.05, 2.0 - load, 0.0), (0.05, 0.5 - load, 0.3), (-0.05, -3.0 - load, 0.1),
                 (0.0, -1.0 - load, 0.1)]
@@ -133,14 +134,17 @@ def test_self_locking_carriage_holds_the_spring_without_the_actuator() -> None:
     assert free.q < -0.01
 
 
-def test_self_locking_carriage_lowered_by_the_actuator_dissipates_the_load() -> None:
+@pytest.mark.parametrize("m_drive_q", [0.0, 2.0])
+def test_self_locking_carriage_lowered_by_the_actuator_dissipates_the_load(
+        m_drive_q: float) -> None:
     """Lowering (F_adjust < 0, the load L = F_q - m_q g < 0 assists): the screw absorbs the
-    load, so m_q q'' = F - d_q q' whatever the spring: q = F/d_q (t - tau (1 - exp(-t/tau))),
-    tau = m_q / d_q, and the load's work -L dq goes to E_loss. Link held balanced (defaults)."""
-    p = physics.Parameters(theta0=math.pi)
+    load, so (m_q + m_drive_q) q'' = F - d_q q' whatever the spring:
+    q = F/d_q (t - tau (1 - exp(-t/tau))), tau = (m_q + m_drive_q) / d_q, and the load's work
+    -L dq goes to E_loss. Link held balanced (defaults)."""
+    p = physics.Parameters(theta0=math.pi, m_drive_q=m_drive_q)
     force, t = -2.0, 0.05
     s, drift = run(p, [(0.0, force, 0.0)], 50)
-    tau = p.m_q / p.d_q
+    tau = (0.5 + m_drive_q) / p.d_q
     assert s.q == pytest.approx(force / p.d_q * (t - tau * (1 - math.exp(-t / tau))), rel=1e-9)
     spring_work = physics.elastic_energy(p, physics.spring(p, s.theta, p.Y_B0).l_s) - (
         physics.elastic_energy(p, physics.spring(p, s.theta, p.Y_B0 + s.q).l_s))
