@@ -135,6 +135,33 @@ def test_self_locking_carriage_holds_without_the_actuator(fmu: CoSimFMU) -> None
     assert out["F_lock"] == pytest.approx(out["m_q"] * G - out["F_q"], rel=1e-15)
 
 
+@pytest.mark.parametrize("theta, cost", [(0.0, 4.2442), (math.pi, 11.1112)])
+def test_regulation_costs_the_spring_energy_and_holds(fmu: CoSimFMU, theta: float,
+                                                      cost: float) -> None:
+    """Regulating for 1 kg at rest at the upright or hanging link: a P law on q (with the
+    spring's pull fed forward from F_q) raises B by the closed-form 58.3 mm; released, the
+    screw holds it. The actuator's work beyond its damper's loss is the energy stored,
+    1/2 k (Y'^2 - Y^2) - k x1A cos(theta) dY + m_q g dY: 4.24 J upright, 11.11 J hanging."""
+    start(fmu, {"theta0": theta})
+    fmu.set({"payload": 1.0})
+    target = balancing_travel(1.0)
+    for n in range(1000):
+        out = fmu.get(["q", "F_q"])
+        fmu.set({"F_adjust": 0.5 * G - out["F_q"] + 2000.0 * (target - out["q"])})
+        fmu.step(n * DT, DT)
+    fmu.set({"F_adjust": 0.0})
+    for n in range(1000, 1200):
+        fmu.step(n * DT, DT)
+    out = fmu.get(["q", "q_dot", "W_adjust", "E_loss", "balance_error", "theta"])
+    assert out["q"] == pytest.approx(target, abs=1e-7) and out["q_dot"] == 0.0
+    dY = out["q"]
+    stored = (0.5 * K * ((Y_B0 + dY) ** 2 - Y_B0 ** 2) - K * X1A * math.cos(theta) * dY
+              + 0.5 * G * dY)
+    assert out["W_adjust"] - out["E_loss"] == pytest.approx(stored, abs=1e-9)
+    assert stored == pytest.approx(cost, abs=1e-3)
+    assert abs(out["balance_error"]) < 1e-5 and out["theta"] == theta   # k x1A 1e-7 m
+
+
 def test_state_restore_replays_a_payload_change_exactly(fmu: CoSimFMU) -> None:
     """The state saved before a payload change (the held payload is hidden state) replays to
     bit-identical outputs, also through serialisation."""
