@@ -36,6 +36,9 @@ COMMANDS = {
     "ciupitu-design": Command("harness.ciupitu_design",
                               "choose the Ciupitu counterweight (m2, OA, AB) of franchetti2021 "
                               "by minimising E_drawn"),
+    "active-design": Command("harness.active_design",
+                             "Ciupitu 2018 Fig. 8: the frame joint ordinate Y_B that balances "
+                             "a payload change (eq. 27, solved numerically)"),
     "sweep": Command("harness.sweep", "run a parameter sweep file on Dask and write "
                      "results/sweeps/<name>.parquet/.csv/plots"),
     "bench": Command("harness.bench",

@@ -82,6 +82,11 @@ REFERENCE_RUNS = {
         rest_to_rest_move({"tau1": 0.1, "f2": 0.02}, {}, 5.0),
         ("q1", "q1_dot", "q2", "q2_dot", "tau1_gravity_residual", "f2_gravity_residual",
          "T_wire", "f2_worm", "W_drive", "W_worm")),
+    "ActiveSpringBalancer": ReferenceRun(
+        MOVE.format("tau_drive = 0.1 N m and F_adjust = 0.5 N", "; no payload"),
+        rest_to_rest_move({"tau_drive": 0.1, "F_adjust": 0.5}, {"payload": 0.0}, 5.0),
+        ("theta", "omega", "q", "Y_B", "tau_gravity", "F_q", "F_lock", "balance_error",
+         "W_adjust", "E_loss")),
     "DcMotorDrive": ReferenceRun(
         "Voltage step 0 -> 3 V at 0.1 s on the standing drive (4.9 A); the joint speed then "
         "ramps 0 -> 2 rad/s over 0.5-1.0 s (the back-EMF, 5.7 V, exceeds the voltage: the "

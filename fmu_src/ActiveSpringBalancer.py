@@ -1,0 +1,100 @@
+"""FMI 2.0 Co-Simulation slave of the spring balancer with an actively relocated frame joint
+(Ciupitu 2018, Fig. 8).
+
+A thin layer over `fmu_src.active_spring`: it maps FMI variables to the physics, books a
+payload change at the communication point where it happens, integrates the physics over
+each communication step, and warns through the FMU log when the spring is compressed (the
+model's linear force law pushes there, which an extension spring cannot).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pythonfmu.default_experiment import DefaultExperiment
+
+from fmu_src import active_spring as physics
+from fmu_src.fmi_base import MechanismSlave
+
+
+class ActiveSpringBalancer(MechanismSlave):
+    """1-DOF link balanced by a spring whose frame joint a self-locking prismatic joint
+    moves along the vertical (Ciupitu 2018, Section 3)."""
+
+    parameters_type = physics.Parameters
+    hidden_state = ("state", "payload_held", "compression_reported")
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=5.0, step_size=1e-3)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Spring gravity balancer with active relocation of the spring's "
+                            "frame joint by one self-locking prismatic joint (Ciupitu 2018, "
+                            "Fig. 8)")
+        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
+        self.add_input("F_adjust", 0.0, "N", "Actuator's force on the prismatic joint along +q "
+                       "(upward)")
+        self.add_input("payload", 0.0, "kg", "Payload mass at distance w", min=0.0)
+        for name, unit, description in OUTPUTS:
+            self.add_output(name, unit, description)
+        self.state = None
+        self.payload_held = 0.0     # the payload the state refers to [kg]
+        self.compression_reported = False   # once per spell of F_s < 0
+
+    def validate(self, params: physics.Parameters) -> None:
+        physics.validate(params)
+
+    def inputs(self) -> physics.Inputs:
+        return physics.Inputs(float(self.tau_drive), float(self.F_adjust), float(self.payload))
+
+    def initialise(self, params: physics.Parameters) -> None:
+        u = self.inputs()
+        self.state = physics.initial_state(params)
+        self.payload_held = u.payload   # the start value is no event
+        self.compression_reported = False
+        self.set_outputs(physics.outputs(params, u, self.state))
+
+    def step(self, dt: float) -> None:
+        p, u = self.params, self.inputs()
+        if u.payload != self.payload_held:
+            self.state = physics.change_payload(p, self.state, self.payload_held, u.payload)
+            self.payload_held = u.payload
+        self.state = physics.advance(p, u, self.state, dt)
+        out = physics.outputs(p, u, self.state)
+        if out.F_s < 0.0 and not self.compression_reported:
+            self.warn(f"spring in compression (F_s = {out.F_s:.4g} N at l_s = {out.l_s:.4g} m, "
+                      f"free length {p.free_length:.4g} m): the model's linear law pushes, an "
+                      "extension spring would go slack")
+        self.compression_reported = out.F_s < 0.0
+        self.set_outputs(out)
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        self.state = physics.State(*hidden["state"])
+        self.payload_held = float(hidden["payload_held"])
+        self.compression_reported = bool(hidden["compression_reported"])
+
+
+OUTPUTS = (
+    ("theta", "rad", "Link angle from the upward vertical, counter-clockwise positive"),
+    ("omega", "rad/s", "Link angular velocity"),
+    ("q", "m", "Travel of the prismatic joint along +y"),
+    ("q_dot", "m/s", "Speed of the prismatic joint"),
+    ("Y_B", "m", "Ordinate of the spring's frame joint B, Y_B0 + q"),
+    ("l_s", "m", "Spring length A-B (eq. 21)"),
+    ("F_s", "N", "Spring force F_s0 + k (l_s - l_s0), tension positive (eq. 19)"),
+    ("tau_gravity", "N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta"),
+    ("F_q", "N", "Spring's force on the carriage along +q"),
+    ("F_lock", "N", "Force of the self-locking screw on the carriage along +q (holding it, or "
+     "absorbing a load that would drive it)"),
+    ("balance_error", "N.m", "(m c + payload w) g - x1A Y_B F_s / l_s; 0 when balanced "
+     "(with X_B = 0, tau_gravity = balance_error sin(theta))"),
+    ("E_p", "J", "Gravitational potential energy of link, payload and carriage"),
+    ("E_e", "J", "Elastic energy of the spring, 1/2 k (l_s - l_s0 + F_s0/k)^2"),
+    ("E_t", "J", "Total potential energy E_p + E_e"),
+    ("E_kin", "J", "Kinetic energy of link, payload, carriage and both drive rotors"),
+    ("W_drive", "J", "Cumulative work of tau_drive on the link"),
+    ("W_adjust", "J", "Cumulative work of F_adjust on the carriage (the actuator's "
+     "mechanical work)"),
+    ("E_loss", "J", "Energy dissipated so far (d_link, d_q, self-locking screw, payload "
+     "catches)"),
+    ("E_added", "J", "Energy brought in (taken out) by payload changes"),
+)

@@ -1,0 +1,357 @@
+"""Physics of the spring balancer with an actively relocated frame joint (Ciupitu 2018, Fig. 8).
+
+Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
+`ActiveSpringBalancer`, the harness command `active-design` and the tests. Conventions of
+the project: theta from the upward vertical, counter-clockwise positive, unit vector along
+the link e = (-sin theta, cos theta), gravity along -y, pivot O at the origin.
+
+Geometry. The link carries its centre of mass at c e, the payload (kg) at w e and the
+spring's link joint A at x1A e. The spring's frame joint B = (X_B, Y_B) with Y_B = Y_B0 + q
+rides on a carriage of mass m_q, the moving part of a prismatic joint along the vertical, q
+its travel. The spring force follows the paper's linear law (eqs. 19, 24)
+
+    F_s = F_s0 + k (l_s - l_s0),   l_s = |B - A|                          (eq. 21)
+
+at every length (F_s < 0 pushes); F_s0 = k l_s0 is a zero-free-length spring. Its energy,
+with the free length L_free = l_s0 - F_s0 / k, is E_e = 1/2 k (l_s - L_free)^2.
+
+Paper angle. Ciupitu measures the arm angle phi_1 from the horizontal; as for the
+CiupituBalancer, the paper's figure is the project's mirrored left to right: phi_1 = pi/2 -
+theta and the paper's X_B is -X_B here (Y is common). The payload at A (w = x1A) is the
+paper's case; w is free here.
+
+Lagrangian, with J = J_link + payload w^2 + J_drive and generalised coordinates (theta, q):
+
+    T = 1/2 J omega^2 + 1/2 M_q q_dot^2,   M_q = m_q + m_drive_q
+    V = E_p + E_e,   E_p = (m c + payload w) g cos(theta) + m_q g Y_B
+
+    J omega' = tau_drive + tau_gravity - d_link omega,   tau_gravity = -dV/dtheta
+    M_q q_dot' = F_adjust + L + F_lock - d_q q_dot,      L = F_q - m_q g = -dV/dq
+
+with the spring's pull on the carriage along +q, F_q = -dE_e/dq = -F_s (Y_B - Y_A) / l_s, and
+the torques about O
+
+    tau_gravity = (m c + payload w) g sin(theta) - x1A F_s (Y_B sin(theta) + X_B cos(theta)) / l_s
+
+Self-locking transmission (`self_locking`, default true). The actuator's force F_adjust
+reaches the carriage through an ideal self-locking screw: lossless while the actuator drives
+the load (forward efficiency 1), not back-drivable (backward efficiency 0). Its reaction
+F_lock on the carriage:
+- at rest, the carriage moves only when F_adjust pushes it and overcomes a load opposing
+  that push; otherwise F_lock = -(F_adjust + L) holds it: the spring's pull costs no power;
+- moving against the load (L q_dot < 0), F_lock = 0: the actuator does the work on the spring;
+- moving with the load (L q_dot > 0), the load cannot drive the screw: F_lock = -L absorbs it
+  and its power L q_dot is dissipated (E_loss); a carriage whose speed would reverse stops
+  and stays (its remaining kinetic energy, a sub-step's worth, also goes to E_loss).
+So from rest the carriage moves only in the direction F_adjust pushes, and once stopped it
+stays.
+With `self_locking` false the screw is back-drivable: F_lock = 0 and the actuator must hold
+the load. W_adjust = integral of F_adjust q_dot dt is the actuator's mechanical work. No stroke
+limits: q is unbounded.
+
+Balance. With X_B = 0, tau_gravity = balance_error sin(theta) exactly, where
+
+    balance_error = (m c + payload w) g - x1A Y_B F_s / l_s                [N m]
+
+is the paper's eq. 27 divided by cos(phi_1) (sign reversed: gravity minus spring); for a
+zero-free-length spring (F_s / l_s = k) it is (m c + payload w) g - k x1A Y_B, so
+Y_B = (m c + payload w) g / (k x1A) balances at every angle. With X_B != 0 the spring keeps
+a torque at the vertical and balance_error is only the sin(theta) coefficient's part.
+
+Payload changes (ledger). A payload that joins the link does so at rest at w e: angular
+momentum is conserved (omega scales by J_before / J_after), the kinetic energy lost in
+that inelastic catch goes to E_loss, and its potential energy on arrival, dm g w cos(theta),
+to E_added. A payload that leaves takes its potential and kinetic energy with it (E_added
+decreases by them). So E_t + E_kin + E_loss - W_drive - W_adjust - E_added stays constant,
+with E_loss also counting the dampers d_link and d_q and the self-locking screw's losses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from fmu_src.integration import rk4, substeps
+from fmu_src.parameters import check_ranges, parameter
+
+DEG = math.pi / 180.0
+# A moving carriage takes sub-steps this much finer than the rate rule of fmu_src.integration:
+# its load (tens of newtons on a light carriage) multiplies its position error in the energy
+# ledger (1e-9 J per millisecond at the rate rule, 1e-12 J with this factor).
+CARRIAGE_ACCURACY = 4.0
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of the mechanism. The paper gives no numbers for Fig. 8; the defaults put
+    Franchetti's Table 1 link and spring on it (ours): the spring's link joint at the slider
+    position b0 = 0.06 m, the frame joint above O at a = 0.1 m, which balances the bare link
+    ((m c) g = k x1A Y_B0); a 0.5 kg carriage, damping 100 N s/m (time constant 5 ms).
+    """
+
+    m: float = parameter(3.0, "kg", "Link mass (the paper's m1)", min=0.0)
+    c: float = parameter(0.2, "m", "Distance from pivot O to the link centre of mass (OC1)",
+                         min=0.0)
+    J_link: float = parameter(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, "
+                              "L = 0.4 m)", min=0.0)
+    w: float = parameter(0.35, "m", "Distance from O to the payload (x1A for the paper's "
+                         "payload at A)", min=0.0)
+    x1A: float = parameter(0.06, "m", "Distance from O to the spring's link joint A", min=0.0,
+                           min_exclusive=True)
+    k: float = parameter(981.0, "N/m", "Spring stiffness", min=0.0, min_exclusive=True)
+    F_s0: float = parameter(0.0, "N", "Spring force at the length l_s0 (eq. 19)", min=0.0)
+    l_s0: float = parameter(0.0, "m", "Spring length at which the force is F_s0 (F_s0 = k "
+                            "l_s0: zero-free-length spring)", min=0.0)
+    X_B: float = parameter(0.0, "m", "Abscissa of the spring's frame joint B (the paper's "
+                           "X_B is -X_B: its figure is mirrored)")
+    Y_B0: float = parameter(0.1, "m", "Ordinate of the frame joint B at q = 0")
+    m_q: float = parameter(0.5, "kg", "Mass of the carriage carrying B (moving part of the "
+                           "prismatic joint)", min=0.0, min_exclusive=True)
+    m_drive_q: float = parameter(0.0, "kg", "Drive inertia reflected to the prismatic joint "
+                                 "(J_rotor N^2 of a lead screw, N = 2 pi / lead)", min=0.0)
+    d_q: float = parameter(100.0, "N.s/m", "Viscous damping of the prismatic joint", min=0.0)
+    self_locking: bool = parameter(True, None, "The prismatic joint is driven through a "
+                                   "self-locking screw (the load cannot move it); false: "
+                                   "back-drivable")
+    d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
+    theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
+    omega0: float = parameter(0.0, "rad/s", "Initial link angular velocity")
+    q0: float = parameter(0.0, "m", "Initial travel of the prismatic joint")
+    q_dot0: float = parameter(0.0, "m/s", "Initial speed of the prismatic joint")
+    J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link "
+                               "(J_rotor N^2)", min=0.0)
+
+    @property
+    def carriage_inertia(self) -> float:
+        """Inertia of the prismatic joint, m_q + m_drive_q [kg]."""
+        return self.m_q + self.m_drive_q
+
+    @property
+    def free_length(self) -> float:
+        """Length at which the spring force vanishes, l_s0 - F_s0 / k [m] (0: ideal spring)."""
+        return self.l_s0 - self.F_s0 / self.k
+
+
+def validate(params: Parameters) -> None:
+    """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
+    check_ranges(params)
+
+
+class Inputs(NamedTuple):
+    """Inputs held constant over a communication step."""
+
+    tau_drive: float = 0.0  # N m, drive torque on the link
+    F_adjust: float = 0.0   # N, actuator's force on the carriage along +q
+    payload: float = 0.0    # kg, payload at distance w
+
+
+class State(NamedTuple):
+    """Positions and speeds, and the cumulative energies of the ledger [J]."""
+
+    theta: float
+    omega: float
+    q: float
+    q_dot: float
+    W_drive: float = 0.0   # work of tau_drive on the link
+    W_adjust: float = 0.0  # work of F_adjust on the carriage
+    E_loss: float = 0.0    # dissipated by d_link, d_q, the self-locking screw, payload catches
+    E_added: float = 0.0   # brought in (taken out) by payload changes
+
+
+def initial_state(p: Parameters) -> State:
+    """State at t = 0 from theta0, omega0, q0, q_dot0."""
+    return State(p.theta0, p.omega0, p.q0, p.q_dot0)
+
+
+def link_inertia(p: Parameters, payload: float) -> float:
+    """J = J_link + payload w^2 + J_drive [kg m^2]."""
+    return p.J_link + payload * p.w * p.w + p.J_drive
+
+
+def gravity_moment(p: Parameters, payload: float) -> float:
+    """(m c + payload w) g: gravity moment amplitude on the link [N m] (eq. 18 and 28)."""
+    return (p.m * p.c + payload * p.w) * p.g
+
+
+class Spring(NamedTuple):
+    """The spring A-B at a configuration."""
+
+    l_s: float          # length [m]
+    F_s: float          # force, tension positive [N]
+    tau: float          # torque on the link about O [N m]
+    F_q: float          # pull on the carriage along +q [N]
+    moment: float       # x1A Y_B F_s / l_s: the sin(theta) coefficient of -tau with X_B = 0 [N m]
+
+
+def spring(p: Parameters, theta: float, Y_B: float) -> Spring:
+    """Spring length, force, torque on the link and pull on the carriage (eqs. 19-21).
+
+    At l_s = 0 (A on B) the direction is undefined; the force per length is then taken as
+    its zero-free-length value k (exact when F_s0 = k l_s0, the only spring finite there).
+    """
+    sin_t, cos_t = math.sin(theta), math.cos(theta)
+    dx = p.X_B + p.x1A * sin_t
+    dy = Y_B - p.x1A * cos_t
+    l_s = math.hypot(dx, dy)
+    F_s = p.F_s0 + p.k * (l_s - p.l_s0)
+    per_length = F_s / l_s if l_s > 0.0 else p.k
+    return Spring(l_s, F_s, -p.x1A * per_length * (Y_B * sin_t + p.X_B * cos_t),
+                  -per_length * dy, p.x1A * Y_B * per_length)
+
+
+def tau_gravity(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
+    """Gravity plus spring torque on the link about O, -dV/dtheta [N m]."""
+    return gravity_moment(p, payload) * math.sin(theta) + spring(p, theta, Y_B).tau
+
+
+def balance_error(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
+    """(m c + payload w) g - x1A Y_B F_s / l_s [N m]: tau_gravity / sin(theta) when X_B = 0."""
+    return gravity_moment(p, payload) - spring(p, theta, Y_B).moment
+
+
+def carriage(p: Parameters, F_adjust: float, load: float, q_dot: float,
+             direction: float) -> tuple[float, float]:
+    """Acceleration of the carriage [m/s^2] and the self-locking screw's reaction F_lock [N],
+    for the actuator's force F_adjust and the load L = F_q - m_q g along +q [N].
+
+    direction: the sign of the motion the screw's regime is chosen for (that of q_dot, or of
+    F_adjust from rest), fixed over an integration sub-step so that its stages see one smooth
+    law; `motion_direction` gives it.
+    """
+    if not p.self_locking:
+        return (F_adjust + load - p.d_q * q_dot) / p.carriage_inertia, 0.0
+    lock = -load if load * direction > 0.0 else 0.0
+    push = F_adjust + load + lock
+    if q_dot == 0.0 and push * direction <= 0.0:    # held: no drive, or the load wins
+        return 0.0, -(F_adjust + load)
+    return (push - p.d_q * q_dot) / p.carriage_inertia, lock
+
+
+def motion_direction(F_adjust: float, q_dot: float) -> float:
+    """The carriage's direction of motion: that of q_dot, from rest that of F_adjust (0: none)."""
+    return q_dot if q_dot != 0.0 else F_adjust
+
+
+def derivatives(p: Parameters, u: Inputs, s: State, direction: float) -> tuple[float, ...]:
+    """Time derivative of the state for constant inputs, in State's field order; direction as
+    for `carriage`."""
+    theta, omega, q, q_dot = s[:4]
+    Y_B = p.Y_B0 + q
+    torque = tau_gravity(p, u.payload, theta, Y_B)
+    omega_dot = (u.tau_drive + torque - p.d_link * omega) / link_inertia(p, u.payload)
+    load = spring(p, theta, Y_B).F_q - p.m_q * p.g
+    q_ddot, lock = carriage(p, u.F_adjust, load, q_dot, direction)
+    return (omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+
+
+def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
+    """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
+    J = link_inertia(p, u.payload)
+    sp = spring(p, s.theta, p.Y_B0 + s.q)
+    reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
+    per_length = abs(sp.F_s) / sp.l_s if sp.l_s > 0.0 else p.k
+    stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
+    rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
+    if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
+        M_q = p.carriage_inertia
+        carriage_rate = max(p.d_q / M_q, math.sqrt((p.k + per_length) / M_q),
+                            abs(s.q_dot) / max(sp.l_s, p.x1A))
+        rate = max(rate, CARRIAGE_ACCURACY * carriage_rate)
+    return rate
+
+
+def _rk4_step(p: Parameters, u: Inputs, s: State, h: float) -> State:
+    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start."""
+    direction = motion_direction(u.F_adjust, s.q_dot)
+    return rk4(lambda state: derivatives(p, u, state, direction), s, h)
+
+
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant (RK4 sub-steps).
+
+    A self-locking carriage whose speed changes sign within a sub-step stops: the sub-step is
+    split where the speed, interpolated linearly, reaches zero; there the carriage is held
+    at rest (the kinetic energy of the interpolation's residual speed goes to E_loss) and
+    the rest of the sub-step starts from rest.
+    """
+    n = substeps(dt, characteristic_rate(p, u, s))
+    h = dt / n
+    for _ in range(n):
+        new = _rk4_step(p, u, s, h)
+        if p.self_locking and new.q_dot * s.q_dot < 0.0:
+            h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
+            stopped = _rk4_step(p, u, s, h_stop)
+            stopped = stopped._replace(
+                q_dot=0.0,
+                E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
+            new = _rk4_step(p, u, stopped, h - h_stop)
+        s = new
+    return s
+
+
+def change_payload(p: Parameters, s: State, before: float, after: float) -> State:
+    """State just after the payload changes from before to after [kg] at the link's angle.
+
+    Joining mass arrives at rest: angular momentum is conserved, the kinetic energy lost goes
+    to E_loss, its potential energy to E_added. Leaving mass takes its potential and kinetic
+    energy (E_added decreases), omega unchanged.
+    """
+    added = after - before
+    if added == 0.0:
+        return s
+    potential = added * p.g * p.w * math.cos(s.theta)
+    if added > 0.0:
+        J_before, J_after = link_inertia(p, before), link_inertia(p, after)
+        omega = s.omega * J_before / J_after
+        lost = 0.5 * (J_before * s.omega ** 2 - J_after * omega ** 2)
+        return s._replace(omega=omega, E_loss=s.E_loss + lost, E_added=s.E_added + potential)
+    kinetic = 0.5 * added * (p.w * s.omega) ** 2
+    return s._replace(E_added=s.E_added + potential + kinetic)
+
+
+class Outputs(NamedTuple):
+    """Observable quantities (SI units)."""
+
+    theta: float
+    omega: float
+    q: float
+    q_dot: float
+    Y_B: float
+    l_s: float
+    F_s: float
+    tau_gravity: float
+    F_q: float
+    F_lock: float
+    balance_error: float
+    E_p: float
+    E_e: float
+    E_t: float
+    E_kin: float
+    W_drive: float
+    W_adjust: float
+    E_loss: float
+    E_added: float
+
+
+def elastic_energy(p: Parameters, l_s: float) -> float:
+    """1/2 k (l_s - L_free)^2 [J], zero at the free length."""
+    return 0.5 * p.k * (l_s - p.free_length) ** 2
+
+
+def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
+    """All outputs for the state s and inputs u."""
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
+    Y_B = p.Y_B0 + q
+    sp = spring(p, theta, Y_B)
+    moment = gravity_moment(p, u.payload)
+    E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
+    E_e = elastic_energy(p, sp.l_s)
+    E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
+    _, F_lock = carriage(p, u.F_adjust, sp.F_q - p.m_q * p.g, q_dot,
+                         motion_direction(u.F_adjust, q_dot))
+    return Outputs(theta, omega, q, q_dot, Y_B, sp.l_s, sp.F_s,
+                   moment * math.sin(theta) + sp.tau, sp.F_q, F_lock, moment - sp.moment,
+                   E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust, E_loss, E_added)
