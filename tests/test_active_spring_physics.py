@@ -191,7 +191,8 @@ def eq27(options: dict[str, float], Y_B: float) -> float:
 
 
 def solve(**options: float) -> active_design.Design:
-    args = cli.parser("active-design").parse_args(["active-design", *(f"--{k}={v}" for k, v in options.items())])
+    words = ["active-design", *(f"--{k}={v}" for k, v in options.items())]
+    args = cli.parser("active-design").parse_args(words)
     return active_design.design(active_design.parameters(args), args.mp + args.dmp,
                                 math.pi / 2 - math.radians(args.phi))
 
