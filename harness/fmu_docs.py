@@ -195,7 +195,7 @@ def model_sections(script: Path, modules: list[Path]) -> list[tuple[str, str]]:
 
 
 VARIABLE_COLUMNS = ("Name", "Causality", "Variability", "Type", "Unit", "Start", "Min", "Max",
-                    "Description")
+                    "Depends on", "Description")
 
 
 def unit_of(variable: ModelVariable) -> str:
@@ -205,14 +205,16 @@ def unit_of(variable: ModelVariable) -> str:
 
 
 def variables_html(md: ModelDescription) -> str:
-    """One table row per model variable."""
+    """One table row per model variable; an output's row names the inputs it depends on."""
+    depends_on = {u.variable.name: ", ".join(d.name for d in u.dependencies or ())
+                  for u in md.outputs}
     rows = []
     for v in md.modelVariables:
         declared = v.declaredType
         low = v.min if v.min is not None else getattr(declared, "min", None)
         high = v.max if v.max is not None else getattr(declared, "max", None)
         cells = (f"<code>{html.escape(v.name)}</code>", v.causality, v.variability, v.type,
-                 unit_of(v), v.start, low, high, v.description)
+                 unit_of(v), v.start, low, high, depends_on.get(v.name), v.description)
         rows.append("<tr>" + "".join(
             f"<td>{c if i == 0 else html.escape('' if c is None else str(c))}</td>"
             for i, c in enumerate(cells)) + "</tr>")

@@ -10,12 +10,14 @@ output in between without stepping.
 from __future__ import annotations
 
 import math
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
+from test_fmu_quality import TableRows
 
 from harness import fmu_build
 from harness.fmi import CoSimFMU
@@ -90,6 +92,19 @@ def test_every_output_declares_its_dependencies(model: tuple[str, Path]) -> None
         names = {v.name for v in unknown.dependencies}
         assert parameters <= names, unknown.variable.name
         assert names - parameters <= set(input_names(md)), unknown.variable.name
+
+
+def test_documentation_names_the_dependencies(model: tuple[str, Path]) -> None:
+    """The FMU's documentation/index.html gives each output's inputs, as declared."""
+    with zipfile.ZipFile(model[1]) as archive:
+        parser = TableRows()
+        parser.feed(archive.read("documentation/index.html").decode())
+    header, *rows = parser.rows
+    documented = {row[header.index("Name")]: row[header.index("Depends on")] for row in rows}
+    md = read_model_description(str(model[1]))
+    for output, inputs in declared(md, "outputs").items():
+        assert documented[output] == ", ".join(
+            v.name for v in md.modelVariables if v.name in inputs), output
 
 
 def test_declared_dependencies_are_what_changes_the_outputs(model: tuple[str, Path]) -> None:
