@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import zipfile
 from collections.abc import Mapping
+from graphlib import CycleError, TopologicalSorter
 from pathlib import Path
 
 import pytest
@@ -19,7 +20,7 @@ from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 from test_fmu_quality import TableRows
 
-from harness import fmu_build
+from harness import fmu_build, scenarios, system
 from harness.fmi import CoSimFMU
 
 Values = Mapping[str, float | bool]
@@ -196,3 +197,37 @@ def test_reading_between_set_and_step_changes_no_result(name: str) -> None:
                 rows.append(fmu.get(outputs))
         runs.append(rows)
     assert runs[0] == runs[1]
+
+
+def feedthrough_graph(described: system.System, unknowns: str | None
+                      ) -> dict[tuple[str, str], set[tuple[str, str]]]:
+    """(component, variable) -> the variables it is computed from at one instant: the
+    output feeding each connected input, and the inputs of each output as declared in
+    ModelStructure `unknowns` (None: every input, as a host must assume without them)."""
+    graph: dict[tuple[str, str], set[tuple[str, str]]] = {}
+    for start, output, end, input_name in described.connections:
+        graph.setdefault((end, input_name), set()).add((start, output))
+    for component, model in described.models.items():
+        md = read_model_description(str(fmu_build.fmu_path(model)))
+        every_input = set(input_names(md))
+        dependencies = (declared(md, unknowns) if unknowns else
+                        {v.name: every_input for v in md.modelVariables
+                         if v.causality == "output"})
+        for output, inputs in dependencies.items():
+            graph.setdefault((component, output), set()).update(
+                (component, name) for name in inputs)
+    return graph
+
+
+@pytest.mark.parametrize("variant", ["self_regulating", "ciupitu"])
+def test_the_franchetti_system_has_no_algebraic_loop(variant: str) -> None:
+    """Sequencer, controller, drive and mechanism connected as in the SSP/OSP system: with
+    the declared dependencies no variable depends on itself at one communication point (nor
+    at initialisation), where without them controller -> drive -> mechanism -> controller
+    is a loop."""
+    scenario = scenarios.load("franchetti2021")
+    described = system.describe(scenario, scenario.variant(variant))
+    for unknowns in ("outputs", "initialUnknowns"):
+        tuple(TopologicalSorter(feedthrough_graph(described, unknowns)).static_order())
+    with pytest.raises(CycleError):
+        tuple(TopologicalSorter(feedthrough_graph(described, None)).static_order())
