@@ -31,8 +31,8 @@ does not have (`drop_inputs`), or name their own eps `baseline` (default: the sc
 
 Evaluation: `Scenario.reference_at(t)` and `Scenario.inputs_at(t, segments)` on floats. The
 shape functions and `ramp` are plain arithmetic, so they work on floats and numpy arrays alike.
-Both take a `tolerance` [s]: a time that short of a phase start counts as that start, for
-hosts that add up their time (STEP_TIME_TOLERANCE).
+Both take a `tolerance` [s]: a time less than that before a phase start counts as that
+start, for hosts that add up their time (STEP_TIME_TOLERANCE).
 """
 
 from __future__ import annotations
