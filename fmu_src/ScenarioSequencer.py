@@ -15,6 +15,8 @@ initialisation), with t on the scenario's clock (t = 0 is its start):
 - `<position>_ref` per joint [rad or m]: the quintic reference (`Scenario.reference_at`);
 - every input that a phase or a variant of the scenario sets (`Scenario.inputs_at`), Real or
   Boolean as in the file; an input the chosen variant drops stays at 0 or false.
+A t less than `scenario.STEP_TIME_TOLERANCE` h before a phase start counts as that start, so
+hosts that add up their time (t += h) switch at the same step as those that compute it.
 """
 
 from __future__ import annotations
@@ -124,12 +126,14 @@ class ScenarioSequencer(ModelSlave):
         return super().do_step(current_time, step_size)
 
     def step(self, dt: float) -> None:
-        self.show(self.step_start + dt)
+        self.show(self.step_start + dt, core.STEP_TIME_TOLERANCE * dt)
 
-    def show(self, time: float) -> None:
-        """Set the outputs to the scenario's values at time [s]."""
-        self.__dict__.update(zip(self.reference_names, self.scenario.reference_at(time)))
-        self.__dict__.update(self.defaults | self.scenario.inputs_at(time, self.segments))
+    def show(self, time: float, tolerance: float = 0.0) -> None:
+        """Set the outputs to the scenario's values at time [s]; a time within tolerance [s]
+        before a phase start counts as that start."""
+        scenario = self.scenario
+        self.__dict__.update(zip(self.reference_names, scenario.reference_at(time, tolerance)))
+        self.__dict__.update(self.defaults | scenario.inputs_at(time, self.segments, tolerance))
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
