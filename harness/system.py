@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from harness import cosim, fmu_build, master, results, scenarios
+from harness import cosim, fmu_build, master, osp, results, scenarios
 from harness.controller import ControllerDesign, PIDGains
 from harness.drive import motors
 from harness.fmi import CoSimFMU
@@ -182,8 +182,11 @@ def ssd_tree(system: System) -> ET.ElementTree:
     return ET.ElementTree(root)
 
 
-def osp_tree(system: System) -> ET.ElementTree:
-    """OspSystemStructure.xml: the same simulators, initial values and connections."""
+def osp_tree(system: System, by_group: bool = True) -> ET.ElementTree:
+    """OspSystemStructure.xml: the same simulators, initial values and connections; with
+    by_group, the connections that join two FMUs' variable groups whole (the drive's shaft
+    and the mechanism's joint, the controller's command and the drive's armature voltage;
+    harness.osp) as one VariableGroupConnection each."""
     ET.register_namespace("", OSP_NS)
     ns = f"{{{OSP_NS}}}"
     root = ET.Element(f"{ns}OspSystemStructure", version="0.1")
@@ -199,10 +202,17 @@ def osp_tree(system: System) -> ET.ElementTree:
             initial = ET.SubElement(initial_values, f"{ns}InitialValue", variable=name)
             ET.SubElement(initial, f"{ns}{_type_name(value)}", value=_literal(value))
     connections = ET.SubElement(root, f"{ns}Connections")
+    groups = osp.group_connections(system.models, system.connections) if by_group else []
+    grouped = {c for *_, covered in groups for c in covered}
     for start, start_variable, end, end_variable in system.connections:
-        connection = ET.SubElement(connections, f"{ns}VariableConnection")
-        ET.SubElement(connection, f"{ns}Variable", simulator=start, name=start_variable)
-        ET.SubElement(connection, f"{ns}Variable", simulator=end, name=end_variable)
+        if (start, start_variable, end, end_variable) not in grouped:
+            connection = ET.SubElement(connections, f"{ns}VariableConnection")
+            ET.SubElement(connection, f"{ns}Variable", simulator=start, name=start_variable)
+            ET.SubElement(connection, f"{ns}Variable", simulator=end, name=end_variable)
+    for a, group_a, b, group_b, _ in groups:
+        connection = ET.SubElement(connections, f"{ns}VariableGroupConnection")
+        ET.SubElement(connection, f"{ns}VariableGroup", simulator=a, name=group_a)
+        ET.SubElement(connection, f"{ns}VariableGroup", simulator=b, name=group_b)
     ET.indent(root)
     return ET.ElementTree(root)
 
@@ -219,14 +229,17 @@ def write_ssp(system: System, path: Path) -> Path:
     return results.write_atomic(path, write)
 
 
-def write_osp(system: System, folder: Path) -> Path:
-    """folder/OspSystemStructure.xml beside copies of the FMUs it names."""
+def write_osp(system: System, folder: Path, by_group: bool = True) -> Path:
+    """folder/OspSystemStructure.xml beside copies of the FMUs it names and their
+    <Model>_OspModelDescription.xml (by_group: see osp_tree)."""
     folder.mkdir(parents=True, exist_ok=True)
     for model in set(system.models.values()):
-        shutil.copy2(fmu_build.fmu_path(model), folder / f"{model}.fmu")
+        fmu = shutil.copy2(fmu_build.fmu_path(model), folder / f"{model}.fmu")
+        osp.write_model_description(Path(fmu))
     return results.write_atomic(
         folder / "OspSystemStructure.xml",
-        lambda tmp: osp_tree(system).write(tmp, encoding="utf-8", xml_declaration=True))
+        lambda tmp: osp_tree(system, by_group).write(tmp, encoding="utf-8",
+                                                     xml_declaration=True))
 
 
 # ---- running ------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import zipfile
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import numpy as np
 import pandas as pd
@@ -87,6 +88,56 @@ def test_libcosim_runs_the_ssp_archive_as_the_osp_file(described: system.System,
     from_osp = system.run_libcosim(described, osp)
     assert from_ssp.metrics == from_osp.metrics
     pd.testing.assert_frame_equal(from_ssp.series, from_osp.series)
+
+
+def _libcosim_end_values(osp_file: Path, steps: int) -> dict[str, float]:
+    """Run an OspSystemStructure.xml for some steps; the mechanism's position and speed and
+    the drive's speed input and torque output at the end."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+
+    execution = CosimExecution.from_osp_config_file(str(osp_file))
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    assert execution.step(steps)
+    values = {}
+    for component, names in (("mechanism", ("theta", "omega")), ("drive", ("omega", "tau_drive"))):
+        index = execution.slave_index_from_instance_name(component)
+        references = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
+        for name in names:
+            (values[f"{component}.{name}"],) = observer.last_real_values(
+                index, [references[name]])
+    return values
+
+
+def test_osp_variable_group_connections_give_the_per_variable_numbers(
+        described: system.System, tmp_path: Path) -> None:
+    """OspSystemStructure.xml joins the drive's shaft port to the mechanism's joint port and
+    the controller's command to the drive's armature voltage by variable group (libcosim reads
+    the groups from the <Model>_OspModelDescription.xml beside each FMU): the same numbers as
+    the three per-variable connections; without the shaft connection the link falls."""
+    by_group = system.write_osp(described, tmp_path / "group")
+    by_variable = system.write_osp(described, tmp_path / "variable", by_group=False)
+    ns = {"osp": system.OSP_NS}
+    tree = ET.parse(by_group)
+    groups = {tuple((v.get("simulator"), v.get("name")) for v in c)
+              for c in tree.iterfind(".//osp:VariableGroupConnection", ns)}
+    assert groups == {(("drive", "shaft"), ("mechanism", "joint")),
+                      (("controller", "command"), ("drive", "armature_voltage"))}
+    variables = {(c[0].get("name"), c[1].get("name"))
+                 for c in tree.iterfind(".//osp:VariableConnection", ns)}
+    assert not variables & {("tau_drive", "tau_drive"), ("omega", "omega"), ("V", "V")}
+    steps = 300
+    expected = _libcosim_end_values(by_variable, steps)
+    assert _libcosim_end_values(by_group, steps) == expected
+    connections = tree.find(".//osp:Connections", ns)
+    shaft = next(c for c in connections.iterfind("osp:VariableGroupConnection", ns)
+                 if c[0].get("name") == "shaft")
+    connections.remove(shaft)
+    tree.write(by_group)
+    cut = _libcosim_end_values(by_group, steps)
+    assert expected["mechanism.theta"] == pytest.approx(np.radians(60.0))   # held at the start
+    assert cut["drive.omega"] == 0.0 and abs(cut["mechanism.theta"] - np.radians(60.0)) > 0.5
 
 
 def test_fmpy_ssp_runner_agrees_despite_its_start(
