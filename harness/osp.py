@@ -68,9 +68,10 @@ PORTS: dict[str, tuple[Group, ...]] = {
 
 
 def groups(model: str) -> list[Group]:
-    """Every variable group of a model, ports before the groups they hold."""
+    """Every variable group of a model (none for a model PORTS does not list), ports before
+    the groups they hold."""
     found: list[Group] = []
-    pending = list(PORTS[model])
+    pending = list(PORTS.get(model, ()))
     while pending:
         group = pending.pop(0)
         found.append(group)
@@ -111,7 +112,7 @@ def model_description_tree(md: ModelDescription) -> ET.ElementTree:
             add(element, member)
 
     variable_groups = ET.SubElement(root, f"{ns}VariableGroups")  # libcosim needs it, even empty
-    for group in PORTS[md.modelName]:
+    for group in PORTS.get(md.modelName, ()):
         add(variable_groups, group)
     ET.indent(root)
     return ET.ElementTree(root)
