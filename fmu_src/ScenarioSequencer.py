@@ -5,10 +5,13 @@ A thin layer over `fmu_src.scenario`, the definitions the harness uses. The scen
 file embedded at build time as the module `fmu_src/sequencer_scenario.py` of the FMU's
 resources: franchetti2021 by default (`harness.scenarios.embed`), or any scenario file with
 `python -m harness build-fmus --sequencer-scenario FILE`. The String parameter `variant`
-picks one of its variants. Each instance reads the module from its own resources folder by
-path rather than importing it by name: pythonfmu runs every FMU of a process in one
-interpreter, which caches modules by name, so two sequencers playing different scenarios
-would otherwise both play the one imported first.
+picks one of its variants by name, or the Integer parameter `variant_number` by its position
+in the scenario file (1, 2, ...; 0, the default, leaves the choice to `variant`), for hosts
+that cannot set String parameters (OMSimulator reads no String parameter binding of an SSP).
+Each instance reads the module from its own resources folder by path rather than importing
+it by name: pythonfmu runs every FMU of a process in one interpreter, which caches modules
+by name, so two sequencers playing different scenarios would otherwise both play the one
+imported first.
 
 Outputs at a communication point t (after fmi2DoStep(t - h, h); at the start time after
 initialisation), with t on the scenario's clock (t = 0 is its start):
@@ -27,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pythonfmu import Fmi2Causality, Fmi2Variability, String
+from pythonfmu import Fmi2Causality, Fmi2Variability, Integer, String
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import scenario as core
@@ -39,7 +42,8 @@ INPUT_UNITS = {"payload": "kg", "counterweight_added": "kg"}
 
 @dataclass(frozen=True)
 class NoParameters:
-    """The sequencer has no Real or Boolean parameters (its `variant` is a String)."""
+    """The sequencer has no Real or Boolean parameters (`variant` is a String,
+    `variant_number` an Integer)."""
 
 
 def embedded_scenario(resources: str | None) -> core.Scenario:
@@ -99,6 +103,13 @@ class ScenarioSequencer(ModelSlave):
         self._add(String("variant", causality=Fmi2Causality.parameter,
                          variability=Fmi2Variability.fixed, description=description),
                   VariableInfo(None, description))
+        self.variant_number = 0
+        numbers = ", ".join(f"{n} = {name}" for n, name in enumerate(scenario.variants, 1))
+        description = (f"Variant of scenario {scenario.name} by number: {numbers}; 0 plays "
+                       "the variant named by `variant`")
+        self._add(Integer("variant_number", causality=Fmi2Causality.parameter,
+                          variability=Fmi2Variability.fixed, description=description),
+                  VariableInfo(None, description))
         self.reference_names = [f"{joint.position}_ref" for joint in scenario.joints]
         for name, joint in zip(self.reference_names, scenario.joints, strict=True):
             self.add_output(name, joint.unit, f"Reference position of joint {joint.name} "
@@ -110,15 +121,25 @@ class ScenarioSequencer(ModelSlave):
         self.step_start = 0.0
         self.segments: list[dict[str, tuple]] = []
 
+    def chosen_variant(self) -> core.Variant:
+        """The variant `variant_number` picks, or else the one `variant` names; ValueError
+        naming the allowed range or the choices."""
+        names = list(self.scenario.variants)
+        number = int(self.variant_number)
+        if not 0 <= number <= len(names):
+            raise ValueError(f"variant_number = {number} is outside [0, {len(names)}] (0: "
+                             "the variant named by `variant`)")
+        return self.scenario.variant(names[number - 1] if number else str(self.variant))
+
     def validate(self, params: NoParameters) -> None:
-        self.scenario.variant(str(self.variant))  # ValueError naming the choices
+        self.chosen_variant()
 
     def setup_experiment(self, start_time: float, stop_time: float | None,
                          tolerance: float | None) -> None:
         self.start_time = start_time
 
     def initialise(self, params: NoParameters) -> None:
-        self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
+        self.segments = self.scenario.input_segments(self.chosen_variant())
         self.show(self.start_time)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
@@ -136,4 +157,4 @@ class ScenarioSequencer(ModelSlave):
         self.__dict__.update(self.defaults | scenario.inputs_at(time, self.segments, tolerance))
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
+        self.segments = self.scenario.input_segments(self.chosen_variant())

@@ -28,7 +28,8 @@ def demian(tmp_path_factory: pytest.TempPathFactory) -> Path:
     assert cli.main(["build-fmus", "--dest", str(dest), "--sequencer-scenario",
                      "demian2022"]) == 0
     assert scenarios.EMBEDDED.read_bytes() == committed  # the default stays as it is
-    assert [p.name for p in dest.iterdir()] == ["ScenarioSequencer.fmu"]
+    assert sorted(p.name for p in dest.iterdir()) == [
+        "ScenarioSequencer.fmu", "ScenarioSequencer_OspModelDescription.xml"]
     return dest / "ScenarioSequencer.fmu"
 
 
