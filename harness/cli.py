@@ -36,6 +36,9 @@ COMMANDS = {
     "ciupitu-design": Command("harness.ciupitu_design",
                               "choose the Ciupitu counterweight (m2, OA, AB) of franchetti2021 "
                               "by minimising E_drawn"),
+    "rocking-design": Command("harness.rocking_design",
+                              "design Ciupitu's rocking counterweight (Figure 4b) for the "
+                              "Section 4 example by least squares on M_u"),
     "sweep": Command("harness.sweep", "run a parameter sweep file on Dask and write "
                      "results/sweeps/<name>.parquet/.csv/plots"),
     "bench": Command("harness.bench",
