@@ -28,6 +28,7 @@ from scipy.optimize import minimize
 
 from fmu_src import ciupitu
 from fmu_src import rocking_counterweight as rocking
+from harness import scenarios
 
 SAMPLES = 61                  # arm angles in the least-squares objective
 MU_MIN = math.radians(30.0)   # smallest transmission angle over a full turn [rad]
@@ -36,6 +37,8 @@ MULTISTART = 12               # local searches per assembly branch
 SEED = 2018
 VARIABLES = ("x1A", "y1A", "XC", "YC", "AB", "BC", "AC2")
 PAPER = ciupitu.ExampleData()  # the paper's data
+SCENARIO = "ciupitu2018"
+VARIANTS = {"parabolic": "parabolic_rocking", "linear": "linear_rocking"}  # law -> variant
 
 
 @dataclass(frozen=True)
@@ -97,6 +100,11 @@ def design(law: str, data: ciupitu.ExampleData = PAPER) -> Design:
     k = rocking.Linkage(*(round(v, 6) for v in best.x.tolist()), best_branch)
     rms = float(np.sqrt(np.mean(unbalance(data, law, k) ** 2)))
     return Design(law, k, rms, rocking.stroke(data, k, law))
+
+
+def stored_linkage(law: str) -> rocking.Linkage:
+    """The linkage the ciupitu2018 scenario's rocking variant of a payload law holds."""
+    return rocking.Linkage(**scenarios.load(SCENARIO).variant(VARIANTS[law]).parameters)
 
 
 def report(designs: list[Design]) -> str:

@@ -18,13 +18,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from conftest import open_fmu
+from scipy.integrate import quad
 
 from fmu_src import ciupitu
 from fmu_src import rocking_counterweight as rocking
-from harness import fmu_build, scenarios
+from harness import fmu_build, master, rocking_design, scenarios
 
 CYCLE = scenarios.load("ciupitu2018")
-LAWS = {"parabolic": "parabolic_rocking", "linear": "linear_rocking"}
+LAWS = rocking_design.VARIANTS
 # a linkage that moves through every angle (|AB - BC| < |OA - OC|, OA + OC < AB + BC)
 LINKAGE = rocking.Linkage(x1A=-0.5, y1A=0.2, XC=-0.3, YC=1.6, AB=1.8, BC=0.9, AC2=2.1,
                           B_left=True)
@@ -190,22 +191,18 @@ def test_fmu_defaults_are_the_parabolic_design_scaled() -> None:
     assert default.m2 == pytest.approx(1.0 * 9.81 / 4.0 * CYCLE.parameters["m2"], rel=1e-12)
 
 
-def stored_design(law: str) -> rocking.Linkage:
-    return rocking.Linkage(**CYCLE.variant(LAWS[law]).parameters)
-
-
 @pytest.mark.parametrize("law, eps", [("parabolic", 0.998791), ("linear", 0.999975)])
 def test_static_eps_of_the_designs(law: str, eps: float) -> None:
     """eps of one stroke (eq. 31, net work) beside the translational counterweight's: the
     designs balance better than the bar of Figure 4a, with either reading of its moment."""
     data = ciupitu.ExampleData()
-    rocking_stroke = rocking.stroke(data, stored_design(law), law)
+    rocking_stroke = rocking.stroke(data, rocking_design.stored_linkage(law), law)
     translational = ciupitu.stroke(data, law)
     assert rocking_stroke.eps == pytest.approx(eps, abs=5e-7)
     assert rocking_stroke.eps > translational.eps
     assert rocking_stroke.max_abs_Mu < 0.5 * translational.max_abs_Mu
     # the net stroke work of M_b is G2 times the counterweight's rise between the stroke ends
-    k = stored_design(law)
+    k = rocking_design.stored_linkage(law)
     rise = rocking.geometry(k, -0.5 * math.pi).Y - rocking.geometry(k, 0.5 * math.pi).Y
     assert rocking_stroke.E_b == pytest.approx(abs(translational.E_u - data.G2 * rise),
                                                abs=1e-9)
@@ -225,8 +222,49 @@ def test_ciupitu_example_reports_the_rocking_designs() -> None:
 @pytest.mark.parametrize("law", LAWS)
 def test_scenario_holds_the_design(law: str) -> None:
     """The variants' linkages are what `rocking-design` finds (about 10 s per law)."""
-    from harness import rocking_design
-
     designed = rocking_design.design(law)
-    assert designed.linkage == stored_design(law)
+    assert designed.linkage == rocking_design.stored_linkage(law)
     assert designed.rms_Mu < 0.1
+
+
+# ---- the ciupitu2018 cycle in co-simulation --------------------------------------------
+@pytest.fixture(scope="module")
+def cycle() -> dict[str, master.RunResult]:
+    return {law: master.run(CYCLE, CYCLE.variant(variant)) for law, variant in LAWS.items()}
+
+
+def stroke_work(law: str, direction: float) -> float:
+    """Drive work over one stroke along the reference [J], from the Lagrangian model's energy
+    (direction 1 down, theta 0 -> pi; -1 up), with sigma = theta/pi and the quintic q(tau):
+    - gravity: the payload's net work E_u, Gmax OP (1 + 4/pi^2) or Gmax OP, against G2 times
+      the counterweight's rise between phi = pi/2 and -pi/2;
+    - pivot friction d integral omega^2 dt = d pi^2 (10/7) / T;
+    - the payload joins from rest on the way down and leaves with its speed on the way up:
+      either way the drive supplies 1/2 OP^2 integral |dpayload/dt| omega^2 dt more,
+      1/2 OP^2 pi^2/T^2 integral of |payload'(q)| q'^3 dtau."""
+    G, G_max, OP = 9.81, 4.0, 2.0
+    T = next(phase.duration for phase in CYCLE.phases if phase.name == "down")
+    k = rocking_design.stored_linkage(law)
+    rise = rocking.geometry(k, -0.5 * math.pi).Y - rocking.geometry(k, 0.5 * math.pi).Y
+    E_u = G_max * OP * ((1.0 + 4.0 / math.pi ** 2) if law == "parabolic" else 1.0)
+    gravity = direction * (CYCLE.parameters["m2"] * G * rise - E_u)
+    friction = CYCLE.parameters["d_link"] * math.pi ** 2 * (10.0 / 7.0) / T
+
+    def integrand(tau: float) -> float:
+        q = tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau ** 2)
+        rate = 30.0 * tau ** 2 * (1.0 - tau) ** 2
+        slope = G_max / G * (2.0 * (1.0 - q) if law == "parabolic" else 1.0)
+        return slope * rate ** 3
+
+    mass_change = quad(integrand, 0.0, 1.0)[0]
+    return gravity + friction + 0.5 * OP ** 2 * math.pi ** 2 / T ** 2 * mass_change
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_cycle_stroke_work_is_the_lagrangian_energy(cycle: dict[str, master.RunResult],
+                                                    law: str) -> None:
+    run = cycle[law]
+    for stroke, direction in (("down", 1.0), ("up", -1.0)):
+        assert run.phase_work[stroke] == pytest.approx(stroke_work(law, direction), abs=2e-3)
+    assert math.degrees(run.metrics["track_err_rms"]) < 0.5
+    assert run.messages == []
