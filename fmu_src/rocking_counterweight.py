@@ -295,11 +295,11 @@ def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
     return p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
 
 
-def acceleration(p: Parameters, k: Linkage, payload: float, tau_drive: float, theta: float,
+def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
     J theta'' + 1/2 (dJ/dtheta) omega^2 = tau_drive + tau_gravity - d_link omega."""
-    q = geometry(k, HALF_PI - theta)
+    q = geometry(Linkage.of(p), HALF_PI - theta)
     J, dJ = _inertia(p, payload, q)
     gravity = p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
     return (tau_drive + gravity - p.d_link * omega - 0.5 * dJ * omega * omega) / J
@@ -312,7 +312,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     arm (J omega' gains -payload_rate w^2 omega, E_loss 1/2 payload_rate w^2 omega^2); a
     payload leaving takes its kinetic energy with it (E_added)."""
     theta, omega = s[0], s[1]
-    omega_dot = acceleration(p, Linkage.of(p), u.payload, u.tau_drive, theta, omega)
+    omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
     loss = p.d_link * omega * omega
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
@@ -334,15 +334,7 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    k = Linkage.of(p)
-    payload, tau_drive, d_link = u.payload, u.tau_drive, p.d_link
-
-    def rates(state: State) -> State:
-        omega = state[1]
-        return State(omega, acceleration(p, k, payload, tau_drive, state[0], omega),
-                     tau_drive * omega, d_link * omega * omega, 0.0)
-
-    return integrate(rates, s, dt, characteristic_rate(p, u, s))
+    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
 
 
 def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
