@@ -13,8 +13,8 @@ rules: every length and coordinate within OP (the counterweight stays within the
 reach; the shortest bar is at least 5 % of OP), and a transmission angle (between the bars
 at B) within [MU_MIN, pi - MU_MIN] over a full turn of the arm, so the linkage moves through
 every angle with bar forces bounded. The problem has many local minima: MULTISTART starts
-per branch drawn with a fixed seed, the best kept, so the design is reproducible. The
-ciupitu2018 scenario's `*_rocking` variants hold the result (tests/test_rocking.py checks).
+per branch drawn with a fixed seed, the best kept and rounded to 1e-6 m, so the design is
+reproducible. The ciupitu2018 scenario's `*_rocking` variants hold the result (tests/test_rocking.py checks).
 """
 
 from __future__ import annotations
