@@ -39,7 +39,8 @@ SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
 MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator", "DcMotorDrive",
-          "PositionController", "ScenarioSequencer", "ActiveSpringBalancer")
+          "PositionController", "ScenarioSequencer", "ActiveSpringBalancer",
+          "RockingCounterweightBalancer")
 SEQUENCER = "ScenarioSequencer"
 
 

@@ -77,6 +77,10 @@ REFERENCE_RUNS = {
         MOVE.format("tau_drive = 0.1 N m", "; no payload"),
         rest_to_rest_move({"tau_drive": 0.1}, {"payload": 0.0}, 5.0),
         ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar")),
+    "RockingCounterweightBalancer": ReferenceRun(
+        MOVE.format("tau_drive = 0.1 N m", "; no payload"),
+        rest_to_rest_move({"tau_drive": 0.1}, {"payload": 0.0}, 5.0),
+        ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi")),
     "PrismaticCompensator": ReferenceRun(
         MOVE.format("tau1 = 0.1 N m and f2 = 0.02 N", ""),
         rest_to_rest_move({"tau1": 0.1, "f2": 0.02}, {}, 5.0),

@@ -57,6 +57,8 @@ def port(kind: str, name: str, effort: str, flow: str) -> Group:
 PORTS: dict[str, tuple[Group, ...]] = {
     "SelfRegulatingBalancer": (port("AngularMechanicalPort", "joint", "tau_drive", "omega"),),
     "CiupituBalancer": (port("AngularMechanicalPort", "joint", "tau_drive", "omega"),),
+    "RockingCounterweightBalancer": (port("AngularMechanicalPort", "joint", "tau_drive",
+                                          "omega"),),
     # the schema's sequence puts LinearMechanicalPort before AngularMechanicalPort
     "PrismaticCompensator": (port("LinearMechanicalPort", "q2", "f2", "q2_dot"),
                              port("AngularMechanicalPort", "q1", "tau1", "q1_dot")),

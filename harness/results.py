@@ -102,7 +102,8 @@ MECHANISM_PANELS = (
     ("(a) link angle", "deg", [("theta", np.degrees), ("theta_ref", np.degrees)]),
     ("(b) energies", "J", [("E_p", None), ("E_e", None), ("E_t", None)]),
     ("(c) slider travel and payload", "mm | kg", [("delta_b", _to_mm), ("payload", None)]),
-    ("(d) spring length x, counterweight distance OB", "mm", [("x", _to_mm), ("OB", _to_mm)]),
+    ("(d) spring length x, counterweight distance OB or height Y_cw", "mm",
+     [("x", _to_mm), ("OB", _to_mm), ("Y_cw", _to_mm)]),
 )
 # the mechanism panels of multi-joint models, after one tracking panel per joint
 MODEL_PANELS = {

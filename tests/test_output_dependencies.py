@@ -35,6 +35,7 @@ PROBES: dict[str, list[tuple[Values, Values, int]]] = {
         ({"theta0": math.pi}, {"tau_drive": 1.0, "slider_locked": False}, 1000),
     ],
     "CiupituBalancer": [({}, {"tau_drive": 1.0, "payload": 0.5}, 300)],
+    "RockingCounterweightBalancer": [({}, {"tau_drive": 1.0, "payload": 0.5}, 300)],
     # carriage pushed up against the spring while the link swings: the screw's force acts
     "ActiveSpringBalancer": [({}, {"tau_drive": 1.0, "F_adjust": 40.0, "payload": 0.5}, 300)],
     "PrismaticCompensator": [({}, {"tau1": 1.0, "f2": 1.0}, 300)],
