@@ -20,7 +20,6 @@ initialisation), with t on the scenario's clock (t = 0 is its start):
 from __future__ import annotations
 
 import runpy
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,11 +45,11 @@ def embedded_scenario(resources: str | None) -> core.Scenario:
     path = None if resources is None else Path(resources) / "fmu_src" / "sequencer_scenario.py"
     if path is not None and path.is_file():
         module = runpy.run_path(str(path))  # not cached in sys.modules (see the docstring)
-        name, toml = module["NAME"], module["TOML"]
+        name, data = module["NAME"], module["DATA"]
     else:
         from fmu_src import sequencer_scenario
-        name, toml = sequencer_scenario.NAME, sequencer_scenario.TOML
-    return core.parse(tomllib.loads(toml), f"{name}.toml")
+        name, data = sequencer_scenario.NAME, sequencer_scenario.DATA
+    return core.parse(data, f"{name}.toml")
 
 
 def scenario_inputs(scenario: core.Scenario) -> dict[str, bool | float]:
@@ -98,7 +97,7 @@ class ScenarioSequencer(ModelSlave):
                          variability=Fmi2Variability.fixed, description=description),
                   VariableInfo(None, description))
         self.reference_names = [f"{joint.position}_ref" for joint in scenario.joints]
-        for name, joint in zip(self.reference_names, scenario.joints, strict=True):
+        for name, joint in zip(self.reference_names, scenario.joints):
             self.add_output(name, joint.unit, f"Reference position of joint {joint.name} "
                             "(quintic between the phases' targets)")
         self.defaults = scenario_inputs(scenario)
@@ -129,7 +128,7 @@ class ScenarioSequencer(ModelSlave):
     def show(self, time: float) -> None:
         """Set the outputs to the scenario's values at time [s]."""
         self.__dict__.update(zip(self.reference_names, self.scenario.reference_at(time)))
-        self.__dict__.update(self.defaults | self.scenario.inputs_at(time, self.segments))
+        self.__dict__.update({**self.defaults, **self.scenario.inputs_at(time, self.segments)})
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
