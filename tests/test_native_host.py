@@ -1,73 +1,172 @@
-"""A pythonfmu FMU in a host that is not a Python process (README, "Importing the FMUs").
+"""The FMUs in a host that is not a Python process (README, "Importing the FMUs").
 
 tests/native_host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
-CLI or OMSimulator is. The FMU's binary does not link libpython: it takes the Python C API
-from the process, so such a host must preload libpython and let the interpreter find its
-standard library (PYTHONHOME). These tests check both statements of the README.
+CLI, fmuCheck or OMSimulator is. It runs here with an empty environment (no LD_PRELOAD,
+PYTHONHOME or PYTHONPATH): the FMU's own loader (harness/loader/fmi2_loader.c) must find
+Python by itself, with the interpreter the FMU was built with or any CPython 3.8 or later
+named by BALANCER_FMU_LIBPYTHON, and give the numbers FMPy gives.
 """
 
 from __future__ import annotations
 
-import os
-import shutil
+import functools
+import re
 import subprocess
 import sys
-import sysconfig
 import zipfile
 from pathlib import Path
 
 import fmpy
+import numpy as np
 import pytest
 from conftest import open_fmu, run
 from fmpy import read_model_description
 
-HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
-LIBPYTHON = Path(sysconfig.get_config_var("LIBDIR") or "") / (
-    sysconfig.get_config_var("LDLIBRARY") or "")
-# an unbalanced link (k = 0) swinging from 60 deg for 2 s: outputs that depend on every step
-PARAMETERS = {"k": 0.0}
-STOP_TIME, STEP_SIZE = 2.0, 1e-3
+from harness import fmu_build
 
-pytestmark = pytest.mark.skipif(
-    shutil.which("cc") is None or not LIBPYTHON.is_file() or not sys.platform.startswith("linux"),
-    reason="needs a C compiler and a shared libpython on Linux")
+HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
+STEP_SIZE = 1e-3
+# per model: parameters and input start values that make every run move, and the stop time
+CASES = {
+    "SelfRegulatingBalancer": ({"k": 0.0}, 2.0),  # unbalanced link swinging from 60 deg
+    "CiupituBalancer": ({"payload": 2.0}, 2.0),
+    "PrismaticCompensator": ({"tau1": 0.5, "f2": 1.0}, 2.0),
+    "DcMotorDrive": ({"V": 12.0, "omega": 1.0}, 2.0),
+    "PositionController": ({"theta_ref": 0.002}, 2.0),  # unsaturated
+    "ScenarioSequencer": ({}, 5.0),  # 1 s into the move of phase II
+}
+# where shared-library CPythons live: distribution, /usr/local and pyenv installations
+LIBPYTHON_GLOBS = ("/usr/lib/x86_64-linux-gnu/libpython3.*.so.1.0",
+                   "/usr/lib64/libpython3.*.so.1.0", "/usr/local/lib/libpython3.*.so.1.0",
+                   f"{Path.home()}/.pyenv/versions/*/lib/libpython3.*.so.1.0")
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="the loader and the C host are for Linux")
+
+
+def libpythons() -> list[Path]:
+    """Every shared-library CPython 3.8 or later found on the machine, once each."""
+    found: dict[Path, Path] = {}
+    for pattern in LIBPYTHON_GLOBS:
+        for path in sorted(Path("/").glob(pattern.lstrip("/"))):
+            match = re.fullmatch(r"libpython3\.(\d+)\.so\.1\.0", path.name)
+            if match and int(match.group(1)) >= 8:
+                found.setdefault(path.resolve(), path)
+    return list(found.values())
 
 
 @pytest.fixture(scope="module")
 def host(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The C host, compiled with the compiler the FMU build uses (no system compiler)."""
     exe = tmp_path_factory.mktemp("host") / "fmi2_host"
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run(["cc", f"-I{include}", str(HOST_SOURCE), "-ldl", "-o", str(exe)], check=True)
+    subprocess.run([sys.executable, "-m", "ziglang", "cc", "-target", fmu_build.LOADER_TARGET,
+                    f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(HOST_SOURCE), "-o",
+                    str(exe)], check=True)
     return exe
 
 
-def host_command(host: Path, fmu: Path, unzipped: Path, outputs: list[str]) -> list[str]:
-    md = read_model_description(fmu)
+@pytest.fixture(scope="module")
+def unzipped(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Every FMU, built if stale, unzipped as an importing tool does."""
+    folders = {}
+    for model in CASES:
+        folders[model] = tmp_path_factory.mktemp(model)
+        zipfile.ZipFile(fmu_build.fmu_path(model)).extractall(folders[model])
+    return folders
+
+
+def real_outputs(model: str) -> list[str]:
+    md = read_model_description(fmu_build.fmu_path(model))
+    return [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+
+
+def host_command(host: Path, model: str, folder: Path,
+                 parameters: dict[str, float] | None = None, options: tuple[str, ...] = ()
+                 ) -> list[str]:
+    """The host's command line: run the model's case and print its Real outputs."""
+    md = read_model_description(fmu_build.fmu_path(model))
     refs = {v.name: v.valueReference for v in md.modelVariables}
-    return [str(host), str(unzipped), md.coSimulation.modelIdentifier, md.guid, str(STOP_TIME),
-            str(STEP_SIZE), *(f"{refs[n]}={v}" for n, v in PARAMETERS.items()),
-            *(str(refs[n]) for n in outputs)]
+    case_parameters, stop_time = CASES[model]
+    parameters = case_parameters if parameters is None else parameters
+    return [str(host), *options, str(folder), model, md.guid, str(stop_time), str(STEP_SIZE),
+            *(f"{refs[n]}={v}" for n, v in parameters.items()),
+            *(str(refs[n]) for n in real_outputs(model))]
 
 
-def test_native_host_runs_the_fmu_like_fmpy_with_libpython_preloaded(
-        host: Path, srb_fmu: Path, tmp_path: Path) -> None:
-    unzipped = tmp_path / "fmu"
-    zipfile.ZipFile(srb_fmu).extractall(unzipped)
-    outputs = ["theta", "omega", "E_t"]
-    command = host_command(host, srb_fmu, unzipped, outputs)
-    environment = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONHOME")}
+def run_host(command: list[str], environment: dict[str, str]) -> list[float]:
+    """The final values the host prints; fails with the host's stderr if it fails."""
+    done = subprocess.run(command, env=environment, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    return [float(line) for line in done.stdout.split()]
 
-    without = subprocess.run(command, env=environment, capture_output=True, text=True)
-    assert without.returncode != 0 and "undefined symbol: _Py" in without.stderr
 
-    environment |= {"LD_PRELOAD": str(LIBPYTHON), "PYTHONHOME": sys.base_prefix}
-    native = subprocess.run(command, env=environment, capture_output=True, text=True, check=True)
-    values = [float(line) for line in native.stdout.split()]
-
-    fmu = open_fmu(srb_fmu, PARAMETERS)
+@functools.cache
+def fmpy_final_values(model: str) -> tuple[list[float], list[float]]:
+    """The Real outputs after initialisation and at the stop time, run by FMPy."""
+    parameters, stop_time = CASES[model]
+    outputs = real_outputs(model)
+    fmu = open_fmu(fmu_build.fmu_path(model), parameters)
     try:
-        expected = run(fmu, round(STOP_TIME / STEP_SIZE), STEP_SIZE, outputs)[-1]
+        initial = [fmu.get(outputs)[name] for name in outputs]
+        final = run(fmu, round(stop_time / STEP_SIZE), STEP_SIZE, outputs)[-1]
     finally:
         fmu.close()
-    assert abs(expected[0] - float(fmu.variables["theta0"].start)) > 0.1  # the link swung
-    assert values == pytest.approx(expected.tolist(), rel=1e-12, abs=1e-12)
+    return initial, final.tolist()
+
+
+@pytest.mark.parametrize("model", CASES)
+def test_every_fmu_runs_without_any_environment_like_fmpy(
+        host: Path, unzipped: dict[str, Path], model: str) -> None:
+    values = run_host(host_command(host, model, unzipped[model]), environment={})
+    initial, expected = fmpy_final_values(model)
+    assert not np.allclose(initial, expected, rtol=1e-3, atol=1e-6)  # the run moved
+    assert values == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("libpython", libpythons(), ids=str)
+@pytest.mark.parametrize("model", CASES)
+def test_every_cpython_from_3_8_runs_every_fmu(
+        host: Path, unzipped: dict[str, Path], model: str, libpython: Path) -> None:
+    values = run_host(host_command(host, model, unzipped[model]),
+                      environment={"BALANCER_FMU_LIBPYTHON": str(libpython)})
+    assert values == pytest.approx(fmpy_final_values(model)[1], rel=1e-12, abs=1e-12)
+
+
+def test_a_missing_libpython_gives_null_and_names_what_was_tried(
+        host: Path, unzipped: dict[str, Path], tmp_path: Path) -> None:
+    missing = tmp_path / "no" / "libpython3.99.so.1.0"
+    model = "SelfRegulatingBalancer"
+    done = subprocess.run(host_command(host, model, unzipped[model]),
+                          env={"BALANCER_FMU_LIBPYTHON": str(missing)}, capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 4, done.stderr  # the host's exit status for a NULL instance
+    assert "fmi2Instantiate failed" in done.stderr
+    assert f"BALANCER_FMU_LIBPYTHON={missing}" in done.stderr
+    assert f"{missing}: " in done.stderr  # the path tried, with dlopen's reason
+
+
+def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
+    """In FMPy the loader uses the running interpreter: one libpython mapped, ours."""
+    fmu = open_fmu(srb_fmu)
+    try:
+        maps = Path("/proc/self/maps").read_text()
+    finally:
+        fmu.close()
+    mapped = {line.split()[-1] for line in maps.splitlines() if "/libpython3" in line}
+    assert len(mapped) <= 1, mapped  # none when this interpreter is statically linked
+
+
+def test_every_call_after_fatal_returns_fatal_without_crashing(
+        host: Path, unzipped: dict[str, Path]) -> None:
+    """J_link = -1 fails initialisation with Fatal; the step and the reads that follow
+    return Fatal from the loader, where pythonfmu alone crashed the host (exit 139)."""
+    model = "SelfRegulatingBalancer"
+    done = subprocess.run(host_command(host, model, unzipped[model], {"J_link": -1.0}, ("-k",)),
+                          env={}, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 8, done.stderr  # the host's exit status after failed calls
+    statuses = re.findall(r"^(fmi2\w+) returned status (\d)$", done.stderr, re.MULTILINE)
+    outputs = len(real_outputs(model))
+    assert statuses == [("fmi2ExitInitializationMode", "4"), ("fmi2DoStep", "4"),
+                        *[("fmi2GetReal", "4")] * outputs]
+    assert done.stderr.count("returned fmi2Fatal") == 1 + outputs  # each refusal is logged
+    assert "J_link" in done.stderr  # the FMU's own message names the parameter
