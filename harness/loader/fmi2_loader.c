@@ -265,9 +265,9 @@ static int load(Message *why) {
  * (PyGILState_Ensure) and released at once (PyEval_SaveThread), it stays registered for the
  * thread, so pythonfmu's PyGILState_Ensure/Release pairs reuse it. */
 static void hold_thread_state(void) {
-    if (thread_state_held) return;
+    if (thread_state_held || !py.IsInitialized()) return;
     thread_state_held = 1;
-    if (py.IsInitialized() && py.GILStateGetThisThreadState() == NULL) {
+    if (py.GILStateGetThisThreadState() == NULL) {
         py.GILStateEnsure();
         py.EvalSaveThread();
     }
@@ -311,13 +311,13 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                               why.text, OVERRIDE_VARIABLE);
         return NULL;
     }
-    hold_thread_state();
     Instance *instance = calloc(1, sizeof *instance);
     if (!instance) return NULL;
     instance->name = strdup(instanceName ? instanceName : "");
     if (functions) instance->callbacks = *functions;
     instance->inner = fmu.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation,
                                       functions, visible, loggingOn);
+    hold_thread_state(); /* pythonfmu's first instance initialises the interpreter */
     if (!instance->inner || !instance->name) {
         if (instance->inner) fmu.FreeInstance(instance->inner);
         free(instance->name);
