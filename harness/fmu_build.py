@@ -96,23 +96,29 @@ def sequencer_module(scenario: str | Path) -> str:
     return source
 
 
-def loader_binary(output: Path = LOADER_BUILD) -> Path:
-    """The compiled loader, rebuilt (atomically) when its source is newer."""
-    if output.exists() and output.stat().st_mtime >= LOADER_SOURCE.stat().st_mtime:
-        return output
+def zig_cc(source: Path, output: Path, *options: str) -> Path:
+    """Compile a C file with `python -m ziglang cc` (a registry package, no system compiler)
+    for LOADER_TARGET, FMPy's FMI 2.0 headers on the include path; written atomically."""
     output.parent.mkdir(parents=True, exist_ok=True)
-    fd, partial = tempfile.mkstemp(dir=output.parent, prefix=".fmi2_loader.", suffix=".so")
+    fd, partial = tempfile.mkstemp(dir=output.parent, prefix=f".{output.name}.")
     os.close(fd)
     try:
-        subprocess.run(
-            [sys.executable, "-m", "ziglang", "cc", "-target", LOADER_TARGET, "-shared",
-             "-fPIC", "-O2", "-s", "-Wall", f"-I{Path(fmpy.__file__).parent / 'c-code'}",
-             str(LOADER_SOURCE), "-o", partial], check=True)
+        subprocess.run([sys.executable, "-m", "ziglang", "cc", "-target", LOADER_TARGET,
+                        "-O2", "-Wall", f"-I{Path(fmpy.__file__).parent / 'c-code'}", *options,
+                        str(source), "-o", partial], check=True)
+        os.chmod(partial, 0o755)
         os.replace(partial, output)
     except BaseException:
         Path(partial).unlink(missing_ok=True)
         raise
     return output
+
+
+def loader_binary(output: Path = LOADER_BUILD) -> Path:
+    """The compiled loader, rebuilt when its source is newer."""
+    if output.exists() and output.stat().st_mtime >= LOADER_SOURCE.stat().st_mtime:
+        return output
+    return zig_cc(LOADER_SOURCE, output, "-shared", "-fPIC", "-s")
 
 
 def python_record() -> str:

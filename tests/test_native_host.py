@@ -16,7 +16,6 @@ import sys
 import zipfile
 from pathlib import Path
 
-import fmpy
 import numpy as np
 import pytest
 from conftest import open_fmu, run
@@ -58,11 +57,7 @@ def libpythons() -> list[Path]:
 @pytest.fixture(scope="module")
 def host(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The C host, compiled with the compiler the FMU build uses (no system compiler)."""
-    exe = tmp_path_factory.mktemp("host") / "fmi2_host"
-    subprocess.run([sys.executable, "-m", "ziglang", "cc", "-target", fmu_build.LOADER_TARGET,
-                    f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(HOST_SOURCE), "-o",
-                    str(exe)], check=True)
-    return exe
+    return fmu_build.zig_cc(HOST_SOURCE, tmp_path_factory.mktemp("host") / "fmi2_host")
 
 
 @pytest.fixture(scope="module")
