@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import re
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -138,6 +139,32 @@ def test_a_missing_libpython_gives_null_and_names_what_was_tried(
     assert "fmi2Instantiate failed" in done.stderr
     assert f"BALANCER_FMU_LIBPYTHON={missing}" in done.stderr
     assert f"{missing}: " in done.stderr  # the path tried, with dlopen's reason
+
+
+def test_without_the_recorded_libpython_the_linker_search_is_tried(
+        host: Path, unzipped: dict[str, Path], tmp_path: Path) -> None:
+    """The FMU moved to a machine without its build's interpreter: the loader falls back on
+    the libpython3.X.so.1.0 the dynamic linker finds, and names each one when none loads."""
+    model = "SelfRegulatingBalancer"
+    folder = tmp_path / model
+    shutil.copytree(unzipped[model], folder)
+    missing = tmp_path / "gone" / "libpython3.11.so.1.0"
+    (folder / "resources" / "python.txt").write_text(f"libpython={missing}\nprefix=/gone\n")
+    ldconfig = shutil.which("ldconfig") or "/sbin/ldconfig"
+    if not Path(ldconfig).exists():
+        pytest.skip("no ldconfig to tell what the dynamic linker finds")
+    cache = subprocess.run([ldconfig, "-p"], capture_output=True, text=True).stdout
+    system_libpython = any(f"libpython3.{m}.so.1.0 " in cache for m in range(8, 15))
+    done = subprocess.run(host_command(host, model, folder), env={}, capture_output=True,
+                          text=True, timeout=60)
+    if system_libpython:
+        assert done.returncode == 0, done.stderr
+        values = [float(line) for line in done.stdout.split()]
+        assert values == pytest.approx(fmpy_final_values(model)[1], rel=1e-12, abs=1e-12)
+    else:
+        assert done.returncode == 4, done.stderr
+        assert f"{missing}: " in done.stderr
+        assert all(f"libpython3.{m}.so.1.0: " in done.stderr for m in range(8, 15))
 
 
 def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
