@@ -141,6 +141,20 @@ def test_a_missing_libpython_gives_null_and_names_what_was_tried(
     assert f"{missing}: " in done.stderr  # the path tried, with dlopen's reason
 
 
+def test_a_libpython_older_than_3_8_is_refused_by_name(
+        host: Path, unzipped: dict[str, Path]) -> None:
+    old = sorted(Path("/").glob(f"{Path.home()}/.pyenv/versions/3.[67].*/lib/libpython3.*.so.1.0"
+                                .lstrip("/")))
+    if not old:
+        pytest.skip("no CPython 3.6 or 3.7 shared library on this machine")
+    model = "SelfRegulatingBalancer"
+    done = subprocess.run(host_command(host, model, unzipped[model]),
+                          env={"BALANCER_FMU_LIBPYTHON": str(old[0])}, capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 4, done.stderr
+    assert f"{old[0]}: not a CPython 3.8 or later library (3." in done.stderr
+
+
 def test_without_the_recorded_libpython_the_linker_search_is_tried(
         host: Path, unzipped: dict[str, Path], tmp_path: Path) -> None:
     """The FMU moved to a machine without its build's interpreter: the loader falls back on

@@ -159,7 +159,11 @@ static int python_in_process(void) { return dlsym(RTLD_DEFAULT, "Py_IsInitialize
 static int open_libpython(const char *path, Message *why) {
     void *handle = dlopen(path, RTLD_NOW | RTLD_GLOBAL);
     if (!handle) {
-        append(why, "\n  %s: %s", path, dlerror());
+        const char *error = dlerror();
+        size_t length = strlen(path); /* dlerror often starts with the path already */
+        if (strncmp(error, path, length) == 0 && strncmp(error + length, ": ", 2) == 0)
+            error += length + 2;
+        append(why, "\n  %s: %s", path, error);
         return 0;
     }
     const char *(*version)(void) = (const char *(*)(void))dlsym(handle, "Py_GetVersion");
@@ -178,14 +182,14 @@ static int load_python(const char *folder, Message *why) {
     if (python_in_process()) return 1;
     const char *override = getenv(OVERRIDE_VARIABLE);
     if (override && override[0]) {
-        append(why, "tried %s=%s:", OVERRIDE_VARIABLE, override);
+        append(why, "no Python for this FMU; tried %s=%s:", OVERRIDE_VARIABLE, override);
         return open_libpython(override, why);
     }
     char record[PATH_SIZE], library[PATH_SIZE], prefix[PATH_SIZE];
     snprintf(record, sizeof record, "%s/../../resources/" RECORD_FILE, folder);
     recorded(record, "libpython", library, sizeof library);
     recorded(record, "prefix", prefix, sizeof prefix);
-    append(why, "tried (%s unset):", OVERRIDE_VARIABLE);
+    append(why, "no Python for this FMU; tried (%s unset):", OVERRIDE_VARIABLE);
     if (library[0]) {
         if (open_libpython(library, why)) {
             if (!getenv("PYTHONHOME") && prefix[0] && is_directory(prefix))
@@ -250,7 +254,10 @@ static int load(Message *why) {
         char folder[PATH_SIZE];
         if (!own_folder(folder, sizeof folder))
             append(why, "cannot locate this library's folder");
-        else if (load_python(folder, why)) {
+        else if (!load_python(folder, why))
+            append(why, "\nThis FMU runs its model in CPython 3.8 or later: set %s to the "
+                        "path of a libpython3.X.so.1.0 shared library.", OVERRIDE_VARIABLE);
+        else {
             why->length = 0;
             why->text[0] = '\0';
             loaded = load_pythonfmu(folder, why) && resolve_python_api(why);
@@ -305,10 +312,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (!load(&why)) {
         if (functions && functions->logger)
             functions->logger(functions->componentEnvironment, instanceName, fmi2Fatal,
-                              "logStatusFatal",
-                              "%s\nThis FMU runs its model in CPython 3.8 or later: set %s to "
-                              "the path of a libpython3.X.so.1.0 shared library.",
-                              why.text, OVERRIDE_VARIABLE);
+                              "logStatusFatal", "%s", why.text);
         return NULL;
     }
     Instance *instance = calloc(1, sizeof *instance);
