@@ -18,11 +18,12 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from conftest import open_fmu, run
 from fmpy import read_model_description
 
-from harness import fmu_build
+from harness import cli, fmu_build
 
 HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
 STEP_SIZE = 1e-3
@@ -206,3 +207,16 @@ def test_every_call_after_fatal_returns_fatal_without_crashing(
                         *[("fmi2GetReal", "4")] * outputs]
     assert done.stderr.count("returned fmi2Fatal") == 1 + outputs  # each refusal is logged
     assert "J_link" in done.stderr  # the FMU's own message names the parameter
+
+
+def test_bench_times_each_mechanism_in_the_c_host_and_in_fmpy(tmp_path: Path) -> None:
+    """`python -m harness bench --only native_step` (shortened): a row per mechanism FMU with
+    both costs and their ratio."""
+    assert cli.main(["bench", "--steps", "200", "--repeats", "1", "--only", "native_step",
+                     "--out", str(tmp_path)]) == 0
+    table = pd.read_csv(tmp_path / "native_step.csv")
+    assert list(table["model"]) == ["SelfRegulatingBalancer", "CiupituBalancer",
+                                    "PrismaticCompensator"]
+    assert (table[["us_per_step_c_host", "us_per_step_fmpy"]] > 0).all().all()
+    assert np.allclose(table["ratio_c_host_to_fmpy"],
+                       table["us_per_step_c_host"] / table["us_per_step_fmpy"])
