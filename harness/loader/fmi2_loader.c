@@ -18,14 +18,14 @@
  *   pythonfmu's PyGILState_Ensure/Release around every call only take the GIL instead of
  *   creating and destroying a thread state each time;
  * - refuses, with fmi2Fatal and without calling into Python, any call on an instance that
- *   has returned fmi2Fatal (pythonfmu's instance is unusable then and may crash the host).
+ *   has returned fmi2Fatal (pythonfmu's instance is unusable then and may crash the host);
+ *   fmi2FreeInstance of such an instance frees only the loader's part.
  *
  * build: python -m ziglang cc -target x86_64-linux-gnu.2.17 -shared -fPIC -O2
  *        -I<fmpy>/c-code fmi2_loader.c -o <Model>.so   (harness/fmu_build.py does this)
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
-#include <errno.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -91,6 +91,7 @@ static struct {
     void *(*EvalSaveThread)(void);
 } py;
 
+static void *pythonfmu; /* pythonfmu's binary, unloaded with this library */
 static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
 static int loaded; /* fmu and py are resolved */
 static __thread int thread_state_held;
@@ -216,7 +217,7 @@ static int load_pythonfmu(const char *folder, Message *why) {
     name = name ? name + 1 : info.dli_fname;
     size_t stem = strlen(name) > 3 ? strlen(name) - 3 : strlen(name); /* drop ".so" */
     snprintf(path, sizeof path, "%s/%.*s" PYTHONFMU_SUFFIX, folder, (int)stem, name);
-    void *handle = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    void *handle = pythonfmu = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!handle) {
         append(why, "pythonfmu's binary %s: %s", path, dlerror());
         return 0;
@@ -266,6 +267,13 @@ static int load(Message *why) {
     int ok = loaded;
     pthread_mutex_unlock(&load_lock);
     return ok;
+}
+
+/* When the host unloads the FMU, unload pythonfmu's binary too, as a host loading it directly
+ * would: otherwise every copy FMPy extracts stays loaded, and their destructors all run at
+ * process exit, after the interpreter's finalisation. */
+__attribute__((destructor)) static void unload_pythonfmu(void) {
+    if (pythonfmu) dlclose(pythonfmu);
 }
 
 /* Give the calling thread a Python thread state for its lifetime if it has none: taken
