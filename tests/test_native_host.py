@@ -9,6 +9,7 @@ named by BALANCER_FMU_LIBPYTHON, and give the numbers FMPy gives.
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import re
 import shutil
@@ -17,6 +18,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import fmpy
 import numpy as np
 import pandas as pd
 import pytest
@@ -180,6 +182,18 @@ def test_without_the_recorded_libpython_the_linker_search_is_tried(
         assert done.returncode == 4, done.stderr
         assert f"{missing}: " in done.stderr
         assert all(f"libpython3.{m}.so.1.0: " in done.stderr for m in range(8, 15))
+
+
+def test_the_loader_exports_every_fmi2_function_of_pythonfmus_binary(
+        unzipped: dict[str, Path]) -> None:
+    header = (Path(fmpy.__file__).parent / "c-code" / "fmi2Functions.h").read_text()
+    names = re.findall(r"#define (fmi2\w+) +fmi2FullName", header)
+    binaries = unzipped["SelfRegulatingBalancer"] / "binaries" / "linux64"
+    loader = ctypes.CDLL(str(binaries / "SelfRegulatingBalancer.so"))
+    pythonfmu = ctypes.CDLL(str(binaries / "SelfRegulatingBalancer.pythonfmu.so"))
+    exported = [name for name in names if hasattr(pythonfmu, name)]
+    assert "fmi2DoStep" in exported and len(exported) > 30
+    assert [name for name in exported if not hasattr(loader, name)] == []
 
 
 def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
