@@ -22,10 +22,12 @@ import fmpy
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import open_fmu, run
+from conftest import FMI_FATAL, FMI_OK, open_fmu, run
 from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
 
 from harness import cli, fmu_build
+from harness.fmi import CoSimFMU
 
 HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
 STEP_SIZE = 1e-3
@@ -209,18 +211,44 @@ def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
 
 def test_every_call_after_fatal_returns_fatal_without_crashing(
         host: Path, unzipped: dict[str, Path]) -> None:
-    """J_link = -1 fails initialisation with Fatal; the step and the reads that follow
-    return Fatal from the loader, where pythonfmu alone crashed the host (exit 139)."""
+    """J_link = -1 fails with Fatal (at the latest in initialisation); the step and the reads
+    that follow return Fatal from the loader, where pythonfmu alone crashed the host (exit
+    139)."""
     model = "SelfRegulatingBalancer"
     done = subprocess.run(host_command(host, model, unzipped[model], {"J_link": -1.0}, ("-k",)),
                           env={}, capture_output=True, text=True, timeout=60)
     assert done.returncode == 8, done.stderr  # the host's exit status after failed calls
     statuses = re.findall(r"^(fmi2\w+) returned status (\d)$", done.stderr, re.MULTILINE)
     outputs = len(real_outputs(model))
-    assert statuses == [("fmi2ExitInitializationMode", "4"), ("fmi2DoStep", "4"),
-                        *[("fmi2GetReal", "4")] * outputs]
-    assert done.stderr.count("returned fmi2Fatal") == 1 + outputs  # each refusal is logged
+    assert statuses[-1 - outputs:] == [("fmi2DoStep", "4"), *[("fmi2GetReal", "4")] * outputs]
+    assert {status for _, status in statuses} == {"4"}
+    # every call after the first Fatal is refused by the loader, with a message
+    assert done.stderr.count("returned fmi2Fatal") == len(statuses) - 1
     assert "J_link" in done.stderr  # the FMU's own message names the parameter
+
+
+def test_in_fmpy_every_call_after_fatal_returns_fatal(srb_fmu: Path) -> None:
+    """The same guard in a Python host, through FMPy's raw calls, down to fmi2FreeInstance."""
+    fmu = CoSimFMU(srb_fmu, instance_name="fatal")
+    slave, theta = fmu.slave, fmu.references(["theta"])
+    calls = [lambda: slave.setupExperiment(startTime=0.0),
+             lambda: slave.setReal(fmu.references(["J_link"]), [-1.0]),
+             slave.enterInitializationMode, slave.exitInitializationMode,
+             lambda: slave.doStep(0.0, 1e-3), lambda: slave.getReal(theta), slave.terminate]
+    statuses = []
+    for call in calls:
+        try:
+            call()
+            statuses.append(FMI_OK)
+        except FMICallException as error:
+            statuses.append(error.status)
+    first = statuses.index(FMI_FATAL)
+    assert first <= calls.index(slave.exitInitializationMode)
+    assert statuses[first:] == [FMI_FATAL] * (len(calls) - first)
+    refused = [m.message for m in fmu.messages if "returned fmi2Fatal" in m.message]
+    assert len(refused) == len(calls) - first - 1
+    slave.freeInstance()  # the loader frees only its own part: no crash
+    shutil.rmtree(fmu.slave.unzipDirectory, ignore_errors=True)
 
 
 def test_bench_times_each_mechanism_in_the_c_host_and_in_fmpy(tmp_path: Path) -> None:
