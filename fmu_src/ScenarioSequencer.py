@@ -25,7 +25,6 @@ hosts that add up their time (t += h) switch at the same step as those that comp
 from __future__ import annotations
 
 import runpy
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,11 +51,11 @@ def embedded_scenario(resources: str | None) -> core.Scenario:
     path = None if resources is None else Path(resources) / "fmu_src" / "sequencer_scenario.py"
     if path is not None and path.is_file():
         module = runpy.run_path(str(path))  # not cached in sys.modules (see the docstring)
-        name, toml = module["NAME"], module["TOML"]
+        name, data = module["NAME"], module["DATA"]
     else:
         from fmu_src import sequencer_scenario
-        name, toml = sequencer_scenario.NAME, sequencer_scenario.TOML
-    return core.parse(tomllib.loads(toml), f"{name}.toml")
+        name, data = sequencer_scenario.NAME, sequencer_scenario.DATA
+    return core.parse(data, f"{name}.toml")
 
 
 def scenario_inputs(scenario: core.Scenario) -> dict[str, bool | float]:
@@ -111,7 +110,7 @@ class ScenarioSequencer(ModelSlave):
                           variability=Fmi2Variability.fixed, description=description),
                   VariableInfo(None, description))
         self.reference_names = [f"{joint.position}_ref" for joint in scenario.joints]
-        for name, joint in zip(self.reference_names, scenario.joints, strict=True):
+        for name, joint in zip(self.reference_names, scenario.joints):
             self.add_output(name, joint.unit, f"Reference position of joint {joint.name} "
                             "(quintic between the phases' targets)")
         self.defaults = scenario_inputs(scenario)
@@ -154,7 +153,8 @@ class ScenarioSequencer(ModelSlave):
         before a phase start counts as that start."""
         scenario = self.scenario
         self.__dict__.update(zip(self.reference_names, scenario.reference_at(time, tolerance)))
-        self.__dict__.update(self.defaults | scenario.inputs_at(time, self.segments, tolerance))
+        self.__dict__.update({**self.defaults,
+                              **scenario.inputs_at(time, self.segments, tolerance)})
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.segments = self.scenario.input_segments(self.chosen_variant())
