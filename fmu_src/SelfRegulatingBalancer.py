@@ -32,9 +32,12 @@ class SelfRegulatingBalancer(MechanismSlave):
                             "2021): 1-DOF link, zero-free-length spring on a lockable slider, "
                             "pulley-counterweight regulation")
         self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at b0 "
-                                      "at theta = pi, k (a + b0) r / (g R) (eq. 10)")
-        self.add_calculated_parameter("payload_max", "kg", "Payload capacity with the slider "
-                                      "travel limited to w, k a (w - b0) / (w g) (eq. 16)")
+                                      "at theta = pi, (k (a + b0 - L0) - m_slider g) r / (g R) "
+                                      "(eq. 10 when L0 = m_slider = 0)")
+        self.add_calculated_parameter("payload_max", "kg", "Payload capacity: regulation at "
+                                      "theta = pi keeps the slider within b_max, "
+                                      "k r (b_max - b0) / (g R) (eq. 16 when R/r = w/a, "
+                                      "b_max = w)")
         self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
         self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's delta m)",
                        min=0.0)
@@ -72,7 +75,9 @@ class SelfRegulatingBalancer(MechanismSlave):
             raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
         if u != self.previous_inputs:
-            self.report_misuse(p, u)
+            if u[1:] != self.previous_inputs[1:]:  # more than tau_drive: an event
+                self.report_misuse(p, u)
+                self.state = physics.switch_inputs(p, self.previous_inputs, u, self.state)
             self.previous_inputs = u
         self.state = physics.advance(p, u, self.state, dt)
         out = physics.outputs(p, u, self.state)
@@ -132,4 +137,10 @@ OUTPUTS = (
     ("E_cw", "J", "Potential energy of the counterweight relative to its start"),
     ("E_kin", "J", "Kinetic energy of link, payload, drive rotor, slider and counterweight"),
     ("slider_at_stop", None, "Free slider resting on an end stop (b_min or b_max)"),
+    ("W_drive", "J", "Cumulative work of tau_drive on the link"),
+    ("E_loss", "J", "Cumulative energy dissipated: dampers, end-stop impacts, lock events, "
+                    "masses picked up while moving"),
+    ("E_added", "J", "Cumulative energy brought in (+) or taken out (-) by payload and "
+                     "counterweight mass joining or leaving; E_t + E_cw + E_kin + E_loss - "
+                     "W_drive - E_added is constant"),
 )

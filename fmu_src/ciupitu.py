@@ -70,7 +70,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from fmu_src.integration import integrate_second_order
+from fmu_src.integration import integrate
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -285,10 +285,14 @@ class Inputs(NamedTuple):
 
 
 class State(NamedTuple):
-    """Continuous state: arm angle from the upward vertical [rad] and its rate [rad/s]."""
+    """Continuous state: arm angle from the upward vertical [rad] and its rate [rad/s], and the
+    energy ledger [J] (E_p + E_kin + E_loss - W_drive - E_added is constant)."""
 
     theta: float
     omega: float
+    W_drive: float = 0.0    # work of tau_drive on the arm
+    E_loss: float = 0.0     # dissipated: pivot friction, payload picked up while moving
+    E_added: float = 0.0    # brought in (+) or taken out (-) by payload joining or leaving
 
 
 def initial_state(params: Parameters) -> State:
@@ -339,7 +343,9 @@ def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
 
 def derivatives(p: Parameters, u: Inputs, s: State) -> State:
     """Time derivative of the state for constant inputs (Lagrange equation)."""
-    return State(s.omega, acceleration(p, u.payload, u.tau_drive, s.theta, s.omega))
+    omega = s[1]
+    return State(omega, acceleration(p, u.payload, u.tau_drive, s[0], omega), u.tau_drive * omega,
+                 p.d_link * omega * omega, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -353,10 +359,35 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    payload, tau_drive = u.payload, u.tau_drive
-    return State(*integrate_second_order(
-        lambda theta, omega: acceleration(p, payload, tau_drive, theta, omega),
-        s.theta, s.omega, dt, characteristic_rate(p, u, s)))
+    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
+
+
+def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
+    """E_p + E_kin [J] (as `outputs` reports them)."""
+    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - s.theta)
+    return (p.g * math.cos(s.theta) * _net_moment_arm(p, payload, OB)
+            + 0.5 * _inertia(p, payload, OB, dOB, d2OB)[0] * s.omega ** 2)
+
+
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state just after the payload changes from before.payload to after.payload at a
+    communication point (docs/energy_ledger.md): a payload added is picked up from rest, so
+    the arm's angular momentum J omega is conserved and the kinetic energy lost goes to
+    E_loss; a payload removed leaves with its own velocity (omega unchanged) and takes its
+    kinetic energy away. Its potential energy joins or leaves through E_added."""
+    d_payload = after.payload - before.payload
+    if d_payload == 0.0:
+        return s
+    omega = s.omega
+    added = d_payload * p.g * p.w * math.cos(s.theta)
+    if d_payload > 0.0:
+        omega *= inertia(p, before.payload, s.theta)[0] / inertia(p, after.payload, s.theta)[0]
+    else:
+        added += 0.5 * d_payload * (p.w * omega) ** 2
+    new = s._replace(omega=omega, E_added=s.E_added + added)
+    loss = (mechanical_energy(p, before.payload, s) + added
+            - mechanical_energy(p, after.payload, new))
+    return new._replace(E_loss=s.E_loss + loss)
 
 
 class Outputs(NamedTuple):
@@ -372,6 +403,9 @@ class Outputs(NamedTuple):
     M_b: float
     M_u: float
     M_bar: float
+    W_drive: float
+    E_loss: float
+    E_added: float
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
@@ -386,4 +420,5 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
         E_kin=0.5 * _inertia(p, u.payload, OB, dOB, d2OB)[0] * s.omega ** 2,
         M_g=M.M_g, M_b=M.M_b, M_u=M.M_u,
         M_bar=p.m2 * p.g * dOB * math.sin(phi),
+        W_drive=s.W_drive, E_loss=s.E_loss, E_added=s.E_added,
     )

@@ -19,6 +19,13 @@ Lagrangian, with J0 = J_link + payload w^2 + J_drive and M_cw = M0 + counterweig
 
 with T_wire = M_cw g R / r while the pulley turns (0 when it is locked). A massless slider
 with the pulley locked (m_eff = 0) has first-order dynamics d_slider v = F_net.
+
+Energy ledger (docs/energy_ledger.md): W_drive (work of tau_drive) and E_loss (dampers, end
+stops, lock events, masses picked up while moving) are states, E_added (energy that masses
+bring in or take out as they join or leave) changes at input events only, so that
+E_t + E_cw + E_kin + E_loss - W_drive - E_added is constant. Inputs change only at
+communication points; `switch_inputs` maps the state across such a change (momentum
+conserved where the bodies couple or decouple), `advance` integrates between them.
 """
 
 from __future__ import annotations
@@ -28,10 +35,14 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import integrate, integrate_second_order
+from fmu_src.integration import integrate
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
+# A free slider starts every lock event with a jump in its acceleration, which RK4 at the
+# shared step-rate product resolves to ~1e-9 J of the energy ledger per event; sub-steps four
+# times finer on the slider's rates keep it near 1e-11 J (the link's own rate is unchanged).
+SLIDER_RATE_FACTOR = 4.0
 
 
 @dataclass(frozen=True)
@@ -73,13 +84,23 @@ class Parameters:
 
     @cached_property
     def M0(self) -> float:
-        """Counterweight mass that holds the slider at b0 with theta = pi, eq. 10 [kg]."""
-        return self.k * (self.a + self.b0) * self.r / (self.g * self.R) if self.g > 0 else 0.0
+        """Counterweight mass that holds the slider at b0 with theta = pi [kg]:
+        (k (a + b0 - L0) - m_slider g) r / (g R), eq. 10 when L0 = m_slider = 0 (0 if the
+        spring cannot hold the slider's weight there)."""
+        if self.g <= 0:
+            return 0.0
+        pull = self.k * max(self.a + self.b0 - self.L0, 0.0) - self.m_slider * self.g
+        return max(pull, 0.0) * self.r / (self.g * self.R)
 
     @cached_property
     def payload_max(self) -> float:
-        """Largest payload the slider travel up to w can balance, eq. 16 [kg]."""
-        return self.k * self.a * (self.w - self.b0) / (self.w * self.g) if self.g > 0 else math.inf
+        """Largest payload whose regulation at theta = pi (the same mass added to the
+        counterweight) keeps the slider within b_max: k r (b_max - b0) / (g R) [kg]. Eq. 16
+        when R/r = w/a and b_max = w; independent of L0 and m_slider (at theta = pi the
+        spring force grows by k per metre of slider travel, whatever L0)."""
+        if self.g <= 0:
+            return math.inf
+        return self.k * (self.b_max - self.b0) * self.r / (self.g * self.R)
 
     @cached_property
     def pulley_ratio(self) -> float:
@@ -108,18 +129,22 @@ class Inputs(NamedTuple):
 
 
 class State(NamedTuple):
-    """Continuous state: link angle and speed, slider position and speed, counterweight descent."""
+    """Continuous state: link angle and speed, slider position and speed, counterweight descent,
+    and the energy ledger [J]."""
 
     theta: float
     omega: float
     b: float
     v: float
     s_cw: float = 0.0
+    W_drive: float = 0.0    # work of tau_drive on the link
+    E_loss: float = 0.0     # dissipated: dampers, end-stop impacts, lock events, pick-ups
+    E_added: float = 0.0    # brought in (+) or taken out (-) by masses joining or leaving
 
 
 def initial_state(params: Parameters) -> State:
-    """State at t = 0: link at theta0, omega0, slider at rest at b0."""
-    return State(params.theta0, params.omega0, params.b0, 0.0, 0.0)
+    """State at t = 0: link at theta0, omega0, slider at rest at b0, empty ledger."""
+    return State(params.theta0, params.omega0, params.b0, 0.0)
 
 
 def spring_length(p: Parameters, theta: float, b: float) -> float:
@@ -171,8 +196,12 @@ def _slider_force(p: Parameters, u: Inputs, theta: float, omega: float, b: float
 
 
 def _at_stop(p: Parameters, b: float, push: float) -> bool:
-    """True when the slider rests on an end stop and the load pushes it into that stop."""
-    return (b <= p.b_min and push <= 0.0) or (b >= p.b_max and push >= 0.0)
+    """True when the slider rests exactly on an end stop and the load pushes it into that stop.
+
+    A state beyond a stop (inside an RK4 sub-step) is integrated freely and clamped after the
+    sub-step: holding it there would mix two right-hand sides in one RK4 step and spoil the
+    energy balance."""
+    return (b == p.b_min and push <= 0.0) or (b == p.b_max and push >= 0.0)
 
 
 def _link_acceleration(p: Parameters, u: Inputs, theta: float, omega: float, b: float,
@@ -190,15 +219,17 @@ def derivatives(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
 
     A plain tuple, not a State: this runs four times per RK4 step and a NamedTuple costs more.
     """
-    theta, omega, b, v, _ = s
+    theta, omega, b, v = s[:4]
     omega_dot = _link_acceleration(p, u, theta, omega, b, v)
+    drive_power = u.tau_drive * omega
+    link_loss = p.d_link * omega * omega
     if u.slider_locked:
-        return (omega, omega_dot, 0.0, 0.0, 0.0)
+        return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
     m_eff = slider_mass(p, u)
     force = _slider_force(p, u, theta, omega, b, v, _free_length_factor(p, theta, b))
     if m_eff > 0.0:
-        if _at_stop(p, b, force if v == 0.0 else v):
-            return (omega, omega_dot, 0.0, 0.0, 0.0)
+        if v == 0.0 and _at_stop(p, b, force):
+            return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
         b_dot, v_dot = v, force / m_eff
     else:
         # Massless slider: d_slider v = F_spring + T (v eliminated, kept as an output).
@@ -207,7 +238,8 @@ def derivatives(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
             b_dot = 0.0
         v_dot = 0.0
     s_cw_dot = 0.0 if u.pulley_locked else p.pulley_ratio * b_dot
-    return (omega, omega_dot, b_dot, v_dot, s_cw_dot)
+    return (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
+            link_loss + p.d_slider * b_dot * b_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -219,27 +251,55 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
         if m_eff > 0.0:
-            rate = max(rate, math.sqrt(k_b / m_eff), p.d_slider / m_eff)
+            slider_rate = max(math.sqrt(k_b / m_eff), p.d_slider / m_eff)
         else:
-            rate = max(rate, k_b / p.d_slider)
+            slider_rate = k_b / p.d_slider
+        rate = max(rate, SLIDER_RATE_FACTOR * slider_rate)
     return rate
 
 
+def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
+    """E_t + E_cw + E_kin [J] (as `outputs` reports them)."""
+    theta, omega, b, v, s_cw = s[:5]
+    E_p = gravity_moment(p, u.payload, b) * math.cos(theta)
+    E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
+    E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
+    mass = p.m_slider if u.slider_locked else slider_mass(p, u)
+    return E_p + E_e + E_cw + 0.5 * link_inertia(p, u.payload, b) * omega ** 2 + 0.5 * mass * v * v
+
+
+def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
+    """Speed of a free massless slider with the pulley locked, set by the forces [m/s]."""
+    v = _slider_force(p, u, s.theta, s.omega, s.b, 0.0,
+                      _free_length_factor(p, s.theta, s.b)) / p.d_slider
+    return 0.0 if _at_stop(p, s.b, v) else v
+
+
 def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
-    """Clamp the slider to its end stops (inelastic) and hold it still when locked."""
-    theta, omega, b, v, s_cw = s
-    if u.slider_locked:
-        return State(theta, omega, b, 0.0, s_cw)
-    if b < p.b_min:
-        return State(theta, omega, p.b_min, max(v, 0.0), s_cw)
-    if b > p.b_max:
-        return State(theta, omega, p.b_max, min(v, 0.0), s_cw)
+    """Clamp the free slider to its end stops (inelastic: the energy the clamp removes goes to
+    E_loss), moving the counterweight with it while the pulley turns."""
+    b, v = s.b, s.v
+    if p.b_min <= b <= p.b_max:
+        if slider_mass(p, u) == 0.0:
+            return s._replace(v=_damper_speed(p, u, s))
+        return s
+    stop = p.b_min if b < p.b_min else p.b_max
+    v = max(v, 0.0) if b < p.b_min else min(v, 0.0)
+    s_cw = s.s_cw if u.pulley_locked else s.s_cw + p.pulley_ratio * (stop - b)
+    clamped = s._replace(b=stop, v=v, s_cw=s_cw)
     if slider_mass(p, u) == 0.0:
-        # Massless slider: its speed is the damper speed set by the forces.
-        v = _slider_force(p, u, theta, omega, b, 0.0, _free_length_factor(p, theta, b)) / p.d_slider
-        if _at_stop(p, b, v):
-            v = 0.0
-    return State(theta, omega, b, v, s_cw)
+        clamped = clamped._replace(v=_damper_speed(p, u, clamped))
+    loss = mechanical_energy(p, u, s) - mechanical_energy(p, u, clamped)
+    return clamped._replace(E_loss=s.E_loss + loss)
+
+
+class _LinkState(NamedTuple):
+    """State of the link alone while the slider is clamped: angle, speed, W_drive, E_loss."""
+
+    theta: float
+    omega: float
+    W_drive: float
+    E_loss: float
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -247,15 +307,66 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     rate = characteristic_rate(p, u, s)
     if u.slider_locked:
         # A clamped slider leaves a 1-DOF link: b and s_cw stay put and v = 0. RK4 over the
-        # link alone gives the same numbers as over the full state (whose other derivatives
-        # are zero) at less than half the cost of a step.
-        b = s.b
-        theta, omega = integrate_second_order(
-            lambda theta, omega: _link_acceleration(p, u, theta, omega, b, 0.0),
-            s.theta, s.omega, dt, rate)
-        return State(theta, omega, b, 0.0, s.s_cw)
+        # link (and its ledger) alone gives the same numbers as over the full state, whose
+        # other derivatives are zero, at less cost.
+        b, tau = s.b, u.tau_drive
+
+        def link(x: _LinkState) -> tuple[float, ...]:
+            return (x.omega, _link_acceleration(p, u, x.theta, x.omega, b, 0.0),
+                    tau * x.omega, p.d_link * x.omega * x.omega)
+
+        end = integrate(link, _LinkState(s.theta, s.omega, s.W_drive, s.E_loss), dt, rate)
+        return s._replace(theta=end.theta, omega=end.omega, v=0.0, W_drive=end.W_drive,
+                          E_loss=end.E_loss)
     return integrate(lambda state: derivatives(p, u, state), s, dt, rate,
                      lambda state: _apply_constraints(p, u, state))
+
+
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state just after the inputs change from `before` to `after` at a communication point.
+
+    Event physics (docs/energy_ledger.md), in this order:
+    - payload added: picked up from rest, the link's angular momentum J omega is conserved;
+      payload removed: it leaves with its own velocity, omega unchanged, and takes its
+      kinetic energy with it;
+    - counterweight mass, while it moves with the slider (both free): added from rest, the
+      momentum m_eff v of slider and counterweight is conserved; removed, v unchanged;
+    - slider locked: the clamp stops it (v = 0) and the counterweight with it; the clamp acts
+      along the link, so omega does not change;
+    - pulley released with the slider free: the slider's momentum m_slider v is shared with
+      the counterweight at rest (a massless slider carries none: v = 0); pulley locked: the
+      counterweight stops, the slider keeps v.
+    Masses joining or leaving book their potential energy (and the kinetic energy they take
+    away) to E_added; the kinetic energy the events destroy goes to E_loss.
+    """
+    theta, omega, b, v, s_cw = s[:5]
+    added = 0.0
+    d_payload = after.payload - before.payload
+    if d_payload != 0.0:
+        added += d_payload * p.g * p.w * math.cos(theta)
+        if d_payload > 0.0:
+            omega *= link_inertia(p, before.payload, b) / link_inertia(p, after.payload, b)
+        else:
+            added += 0.5 * d_payload * (p.w * omega) ** 2
+    moving_cw = not (before.slider_locked or before.pulley_locked)
+    d_cw = after.counterweight_added - before.counterweight_added
+    if d_cw != 0.0:
+        added -= d_cw * p.g * s_cw
+        if moving_cw and d_cw > 0.0:
+            heavier = before._replace(counterweight_added=after.counterweight_added)
+            v *= slider_mass(p, before) / slider_mass(p, heavier)
+        elif moving_cw:
+            added += 0.5 * d_cw * (p.pulley_ratio * v) ** 2
+    if after.slider_locked:
+        v = 0.0
+    elif not before.slider_locked and not after.pulley_locked and before.pulley_locked:
+        coupled = slider_mass(p, after)
+        v = v * p.m_slider / coupled if coupled > 0.0 else 0.0
+    new = State(theta, omega, b, v, s_cw, s.W_drive, s.E_loss, s.E_added + added)
+    if not after.slider_locked and slider_mass(p, after) == 0.0:
+        new = new._replace(v=_damper_speed(p, after, new))
+    loss = mechanical_energy(p, before, s) + added - mechanical_energy(p, after, new)
+    return new._replace(E_loss=s.E_loss + loss)
 
 
 def slider_at_stop(p: Parameters, u: Inputs, s: State) -> bool:
@@ -306,11 +417,14 @@ class Outputs(NamedTuple):
     E_cw: float
     E_kin: float
     slider_at_stop: bool
+    W_drive: float
+    E_loss: float
+    E_added: float
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    theta, omega, b, v, s_cw = s
+    theta, omega, b, v, s_cw = s[:5]
     sin_t, cos_t = math.sin(theta), math.cos(theta)
     x = spring_length(p, theta, b)
     factor = _free_length_factor(p, theta, b)
@@ -326,5 +440,6 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     balance_error = moment - p.k * p.a * b
     # Positional, in field order: keyword arguments would add a microsecond to every step.
     return Outputs(theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, balance_error,
-                   E_p, E_e, E_p + E_e, E_cw, E_kin, slider_at_stop(p, u, s))
+                   E_p, E_e, E_p + E_e, E_cw, E_kin, slider_at_stop(p, u, s), s.W_drive,
+                   s.E_loss, s.E_added)
 
