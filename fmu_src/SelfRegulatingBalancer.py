@@ -16,6 +16,9 @@ from fmu_src.fmi_base import MechanismSlave
 
 # How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
 REGULATION_ANGLE_TOLERANCE = 0.5 * physics.DEG
+# RMS residual torque over a full turn, as a fraction of the link's gravity moment
+# (m c + payload w) g, above which a finished regulation warns that the design cannot balance.
+BALANCE_TOLERANCE = 0.01
 
 
 class SelfRegulatingBalancer(MechanismSlave):
@@ -31,13 +34,16 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.description = ("Self-regulating gravity balancer (Franchetti, Boschetti, Lenzo "
                             "2021): 1-DOF link, zero-free-length spring on a lockable slider, "
                             "pulley-counterweight regulation")
-        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at b0 "
-                                      "at theta = pi, (k (a + b0 - L0) - m_slider g) r / (g R) "
-                                      "(eq. 10 when L0 = m_slider = 0)")
+        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider where it "
+                                      "balances the link (least RMS residual torque over a full "
+                                      "turn) at theta = pi: eq. 10 for an ideal spring, a "
+                                      "massless slider and a balancing b0")
+        self.add_calculated_parameter("b_balanced", "m", "Slider position balancing the link "
+                                      "without payload (least RMS residual torque over a full "
+                                      "turn; b0 for Table 1)")
         self.add_calculated_parameter("payload_max", "kg", "Payload capacity: regulation at "
-                                      "theta = pi keeps the slider within b_max, "
-                                      "k r (b_max - b0) / (g R) (eq. 16 when R/r = w/a, "
-                                      "b_max = w)")
+                                      "theta = pi keeps the slider within b_max (eq. 16 for "
+                                      "Table 1)")
         self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
         self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's delta m)",
                        min=0.0)
@@ -63,6 +69,7 @@ class SelfRegulatingBalancer(MechanismSlave):
 
     def initialise(self, params: physics.Parameters) -> None:
         self.M0 = params.M0
+        self.b_balanced = params.b_balanced
         self.payload_max = params.payload_max
         self.state = physics.initial_state(params)
         self.previous_inputs = self.inputs()
@@ -110,9 +117,27 @@ class SelfRegulatingBalancer(MechanismSlave):
         if regulating and u.payload > p.payload_max >= before.payload:
             self.warn(f"payload = {u.payload} kg exceeds payload_max = {p.payload_max:.4f} kg: "
                       "the slider will stop at b_max")
+        if not before.slider_locked and u.slider_locked and not before.pulley_locked:
+            self.check_balance(p, u.payload)
         if u.counterweight_added != before.counterweight_added and u.pulley_locked:
             self.warn("counterweight_added changed with the pulley locked: it acts only once "
                       "the pulley is released")
+
+    def check_balance(self, p: physics.Parameters, payload: float) -> None:
+        """Warn when the slider, just locked after a regulation, leaves the link unbalanced
+        beyond BALANCE_TOLERANCE, naming the best position and the counterweight reaching it."""
+        b = self.state.b
+        residual = physics.residual_torque_rms(p, payload, b)
+        moment = (p.m * p.c + payload * p.w) * p.g
+        if residual <= BALANCE_TOLERANCE * moment:
+            return
+        best = physics.balancing_slider_position(p, payload)
+        self.warn(f"the design cannot balance payload = {payload} kg: the slider was locked at "
+                  f"b = {b:.4f} m, where the link's residual torque is {residual:.3g} N m RMS "
+                  f"over a full turn ({100 * residual / moment:.1f} % of its gravity moment); "
+                  f"the least, {physics.residual_torque_rms(p, payload, best):.3g} N m RMS, is "
+                  f"at b = {best:.4f} m (regulation at 180 deg reaches it with "
+                  f"counterweight_added = {physics.counterweight_for(p, best):.4f} kg)")
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])

@@ -83,24 +83,29 @@ class Parameters:
                                min=0.0)
 
     @cached_property
+    def b_balanced(self) -> float:
+        """Slider position that balances the link without payload (least RMS residual torque
+        over a full turn; m c g / (k a) = b0 for Table 1, eq. 2) [m]."""
+        return balancing_slider_position(self, 0.0)
+
+    @cached_property
     def M0(self) -> float:
-        """Counterweight mass that holds the slider at b0 with theta = pi [kg]:
-        (k (a + b0 - L0) - m_slider g) r / (g R), eq. 10 when L0 = m_slider = 0 (0 if the
-        spring cannot hold the slider's weight there)."""
+        """Counterweight mass that holds the slider at b_balanced with theta = pi [kg]:
+        (k (a + b_balanced - L0) - m_slider g) r / (g R), eq. 10 when L0 = m_slider = 0 and
+        b0 balances the link (0 if the spring cannot hold the slider's weight there)."""
         if self.g <= 0:
             return 0.0
-        pull = self.k * max(self.a + self.b0 - self.L0, 0.0) - self.m_slider * self.g
-        return max(pull, 0.0) * self.r / (self.g * self.R)
+        return max(_wire_pull(self, self.b_balanced), 0.0) * self.r / (self.g * self.R)
 
     @cached_property
     def payload_max(self) -> float:
         """Largest payload whose regulation at theta = pi (the same mass added to the
-        counterweight) keeps the slider within b_max: k r (b_max - b0) / (g R) [kg]. Eq. 16
-        when R/r = w/a and b_max = w; independent of L0 and m_slider (at theta = pi the
-        spring force grows by k per metre of slider travel, whatever L0)."""
+        counterweight) keeps the slider within b_max: k r (b_max - b_balanced) / (g R) [kg].
+        Eq. 16 when R/r = w/a, b_max = w and b_balanced = b0 (at theta = pi the spring force
+        grows by k per metre of slider travel, whatever L0)."""
         if self.g <= 0:
             return math.inf
-        return self.k * (self.b_max - self.b0) * self.r / (self.g * self.R)
+        return self.k * (self.b_max - self.b_balanced) * self.r / (self.g * self.R)
 
     @cached_property
     def pulley_ratio(self) -> float:
@@ -397,6 +402,57 @@ def regulated_slider_position(p: Parameters, u: Inputs, theta: float) -> float:
         else:
             hi = mid
     return 0.5 * (lo + hi)
+
+
+# ---- design for a real spring and slider (docs/energy_ledger.md, "Design rule") -----------
+_TURN_SAMPLES = 72    # trapezoid rule over a full turn: exact for the low harmonics here
+
+
+def residual_torque_rms(p: Parameters, payload: float, b: float) -> float:
+    """RMS over a full turn of the link of tau_gravity with the slider locked at b [N m]."""
+    total = 0.0
+    for i in range(_TURN_SAMPLES):
+        theta = 2.0 * math.pi * (i + 0.5) / _TURN_SAMPLES
+        spring = p.k * p.a * b * _free_length_factor(p, theta, b)
+        total += ((gravity_moment(p, payload, b) - spring) * math.sin(theta)) ** 2
+    return math.sqrt(total / _TURN_SAMPLES)
+
+
+def balancing_slider_position(p: Parameters, payload: float) -> float:
+    """The slider position in [b_min, b_max] that minimises residual_torque_rms [m].
+
+    With L0 = 0 the link balances exactly at b = (m c + payload w) g / (k a - m_slider g)
+    (clipped to the stops); a real spring (L0 > 0) balances nowhere exactly, and this is the
+    position of least RMS residual torque over the full turn (grid, then golden section).
+    """
+    if p.L0 == 0.0:
+        stiffness = p.k * p.a - p.m_slider * p.g
+        if stiffness <= 0.0:
+            return p.b_max
+        return min(max((p.m * p.c + payload * p.w) * p.g / stiffness, p.b_min), p.b_max)
+    samples = 40
+    grid = [p.b_min + (p.b_max - p.b_min) * i / samples for i in range(samples + 1)]
+    best = min(range(samples + 1), key=lambda i: residual_torque_rms(p, payload, grid[i]))
+    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, samples)]
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    while hi - lo > 1e-9:
+        x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+        if residual_torque_rms(p, payload, x1) <= residual_torque_rms(p, payload, x2):
+            hi = x2
+        else:
+            lo = x1
+    return 0.5 * (lo + hi)
+
+
+def _wire_pull(p: Parameters, b: float) -> float:
+    """Wire tension that holds the slider at b with theta = pi, k (a + b - L0) - m_slider g [N]
+    (the spring's pull, minus the slider's weight, which hangs outward there)."""
+    return p.k * max(p.a + b - p.L0, 0.0) - p.m_slider * p.g
+
+
+def counterweight_for(p: Parameters, b: float) -> float:
+    """counterweight_added that makes regulation at theta = pi settle at b [kg]."""
+    return _wire_pull(p, b) * p.r / (p.g * p.R) - p.M0
 
 
 class Outputs(NamedTuple):

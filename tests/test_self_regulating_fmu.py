@@ -229,6 +229,53 @@ def test_payload_above_capacity_ends_at_b_max(srb_fmu: Path) -> None:
     assert any("end stop b_max" in m for m in logged)
 
 
+# ---- real spring and slider mass: the design rule
+
+def with_counterweight(mass: float, added: float) -> Callable[[float], dict[str, float | bool]]:
+    """regulation(mass) with `added` [kg] ramped onto the counterweight instead of mass."""
+    def inputs(t: float) -> dict[str, float | bool]:
+        values = regulation(mass)(t)
+        return {**values, "counterweight_added": added * min(max((t - 0.2) / 3.0, 0.0), 1.0)}
+    return inputs
+
+
+def test_real_spring_design_warns_and_names_the_counterweight(srb_fmu: Path) -> None:
+    """L0 = 40 mm, m_slider = 0.4 kg: no slider position balances the link, and the counterweight
+    added equal to the payload misses the best one; the FMU says so when the slider is locked,
+    with the counterweight that reaches the best position. Regulating with that counterweight
+    puts the slider there (it still warns: the best residual is above 1 %)."""
+    params = {"theta0": math.pi, "L0": 0.04, "m_slider": 0.4}
+    with open_fmu(srb_fmu, params) as fmu:
+        drive(fmu, 0.0, 6.4, hold(math.pi), regulation(1.0), ("b",))
+        logged = [m for m in warnings(fmu) if "cannot balance" in m]
+    assert len(logged) == 1
+    named = float(logged[0].split("counterweight_added = ")[1].split(" kg")[0])
+    best_b = float(logged[0].split("is at b = ")[1].split(" m")[0])
+    with open_fmu(srb_fmu, params) as fmu:
+        rows = drive(fmu, 0.0, 6.4, hold(math.pi), with_counterweight(1.0, named), ("b",))
+        assert [m for m in warnings(fmu) if "cannot balance" in m]
+    assert rows[-1, 1] == pytest.approx(best_b, abs=1e-4)
+
+
+def test_slider_mass_is_balanced_with_the_named_counterweight(srb_fmu: Path) -> None:
+    """Ideal spring, m_slider = 0.4 kg: the link balances where (m c + payload w + m_slider b) g
+    = k a b, b = (m c + w) g / (k a - m_slider g) = 98.96 mm for 1 kg, which needs
+    counterweight_added = k (b - b_eq) r / (g R) with b_eq = m c g / (k a - m_slider g),
+    1.0417 kg. With it the slider settles there, the link balances and nothing is reported."""
+    m_s = 0.4
+    b_1kg = (M * C + W) * G / (K * A - m_s * G)
+    b_eq = M * C * G / (K * A - m_s * G)
+    added = K * (b_1kg - b_eq) * R_WIRE / (G * R_CW)
+    assert b_1kg == pytest.approx(0.09896, abs=1e-5) and added == pytest.approx(1.0417, abs=1e-4)
+    with open_fmu(srb_fmu, {"theta0": math.pi, "m_slider": m_s}) as fmu:
+        assert fmu.get(["b_balanced"])["b_balanced"] == pytest.approx(b_eq, rel=1e-12)
+        rows = drive(fmu, 0.0, 6.4, hold(math.pi), with_counterweight(1.0, added),
+                     ("b", "balance_error"))
+        assert warnings(fmu) == []
+    assert rows[-1, 1] == pytest.approx(b_1kg, abs=1e-5)
+    assert abs(rows[-1, 2]) < 1e-3
+
+
 # ---- bad input
 
 @pytest.mark.parametrize(("parameters", "name", "allowed"), [
