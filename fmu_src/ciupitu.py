@@ -341,11 +341,22 @@ def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
             - 0.5 * dJ * omega * omega) / J
 
 
-def derivatives(p: Parameters, u: Inputs, s: State) -> State:
-    """Time derivative of the state for constant inputs (Lagrange equation)."""
-    omega = s[1]
-    return State(omega, acceleration(p, u.payload, u.tau_drive, s[0], omega), u.tau_drive * omega,
-                 p.d_link * omega * omega, 0.0)
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state (Lagrange equation) for inputs u that are constant or, for
+    a continuous-time model such as the harness's reference, change at `rates` (d/dt of the
+    inputs): the continuous limit of switch_inputs, a payload joining from rest brakes the
+    arm, J omega' gains -payload_rate w^2 omega and E_loss 1/2 payload_rate w^2 omega^2; a
+    payload leaving takes its kinetic energy (E_added)."""
+    theta, omega = s[0], s[1]
+    omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
+    loss = p.d_link * omega * omega
+    if rates is None:
+        return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
+    gain, drop = max(rates.payload, 0.0), min(rates.payload, 0.0)
+    kinetic = 0.5 * (p.w * omega) ** 2
+    return State(omega, omega_dot - gain * p.w * p.w * omega / inertia(p, u.payload, theta)[0],
+                 u.tau_drive * omega, loss + gain * kinetic,
+                 rates.payload * p.g * p.w * math.cos(theta) + drop * kinetic)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:

@@ -238,8 +238,9 @@ def _held_by_stop(p: Parameters, q2: float, q2_dot: float, force: float) -> bool
                               or (q2 == p.q2_max and force >= 0.0))
 
 
-def derivatives(p: Parameters, u: Inputs, s: State) -> State:
-    """Time derivative of the state for constant inputs."""
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
+    other mechanisms take it: no mass changes here, so it is not used)."""
     q1, w1, q2, w2 = s[:4]
     lc2 = p.ls0 + q2
     eff = efforts(p, q1, q2)

@@ -219,8 +219,11 @@ def _link_acceleration(p: Parameters, u: Inputs, theta: float, omega: float, b: 
             - p.d_link * omega - coriolis) / link_inertia(p, u.payload, b)
 
 
-def derivatives(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
-    """Time derivative of the state for constant inputs, in State's field order.
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None
+                ) -> tuple[float, ...]:
+    """Time derivative of the state, in State's field order, for inputs u that are constant
+    or, for a continuous-time model such as the harness's reference, change at `rates`
+    (d/dt of the Real inputs; masses then join and leave continuously, see _mass_flow).
 
     A plain tuple, not a State: this runs four times per RK4 step and a NamedTuple costs more.
     """
@@ -229,12 +232,14 @@ def derivatives(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
     drive_power = u.tau_drive * omega
     link_loss = p.d_link * omega * omega
     if u.slider_locked:
-        return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+        d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+        return d if rates is None else _mass_flow(p, u, rates, s, d)
     m_eff = slider_mass(p, u)
     force = _slider_force(p, u, theta, omega, b, v, _free_length_factor(p, theta, b))
     if m_eff > 0.0:
         if v == 0.0 and _at_stop(p, b, force):
-            return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+            d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+            return d if rates is None else _mass_flow(p, u, rates, s, d)
         b_dot, v_dot = v, force / m_eff
     else:
         # Massless slider: d_slider v = F_spring + T (v eliminated, kept as an output).
@@ -243,8 +248,32 @@ def derivatives(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
             b_dot = 0.0
         v_dot = 0.0
     s_cw_dot = 0.0 if u.pulley_locked else p.pulley_ratio * b_dot
-    return (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
-            link_loss + p.d_slider * b_dot * b_dot, 0.0)
+    d = (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
+         link_loss + p.d_slider * b_dot * b_dot, 0.0)
+    return d if rates is None else _mass_flow(p, u, rates, s, d)
+
+
+def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float, ...]
+               ) -> tuple[float, ...]:
+    """d with the continuous-time limit of switch_inputs for masses changing at `rates`:
+    payload joining from rest brakes the link, J omega' gains -payload_rate w^2 omega, and
+    costs 1/2 payload_rate w^2 omega^2 of E_loss; leaving, it takes its kinetic energy
+    (E_added); likewise counterweight mass joining or leaving the moving counterweight."""
+    theta, omega, b, v, s_cw = s[:5]
+    gain, drop = max(rates.payload, 0.0), min(rates.payload, 0.0)
+    omega_dot = d[1] - gain * p.w * p.w * omega / link_inertia(p, u.payload, b)
+    loss = 0.5 * gain * (p.w * omega) ** 2
+    added = rates.payload * p.g * p.w * math.cos(theta) + 0.5 * drop * (p.w * omega) ** 2
+    added -= rates.counterweight_added * p.g * s_cw
+    v_dot = d[3]
+    m_eff = slider_mass(p, u)
+    if not (u.slider_locked or u.pulley_locked) and m_eff > 0.0 and d[2] != 0.0:
+        reflected = p.pulley_ratio ** 2 * v * v
+        gain_cw = max(rates.counterweight_added, 0.0)
+        v_dot -= gain_cw * p.pulley_ratio ** 2 * v / m_eff
+        loss += 0.5 * gain_cw * reflected
+        added += 0.5 * min(rates.counterweight_added, 0.0) * reflected
+    return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
