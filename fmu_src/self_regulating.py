@@ -76,6 +76,13 @@ class Parameters:
     d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
     d_slider: float = parameter(500.0, "N.s/m", "Viscous damping of the slider on the link",
                                 min=0.0)
+    mu_slider: float = parameter(0.0, "1", "Coulomb friction coefficient of the slider on the "
+                                 "link (normal force from the spring's F_n and the slider's "
+                                 "weight)", min=0.0)
+    J_pulley: float = parameter(0.0, "kg.m2", "Moment of inertia of the compound pulley",
+                                min=0.0)
+    d_pulley: float = parameter(0.0, "N.m.s/rad", "Viscous friction of the pulley's bearing",
+                                min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
     theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
     omega0: float = parameter(0.0, "rad/s", "Initial link angular velocity")
@@ -178,10 +185,27 @@ def wire_tension(p: Parameters, u: Inputs) -> float:
 
 
 def slider_mass(p: Parameters, u: Inputs) -> float:
-    """Effective mass of the slider, with the counterweight reflected through the pulley [kg]."""
+    """Effective mass of the slider, with the counterweight and the pulley reflected through
+    the pulley (it turns at v / r) [kg]."""
     if u.pulley_locked:
         return p.m_slider
-    return p.m_slider + (p.M0 + u.counterweight_added) * p.pulley_ratio ** 2
+    return (p.m_slider + (p.M0 + u.counterweight_added) * p.pulley_ratio ** 2
+            + p.J_pulley / (p.r * p.r))
+
+
+def slider_damping(p: Parameters, u: Inputs) -> float:
+    """Viscous damping of the slider, with the pulley's bearing reflected while it turns
+    [N s/m]."""
+    return p.d_slider if u.pulley_locked else p.d_slider + p.d_pulley / (p.r * p.r)
+
+
+def slider_friction(p: Parameters, theta: float, factor: float) -> float:
+    """Coulomb friction force limit mu_slider |F_n - m_slider g sin(theta)| on the slider [N]
+    (the spring's and the weight's components normal to the link); factor is
+    _free_length_factor(p, theta, b)."""
+    if p.mu_slider == 0.0:
+        return 0.0
+    return p.mu_slider * abs((p.k * p.a * factor - p.m_slider * p.g) * math.sin(theta))
 
 
 def link_inertia(p: Parameters, payload: float, b: float) -> float:
@@ -197,7 +221,7 @@ def _slider_force(p: Parameters, u: Inputs, theta: float, omega: float, b: float
     """
     spring = p.k * (b - p.a * math.cos(theta)) * factor
     return (p.m_slider * (b * omega * omega - p.g * math.cos(theta)) - spring
-            + wire_tension(p, u) - p.d_slider * v)
+            + wire_tension(p, u) - slider_damping(p, u) * v)
 
 
 def _at_stop(p: Parameters, b: float, push: float) -> bool:
@@ -219,11 +243,13 @@ def _link_acceleration(p: Parameters, u: Inputs, theta: float, omega: float, b: 
             - p.d_link * omega - coriolis) / link_inertia(p, u.payload, b)
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None
-                ) -> tuple[float, ...]:
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                slip: float | None = None) -> tuple[float, ...]:
     """Time derivative of the state, in State's field order, for inputs u that are constant
     or, for a continuous-time model such as the harness's reference, change at `rates`
     (d/dt of the Real inputs; masses then join and leave continuously, see _mass_flow).
+    `slip` fixes the slider's friction state for a whole RK4 sub-step (0: stuck, +1 or -1:
+    sliding out or in; see advance); None decides it from s.
 
     A plain tuple, not a State: this runs four times per RK4 step and a NamedTuple costs more.
     """
@@ -235,22 +261,49 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None
         d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
         return d if rates is None else _mass_flow(p, u, rates, s, d)
     m_eff = slider_mass(p, u)
-    force = _slider_force(p, u, theta, omega, b, v, _free_length_factor(p, theta, b))
+    factor = _free_length_factor(p, theta, b)
+    force = _slider_force(p, u, theta, omega, b, v, factor)
+    friction = slider_friction(p, theta, factor)
+    damping = slider_damping(p, u)
     if m_eff > 0.0:
-        if v == 0.0 and _at_stop(p, b, force):
+        if slip is None:
+            slip = _slip(p, b, v, force, friction)
+        if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
             d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
             return d if rates is None else _mass_flow(p, u, rates, s, d)
-        b_dot, v_dot = v, force / m_eff
+        b_dot = v
+        v_dot = (force - slip * friction) / m_eff
+        rubbing = slip * friction * v  # power of the friction force -slip friction
     else:
-        # Massless slider: d_slider v = F_spring + T (v eliminated, kept as an output).
-        b_dot = (force + p.d_slider * v) / p.d_slider
+        # Massless slider: damping v = F_spring + T - friction (v eliminated, an output).
+        b_dot = _creep_speed(force + damping * v, friction, damping)
         if _at_stop(p, b, b_dot):
             b_dot = 0.0
         v_dot = 0.0
+        rubbing = friction * abs(b_dot)
     s_cw_dot = 0.0 if u.pulley_locked else p.pulley_ratio * b_dot
     d = (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
-         link_loss + p.d_slider * b_dot * b_dot, 0.0)
+         link_loss + damping * b_dot * b_dot + rubbing, 0.0)
     return d if rates is None else _mass_flow(p, u, rates, s, d)
+
+
+def _slip(p: Parameters, b: float, v: float, force: float, friction: float) -> float:
+    """Friction state of a slider with mass at speed v under the net force [N]: 0 when it
+    sticks (at rest, the force within the friction limit or into a stop), else the direction
+    it slides in."""
+    if v != 0.0:
+        return math.copysign(1.0, v)
+    if abs(force) <= friction or _at_stop(p, b, force):
+        return 0.0
+    return math.copysign(1.0, force)
+
+
+def _creep_speed(pull: float, friction: float, damping: float) -> float:
+    """Speed of a massless slider under the net pull [N] (damper excluded) against Coulomb
+    friction up to `friction` [N] and viscous damping [N s/m]: 0 while it sticks."""
+    if abs(pull) <= friction:
+        return 0.0
+    return (pull - math.copysign(friction, pull)) / damping
 
 
 def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float, ...]
@@ -284,10 +337,11 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
+        damping = slider_damping(p, u)
         if m_eff > 0.0:
-            slider_rate = max(math.sqrt(k_b / m_eff), p.d_slider / m_eff)
+            slider_rate = max(math.sqrt(k_b / m_eff), damping / m_eff)
         else:
-            slider_rate = k_b / p.d_slider
+            slider_rate = k_b / damping
         rate = max(rate, SLIDER_RATE_FACTOR * slider_rate)
     return rate
 
@@ -304,8 +358,9 @@ def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
 
 def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
     """Speed of a free massless slider with the pulley locked, set by the forces [m/s]."""
-    v = _slider_force(p, u, s.theta, s.omega, s.b, 0.0,
-                      _free_length_factor(p, s.theta, s.b)) / p.d_slider
+    factor = _free_length_factor(p, s.theta, s.b)
+    v = _creep_speed(_slider_force(p, u, s.theta, s.omega, s.b, 0.0, factor),
+                     slider_friction(p, s.theta, factor), slider_damping(p, u))
     return 0.0 if _at_stop(p, s.b, v) else v
 
 
@@ -352,8 +407,33 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         end = integrate(link, _LinkState(s.theta, s.omega, s.W_drive, s.E_loss), dt, rate)
         return s._replace(theta=end.theta, omega=end.omega, v=0.0, W_drive=end.W_drive,
                           E_loss=end.E_loss)
-    return integrate(lambda state: derivatives(p, u, state), s, dt, rate,
-                     lambda state: _apply_constraints(p, u, state))
+    if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
+        return integrate(lambda state: derivatives(p, u, state), s, dt, rate,
+                         lambda state: _apply_constraints(p, u, state))
+    # Coulomb friction: the friction state is decided at the start of each sub-step and held
+    # through it, so that RK4 sees one smooth right-hand side (and the ledger stays exact).
+    slip = [_friction_state(p, u, s)]
+
+    def stick(state: State) -> State:
+        """_apply_constraints, then: a slider whose speed changed sign within a sub-step has
+        stopped in it, and sticks (v = 0, its kinetic energy to E_loss) until the pull
+        exceeds the friction limit."""
+        state = _apply_constraints(p, u, state)
+        if state.v * slip[0] < 0.0:
+            stuck = state._replace(v=0.0)
+            state = stuck._replace(E_loss=state.E_loss + mechanical_energy(p, u, state)
+                                   - mechanical_energy(p, u, stuck))
+        slip[0] = _friction_state(p, u, state)
+        return state
+
+    return integrate(lambda state: derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
+
+
+def _friction_state(p: Parameters, u: Inputs, s: State) -> float:
+    """_slip of the free slider in state s."""
+    factor = _free_length_factor(p, s.theta, s.b)
+    return _slip(p, s.b, s.v, _slider_force(p, u, s.theta, s.omega, s.b, s.v, factor),
+                 slider_friction(p, s.theta, factor))
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:

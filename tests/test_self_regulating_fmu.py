@@ -276,6 +276,41 @@ def test_slider_mass_is_balanced_with_the_named_counterweight(srb_fmu: Path) -> 
     assert abs(rows[-1, 2]) < 1e-3
 
 
+# ---- Coulomb friction on the slider
+
+def test_slider_friction_leaves_a_dead_band_off_180_deg(srb_fmu: Path) -> None:
+    """mu_slider = 0.1. At 150 deg the spring presses the slider on the link with
+    F_n = k a sin(theta) = 49 N, so friction holds it up to 4.9 N: moving outwards under the
+    counterweight, it stops where the net pull falls to that, mu a sin(theta) = 5.0 mm short
+    of the frictionless position, and never moves back (no chattering). At 180 deg F_n = 0 and
+    regulation is as exact as without friction."""
+    M0 = K * (A + B0) * R_WIRE / (G * R_CW)
+    theta = 150 * DEG
+    frictionless = A * math.cos(theta) + (M0 + 1.0) * G * R_CW / (R_WIRE * K)
+    dead_band = 0.1 * A * math.sin(theta)
+    assert dead_band == pytest.approx(5.0e-3, abs=1e-6)
+    with open_fmu(srb_fmu, {"theta0": theta, "mu_slider": 0.1}) as fmu:
+        rows = drive(fmu, 0.0, 6.4, hold(theta), regulation(1.0), ("b", "F_n"))
+    assert rows[-1, 2] == pytest.approx(K * A * math.sin(theta), rel=1e-3)
+    assert rows[-1, 1] == pytest.approx(frictionless - dead_band, abs=2e-5)
+    assert np.diff(rows[:, 1]).min() >= 0.0
+    with open_fmu(srb_fmu, {"theta0": math.pi, "mu_slider": 0.1}) as fmu:
+        rows = drive(fmu, 0.0, 6.4, hold(math.pi), regulation(1.0), ("b",))
+    assert abs(rows[-1, 1] - 0.095) < 1e-4
+
+
+def test_stuck_slider_does_not_creep(srb_fmu: Path) -> None:
+    """At 170 deg with no payload the released slider feels k a (1 + cos theta) = 1.49 N out
+    of balance, less than the friction limit mu k a sin(theta) = 1.70 N for mu = 0.1: it
+    sticks, exactly, with slider and pulley free for a second."""
+    theta = 170 * DEG
+    assert K * A * (1 + math.cos(theta)) < 0.1 * K * A * math.sin(theta)
+    with open_fmu(srb_fmu, {"theta0": theta, "mu_slider": 0.1}) as fmu:
+        rows = drive(fmu, 0.0, 1.0, hold(theta),
+                     lambda _t: {"slider_locked": False, "pulley_locked": False}, ("b",))
+    assert np.all(rows[:, 1] == B0)
+
+
 # ---- bad input
 
 @pytest.mark.parametrize(("parameters", "name", "allowed"), [

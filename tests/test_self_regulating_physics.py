@@ -196,3 +196,15 @@ def test_counterweight_mass_added_while_moving_conserves_momentum() -> None:
                                                            rel=1e-12)
     assert after.E_loss - MOVING.E_loss == pytest.approx(
         0.5 * m_before * MOVING.v ** 2 * (1 - m_before / m_after), rel=1e-12)
+
+
+def test_pulley_inertia_joins_the_counterweight() -> None:
+    """A pulley of inertia J_p turns at v / r: J_p / r^2 adds to the mass the slider's momentum
+    is shared with when the pulley is released, and its bearing's d_p / r^2 to the damping."""
+    p = dataclasses.replace(P_EVENTS, J_pulley=2e-4, d_pulley=0.01)
+    m_eff = p.m_slider + cw_mass(FREE) + 2e-4 / p.r ** 2
+    assert physics.slider_mass(p, FREE) == pytest.approx(m_eff, rel=1e-12)
+    assert physics.slider_damping(p, FREE) == pytest.approx(p.d_slider + 0.01 / p.r ** 2)
+    assert physics.slider_damping(p, FREE._replace(pulley_locked=True)) == p.d_slider
+    shared = physics.switch_inputs(p, FREE._replace(pulley_locked=True), FREE, MOVING)
+    assert shared.v == pytest.approx(p.m_slider * MOVING.v / m_eff, rel=1e-12)
