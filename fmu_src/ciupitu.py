@@ -52,7 +52,7 @@ same opposite side. With OB' = dOB/dphi (dphi = -dtheta):
     E_p = g cos(theta) (m c + payload w - m_fixed_cw c_fixed_cw - m2 OB)
     J(theta) = J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive + m2 (OB^2 + OB'^2)
     E_kin = 1/2 J omega^2
-    J omega' = tau_drive + tau_gravity - d_link omega - 1/2 (dJ/dtheta) omega^2
+    J omega' = tau_drive + tau_gravity - (d_link + d_cw OB'^2) omega - 1/2 (dJ/dtheta) omega^2
 
 from the Lagrangian L = E_kin - E_p, with tau_gravity = -dE_p/dtheta. In terms of the
 paper's moments (all static):
@@ -243,6 +243,8 @@ class Parameters:
                                   min=0.0)
     c_fixed_cw: float = parameter(0.1, "m", "Distance from O to the fixed counterweight", min=0.0)
     d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    d_cw: float = parameter(0.0, "N.s/m", "Viscous friction of the counterweight sliding along "
+                            "the arm (it slides at dOB/dt = -OB' omega)", min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
     theta0: float = parameter(60.0 * DEG, "rad", "Initial arm angle from the upward vertical")
     omega0: float = parameter(0.0, "rad/s", "Initial arm angular velocity")
@@ -319,6 +321,11 @@ def _gravity(p: Parameters, payload: float, theta: float, OB: float, dOB: float)
                   - math.cos(theta) * p.m2 * dOB)
 
 
+def _damping(p: Parameters, dOB: float) -> float:
+    """d(theta) = d_link + d_cw OB'^2: pivot and counterweight slide friction [N m s/rad]."""
+    return p.d_link + p.d_cw * dOB * dOB
+
+
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
     return _inertia(p, payload, *geometry(p.OA, p.AB, HALF_PI - theta))
@@ -333,11 +340,11 @@ def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
 def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
-    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d_link omega,
+    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega,
     with one geometry() evaluation (this runs four times per RK4 sub-step)."""
     OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
     J, dJ = _inertia(p, payload, OB, dOB, d2OB)
-    return (tau_drive + _gravity(p, payload, theta, OB, dOB) - p.d_link * omega
+    return (tau_drive + _gravity(p, payload, theta, OB, dOB) - _damping(p, dOB) * omega
             - 0.5 * dJ * omega * omega) / J
 
 
@@ -350,6 +357,8 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     theta, omega = s[0], s[1]
     omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
     loss = p.d_link * omega * omega
+    if p.d_cw:
+        loss = _damping(p, geometry(p.OA, p.AB, HALF_PI - theta).dOB) * omega * omega
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
     gain, drop = max(rates.payload, 0.0), min(rates.payload, 0.0)
@@ -365,7 +374,8 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     J, dJ = _inertia(p, u.payload, OB, dOB, d2OB)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
-    return max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega) * (1.0 + abs(dJ) / J))
+    return max(math.sqrt(stiffness / J), _damping(p, dOB) / J,
+               abs(s.omega) * (1.0 + abs(dJ) / J))
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:

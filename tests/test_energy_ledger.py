@@ -99,7 +99,7 @@ def test_ciupitu_ledger_closes_over_random_inputs() -> None:
                                       else rng.uniform(-0.01, 0.02)))
         return {"tau_drive": rng.uniform(-5.0, 5.0), "payload": payload}
 
-    result = random_run("CiupituBalancer", {"omega0": 2.0}, 3000, inputs)
+    result = random_run("CiupituBalancer", {"omega0": 2.0, "d_cw": 2.0}, 3000, inputs)
     assert np.abs(result["residual"]).max() <= 1e-9
     assert result["E_loss"][-1] > 1e-2 and np.diff(result["E_loss"]).min() >= -1e-12
     assert np.ptp(result["E_added"]) > 1.0
