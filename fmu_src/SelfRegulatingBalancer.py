@@ -34,13 +34,12 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.description = ("Self-regulating gravity balancer (Franchetti, Boschetti, Lenzo "
                             "2021): 1-DOF link, zero-free-length spring on a lockable slider, "
                             "pulley-counterweight regulation")
-        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider where it "
-                                      "balances the link (least RMS residual torque over a full "
-                                      "turn) at theta = pi: eq. 10 for an ideal spring, a "
+        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at "
+                                      "b_design at theta = pi: eq. 10 for an ideal spring, a "
                                       "massless slider and a balancing b0")
-        self.add_calculated_parameter("b_balanced", "m", "Slider position balancing the link "
-                                      "without payload (least RMS residual torque over a full "
-                                      "turn; b0 for Table 1)")
+        self.add_calculated_parameter("b_design", "m", "Slider position M0 holds at theta = "
+                                      "pi: least mean-square residual torque over a full turn "
+                                      "and the payload range once regulated (b0 for Table 1)")
         self.add_calculated_parameter("payload_max", "kg", "Payload capacity: regulation at "
                                       "theta = pi keeps the slider within b_max (eq. 16 for "
                                       "Table 1)")
@@ -69,7 +68,7 @@ class SelfRegulatingBalancer(MechanismSlave):
 
     def initialise(self, params: physics.Parameters) -> None:
         self.M0 = params.M0
-        self.b_balanced = params.b_balanced
+        self.b_design = params.b_design
         self.payload_max = params.payload_max
         self.state = physics.initial_state(params)
         self.previous_inputs = self.inputs()

@@ -31,6 +31,7 @@ conserved where the bodies couple or decouple), `advance` integrates between the
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
@@ -90,29 +91,29 @@ class Parameters:
                                min=0.0)
 
     @cached_property
-    def b_balanced(self) -> float:
-        """Slider position that balances the link without payload (least RMS residual torque
-        over a full turn; m c g / (k a) = b0 for Table 1, eq. 2) [m]."""
-        return balancing_slider_position(self, 0.0)
+    def b_design(self) -> float:
+        """Slider position M0 holds at theta = pi: design_slider_position (b0 for Table 1,
+        eq. 2) [m]."""
+        return design_slider_position(self)
 
     @cached_property
     def M0(self) -> float:
-        """Counterweight mass that holds the slider at b_balanced with theta = pi [kg]:
-        (k (a + b_balanced - L0) - m_slider g) r / (g R), eq. 10 when L0 = m_slider = 0 and
+        """Counterweight mass that holds the slider at b_design with theta = pi [kg]:
+        (k (a + b_design - L0) - m_slider g) r / (g R), eq. 10 when L0 = m_slider = 0 and
         b0 balances the link (0 if the spring cannot hold the slider's weight there)."""
         if self.g <= 0:
             return 0.0
-        return max(_wire_pull(self, self.b_balanced), 0.0) * self.r / (self.g * self.R)
+        return max(_wire_pull(self, self.b_design), 0.0) * self.r / (self.g * self.R)
 
     @cached_property
     def payload_max(self) -> float:
         """Largest payload whose regulation at theta = pi (the same mass added to the
-        counterweight) keeps the slider within b_max: k r (b_max - b_balanced) / (g R) [kg].
-        Eq. 16 when R/r = w/a, b_max = w and b_balanced = b0 (at theta = pi the spring force
+        counterweight) keeps the slider within b_max: k r (b_max - b_design) / (g R) [kg].
+        Eq. 16 when R/r = w/a, b_max = w and b_design = b0 (at theta = pi the spring force
         grows by k per metre of slider travel, whatever L0)."""
         if self.g <= 0:
             return math.inf
-        return self.k * (self.b_max - self.b_balanced) * self.r / (self.g * self.R)
+        return self.k * (self.b_max - self.b_design) * self.r / (self.g * self.R)
 
     @cached_property
     def pulley_ratio(self) -> float:
@@ -532,21 +533,58 @@ def balancing_slider_position(p: Parameters, payload: float) -> float:
 
     With L0 = 0 the link balances exactly at b = (m c + payload w) g / (k a - m_slider g)
     (clipped to the stops); a real spring (L0 > 0) balances nowhere exactly, and this is the
-    position of least RMS residual torque over the full turn (grid, then golden section).
+    position of least RMS residual torque over the full turn.
     """
     if p.L0 == 0.0:
         stiffness = p.k * p.a - p.m_slider * p.g
         if stiffness <= 0.0:
             return p.b_max
         return min(max((p.m * p.c + payload * p.w) * p.g / stiffness, p.b_min), p.b_max)
+    return _minimise(lambda b: residual_torque_rms(p, payload, b), p.b_min, p.b_max)
+
+
+_DESIGN_PAYLOADS = 8  # intervals of the payload range the design rule averages over
+
+
+def design_slider_position(p: Parameters) -> float:
+    """Where M0 holds the slider at theta = pi, so that regulation (counterweight_added equal
+    to the payload) leaves the least residual torque over the working range [m]: the mean of
+    residual_torque_rms^2 over a full turn and over nine payloads evenly spaced from 0 to
+    k r (b_max - b0) / (g R) (eq. 16's capacity), each at its regulated position
+    b + payload g R / (r k).
+
+    With an ideal spring (L0 = 0) the residual is (e0 + e1 payload) sin(theta), e0 = m c g
+    - K b, e1 = w g - K g R / (r k), K = k a - m_slider g, and the mean square is least where
+    its mean vanishes: b = (m c g + e1 capacity / 2) / K. With R/r = w/a and a massless
+    slider e1 = 0: every payload balances exactly from b = m c g / (k a) (eq. 2: b0 for
+    Table 1)."""
+    stiffness = p.k * p.a - p.m_slider * p.g
+    if p.k <= 0.0 or stiffness <= 0.0:
+        return p.b_max  # the spring cannot carry the link
+    travel = p.g * p.R / (p.r * p.k)      # slider travel per kg of payload regulated
+    capacity = max(p.b_max - p.b0, 0.0) / travel
+    if p.L0 == 0.0:
+        slope = p.w * p.g - stiffness * travel
+        return (p.m * p.c * p.g + 0.5 * capacity * slope) / stiffness
+    payloads = [capacity * i / _DESIGN_PAYLOADS for i in range(_DESIGN_PAYLOADS + 1)]
+
+    def mean_square(b: float) -> float:
+        return sum(residual_torque_rms(p, m, b + m * travel) ** 2 for m in payloads) / len(
+            payloads)
+    return _minimise(mean_square, p.b_min, p.b_max)
+
+
+def _minimise(f: Callable[[float], float], lo: float, hi: float) -> float:
+    """Abscissa of the smallest f on [lo, hi] to 1e-9: a 40-interval grid, then golden
+    section around its best point."""
     samples = 40
-    grid = [p.b_min + (p.b_max - p.b_min) * i / samples for i in range(samples + 1)]
-    best = min(range(samples + 1), key=lambda i: residual_torque_rms(p, payload, grid[i]))
+    grid = [lo + (hi - lo) * i / samples for i in range(samples + 1)]
+    best = min(range(samples + 1), key=lambda i: f(grid[i]))
     lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, samples)]
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
     while hi - lo > 1e-9:
         x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
-        if residual_torque_rms(p, payload, x1) <= residual_torque_rms(p, payload, x2):
+        if f(x1) <= f(x2):
             hi = x2
         else:
             lo = x1

@@ -23,7 +23,8 @@ from harness.fmu_build import fmu_path
 
 DT = 1e-3
 # Paper, Table 1, and our defaults (d_slider)
-M, C, A, B0, R_CW, R_WIRE, K, G, D_SLIDER = 3.0, 0.2, 0.1, 0.06, 0.035, 0.01, 981.0, 9.81, 500.0
+M, C, W, A, B0 = 3.0, 0.2, 0.35, 0.1, 0.06
+R_CW, R_WIRE, K, G, D_SLIDER = 0.035, 0.01, 981.0, 9.81, 500.0
 
 # stored energy terms (+) and ledger terms (sign) of each mechanism
 LEDGER: dict[str, dict[str, float]] = {
@@ -120,6 +121,18 @@ def test_prismatic_ledger_closes_over_random_inputs() -> None:
 
 # ---- the slider released one step before the pulley
 
+def design_position(m_slider: float) -> float:
+    """Slider position M0 holds for an ideal spring and a slider of mass m_slider [m].
+
+    Locked at b, the link's residual torque is (e0 + e1 payload) sin(theta) with
+    e0 = m c g - K b, K = k a - m_slider g, and, regulated (slider travel s = g R / (r k) per
+    kg), e1 = w g - K s. Its mean square over payloads evenly spaced over [0, P] (P =
+    (b_max - b0) / s, eq. 16) is least where the mean residual vanishes: e0 + e1 P / 2 = 0.
+    For m_slider = 0, e1 = 0 (R/r = w/a): b = m c g / (k a) = b0 (eq. 2)."""
+    stiffness, travel = K * A - m_slider * G, G * R_CW / (R_WIRE * K)
+    capacity = (W - B0) / travel
+    return (M * C * G + capacity / 2 * (W * G - stiffness * travel)) / stiffness
+
 def overdamped(mass: float, x0: float, v0: float, t: np.ndarray) -> np.ndarray:
     """x(t) of mass x'' + D_SLIDER x' + K x = 0 from x(0) = x0, x'(0) = v0 (overdamped)."""
     root = math.sqrt(D_SLIDER ** 2 - 4 * mass * K)
@@ -146,12 +159,12 @@ def test_pulley_released_after_the_slider(m_slider: float) -> None:
     exp(-k t / d)). At 1 ms the pulley couples the counterweight at rest, m_eff = m_slider +
     M0 (R/r)^2, and the slider's momentum m_slider v is shared: v+ = m_slider v / m_eff (0 for
     a massless slider), the energy 1/2 m_slider v^2 - 1/2 m_eff v+^2 going to E_loss. M0 =
-    (k (a + b_eq) - m_slider g) r / (g R) holds the slider where it balances the link,
-    b_eq = m c g / (k a - m_slider g) (b0 = 60 mm, m_eff = 56 kg for a massless slider):
+    (k (a + b_eq) - m_slider g) r / (g R) holds the slider at the design position b_eq
+    (`design_position`; b0 = 60 mm, m_eff = 56 kg for a massless slider):
     m_eff y'' + d y' + k y = 0 for y = b - b_eq (overdamped), so the slider creeps back
-    from 59.7 mm with E_kin below a millijoule (before: it dipped to 33.4 mm and 2.7 J
+    from 59.7 mm with E_kin of a millijoule at most (before: it dipped to 33.4 mm and 2.7 J
     appeared)."""
-    b_eq = M * C * G / (K * A - m_slider * G)  # balances the link: (m c + m_s b) g = k a b
+    b_eq = design_position(m_slider)
     m0 = (K * (A + b_eq) - m_slider * G) * R_WIRE / (G * R_CW)
     m_eff = m_slider + m0 * (R_CW / R_WIRE) ** 2
     if m_slider == 0.0:
@@ -173,11 +186,11 @@ def test_pulley_released_after_the_slider(m_slider: float) -> None:
     assert before["b"] == pytest.approx(b1, abs=1e-9)
     t = DT * np.arange(1, 3001)
     expected = b_eq + overdamped(m_eff, b1 - b_eq, v1, t)
-    np.testing.assert_allclose(rows[:, 0], expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(rows[:, 0], expected, rtol=0, atol=2e-9)
     assert rows[:, 0].min() > 0.0596 and rows[-1, 0] == pytest.approx(b_eq, abs=1e-5)
     kinetic = 0.5 * m_eff * overdamped_speed(m_eff, b1 - b_eq, v1, t) ** 2
     np.testing.assert_allclose(rows[:, 1], kinetic, rtol=0, atol=1e-10)
-    assert rows[:, 1].max() < 1e-3  # a fraction of a millijoule, not 2.7 J
+    assert rows[:, 1].max() < 2e-3  # about a millijoule at most, not 2.7 J
     # the step after the release: the event's loss plus the damper's, d * integral of y'^2
     fine = np.linspace(0.0, DT, 20001)
     damper = D_SLIDER * np.trapezoid(overdamped_speed(m_eff, b1 - b_eq, v1, fine) ** 2, fine)

@@ -259,16 +259,25 @@ def test_real_spring_design_warns_and_names_the_counterweight(srb_fmu: Path) -> 
 
 def test_slider_mass_is_balanced_with_the_named_counterweight(srb_fmu: Path) -> None:
     """Ideal spring, m_slider = 0.4 kg: the link balances where (m c + payload w + m_slider b) g
-    = k a b, b = (m c + w) g / (k a - m_slider g) = 98.96 mm for 1 kg, which needs
-    counterweight_added = k (b - b_eq) r / (g R) with b_eq = m c g / (k a - m_slider g),
-    1.0417 kg. With it the slider settles there, the link balances and nothing is reported."""
+    = k a b, b = (m c + w) g / (k a - m_slider g) = 98.96 mm for 1 kg. M0 holds the slider at
+    b_design (the least mean-square residual over the payload range,
+    b = (m c g + P/2 (w g - K s)) / K with K = k a - m_slider g, s = g R / (r k), P =
+    (b_max - b0) / s: 68.54 mm), so regulating 1 kg with the same mass on the counterweight
+    misses the balance, and the FMU warns; it names counterweight_added = k (b - b_design)
+    r / (g R) = 0.8690 kg, with which the slider settles at the balance and nothing is
+    reported."""
     m_s = 0.4
     b_1kg = (M * C + W) * G / (K * A - m_s * G)
-    b_eq = M * C * G / (K * A - m_s * G)
-    added = K * (b_1kg - b_eq) * R_WIRE / (G * R_CW)
-    assert b_1kg == pytest.approx(0.09896, abs=1e-5) and added == pytest.approx(1.0417, abs=1e-4)
+    stiffness, travel = K * A - m_s * G, G * R_CW / (R_WIRE * K)
+    b_design = (M * C * G + (W - B0) / travel / 2 * (W * G - stiffness * travel)) / stiffness
+    added = K * (b_1kg - b_design) * R_WIRE / (G * R_CW)
+    assert b_1kg == pytest.approx(0.09896, abs=1e-5) and added == pytest.approx(0.8690, abs=1e-4)
     with open_fmu(srb_fmu, {"theta0": math.pi, "m_slider": m_s}) as fmu:
-        assert fmu.get(["b_balanced"])["b_balanced"] == pytest.approx(b_eq, rel=1e-12)
+        assert fmu.get(["b_design"])["b_design"] == pytest.approx(b_design, abs=1e-9)
+        drive(fmu, 0.0, 6.4, hold(math.pi), regulation(1.0), ())
+        logged = [m for m in warnings(fmu) if "cannot balance" in m]
+    assert len(logged) == 1 and f"counterweight_added = {added:.4f} kg" in logged[0]
+    with open_fmu(srb_fmu, {"theta0": math.pi, "m_slider": m_s}) as fmu:
         rows = drive(fmu, 0.0, 6.4, hold(math.pi), with_counterweight(1.0, added),
                      ("b", "balance_error"))
         assert warnings(fmu) == []

@@ -72,9 +72,11 @@ def test_regulation_away_from_pi_has_the_closed_form_position() -> None:
 
 def test_real_spring_free_slider_conserves_energy() -> None:
     """L0 > 0, slider mass, pulley free, no damping: E_t + E_kin + E_cw constant over 5 s
-    (RK4 with rate * h <= 0.05: measured ~1e-12 J; 1e-8 J leaves margin)."""
+    (RK4 with rate * h <= 0.05: measured ~1e-12 J; 1e-8 J leaves margin). The 1 kg payload
+    without counterweight makes the link a pendulum; the slider starts 4.5 mm off its
+    equilibrium."""
     p = dataclasses.replace(TABLE_1, L0=0.02, m_slider=0.3, d_link=0.0, d_slider=0.0,
-                            theta0=math.pi, omega0=1.0)
+                            theta0=math.pi, omega0=1.0, b0=0.09)
     u = physics.Inputs(payload=1.0, slider_locked=False, pulley_locked=False)
     s = physics.initial_state(p)
 
