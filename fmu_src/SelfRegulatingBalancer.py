@@ -124,18 +124,22 @@ class SelfRegulatingBalancer(MechanismSlave):
 
     def check_balance(self, p: physics.Parameters, payload: float) -> None:
         """Warn when the slider, just locked after a regulation, leaves the link unbalanced
-        beyond BALANCE_TOLERANCE, naming the best position and the counterweight reaching it."""
+        beyond BALANCE_TOLERANCE, naming the best position (and whether even that leaves
+        more) and the counterweight that reaches it."""
         b = self.state.b
         residual = physics.residual_torque_rms(p, payload, b)
         moment = (p.m * p.c + payload * p.w) * p.g
         if residual <= BALANCE_TOLERANCE * moment:
             return
         best = physics.balancing_slider_position(p, payload)
-        self.warn(f"the design cannot balance payload = {payload} kg: the slider was locked at "
-                  f"b = {b:.4f} m, where the link's residual torque is {residual:.3g} N m RMS "
-                  f"over a full turn ({100 * residual / moment:.1f} % of its gravity moment); "
-                  f"the least, {physics.residual_torque_rms(p, payload, best):.3g} N m RMS, is "
-                  f"at b = {best:.4f} m (regulation at 180 deg reaches it with "
+        least = physics.residual_torque_rms(p, payload, best)
+        where = (f"the design cannot balance it: the least, {least:.3g} N m RMS, is at "
+                 f"b = {best:.4f} m" if least > BALANCE_TOLERANCE * moment
+                 else f"it balances at b = {best:.4f} m")
+        self.warn(f"regulation left the link unbalanced with payload = {payload} kg: the "
+                  f"slider was locked at b = {b:.4f} m, where the residual torque is "
+                  f"{residual:.3g} N m RMS over a full turn ({100 * residual / moment:.1f} % "
+                  f"of the gravity moment); {where} (regulation at 180 deg reaches it with "
                   f"counterweight_added = {physics.counterweight_for(p, best):.4f} kg)")
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
