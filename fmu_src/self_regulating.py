@@ -558,6 +558,8 @@ def design_slider_position(p: Parameters) -> float:
     its mean vanishes: b = (m c g + e1 capacity / 2) / K. With R/r = w/a and a massless
     slider e1 = 0: every payload balances exactly from b = m c g / (k a) (eq. 2: b0 for
     Table 1)."""
+    if p.g <= 0.0:
+        return p.b0  # nothing to balance
     stiffness = p.k * p.a - p.m_slider * p.g
     if p.k <= 0.0 or stiffness <= 0.0:
         return p.b_max  # the spring cannot carry the link
