@@ -94,8 +94,8 @@ def test_eps_on_work_approaches_the_static_value(cycle: dict[str, master.RunResu
     assert static_eps(law) == pytest.approx(value, abs=1e-7)
     table = results.summary(cycle.values(), CYCLE.baselines).set_index("variant")
     balanced, unbalanced = f"{law}_balanced", f"{law}_unbalanced"
-    # W_phases sums |stroke work|: friction cancels between the strokes, the payload's
-    # mass change (1/T^2) does not; it is the whole difference from the static value
+    # W_phases sums |stroke work|: friction and the payload's mass change (the same kinetic
+    # energy on both strokes) cancel between the strokes, leaving the static value
     expected = 1.0 - (sum(abs(stroke_work(balanced, d)) for d in STROKES.values())
                       / sum(abs(stroke_work(unbalanced, d)) for d in STROKES.values()))
     assert table.eps_W[balanced] == pytest.approx(expected, abs=1e-3)
