@@ -28,7 +28,7 @@ Force paths (the worms are ideal: rigid, frictionless, not back-drivable):
   acts on q2.
 The worms' force on q2 beyond the spring energies is f2_worm = 2T + [self_locking] dE_k3/dq2,
 and W_worm = integral of f2_worm q2' dt is the work they do on the arm, so that
-E_grav + E_springs + E_kin - W_drive - W_worm + E_friction is constant.
+E_grav + E_springs + E_kin - W_drive - W_worm + E_loss is constant (see below).
 
 Static residuals, the efforts a drive must supply to hold the arm at rest (positive along
 +q1 and +q2; gravity effort minus spring compensation):
