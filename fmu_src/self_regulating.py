@@ -89,11 +89,17 @@ class Parameters:
     omega0: float = parameter(0.0, "rad/s", "Initial link angular velocity")
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link (J_rotor N^2)",
                                min=0.0)
+    paper_design: bool = parameter(
+        False, None, "M0 and payload_max from eqs. 10 and 16 as printed (ideal spring, massless "
+        "slider), whatever L0 and m_slider: the paper's design, for comparison")
 
     @cached_property
     def b_design(self) -> float:
         """Slider position M0 holds at theta = pi: design_slider_position (b0 for Table 1,
-        eq. 2) [m]."""
+        eq. 2), or where eq. 10's M0 holds it with paper_design [m]."""
+        if self.paper_design:
+            return self.M0 * self.g * self.R / (self.r * self.k) - self.a + self.L0 + (
+                self.m_slider * self.g / self.k) if self.k > 0.0 else self.b0
         return design_slider_position(self)
 
     @cached_property
@@ -103,6 +109,8 @@ class Parameters:
         b0 balances the link (0 if the spring cannot hold the slider's weight there)."""
         if self.g <= 0:
             return 0.0
+        if self.paper_design:
+            return self.k * (self.a + self.b0) * self.r / (self.g * self.R)
         return max(_wire_pull(self, self.b_design), 0.0) * self.r / (self.g * self.R)
 
     @cached_property
@@ -113,6 +121,8 @@ class Parameters:
         grows by k per metre of slider travel, whatever L0)."""
         if self.g <= 0:
             return math.inf
+        if self.paper_design:
+            return self.k * self.a * (self.w - self.b0) / (self.w * self.g)
         return self.k * (self.b_max - self.b_design) * self.r / (self.g * self.R)
 
     @cached_property

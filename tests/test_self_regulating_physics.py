@@ -210,3 +210,17 @@ def test_pulley_inertia_joins_the_counterweight() -> None:
     assert physics.slider_damping(p, FREE._replace(pulley_locked=True)) == p.d_slider
     shared = physics.switch_inputs(p, FREE._replace(pulley_locked=True), FREE, MOVING)
     assert shared.v == pytest.approx(p.m_slider * MOVING.v / m_eff, rel=1e-12)
+
+
+def test_paper_design_keeps_eqs_10_and_16() -> None:
+    """paper_design: M0 = k (a + b0) r / (g R) and payload_max = k a (w - b0) / (w g) whatever
+    L0 and m_slider; the slider then settles at theta = pi where the wire's pull M0 g R / r
+    balances spring and weight, b = M0 g R / (r k) - a + L0 + m_slider g / k (139 mm for the
+    real spring regulated with 1 kg: 35 mm further)."""
+    p = dataclasses.replace(TABLE_1, L0=0.04, m_slider=0.4, paper_design=True)
+    assert p.M0 == pytest.approx(p.k * (p.a + p.b0) * p.r / (p.g * p.R), rel=1e-15)
+    assert p.payload_max == pytest.approx(p.k * p.a * (p.w - p.b0) / (p.w * p.g), rel=1e-15)
+    assert p.b_design == pytest.approx(p.b0 + p.L0 + p.m_slider * p.g / p.k, rel=1e-12)
+    u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
+                       pulley_locked=False)
+    assert physics.regulated_slider_position(p, u, math.pi) == pytest.approx(0.139, abs=1e-12)
