@@ -11,6 +11,11 @@ import math
 from dataclasses import field, fields
 from typing import Any
 
+# No parameter of these models may exceed this magnitude (SI units): products of a few
+# parameters (k a b, J omega^2, lengths squared) must stay inside double precision, and no
+# physical quantity of a bench-top mechanism comes near it.
+MAGNITUDE_LIMIT = 1e50
+
 
 def parameter(default: float | bool, unit: str | None, description: str, *,
               min: float | None = None, max: float | None = None,
@@ -24,6 +29,7 @@ def check_ranges(data: Any) -> None:
     """Raise ValueError naming the first numeric field that is NaN or outside its bounds.
 
     Messages start with the field name (the command line relies on it to name its option).
+    Values beyond +-MAGNITUDE_LIMIT are refused too.
     """
     for f in fields(data):
         value = getattr(data, f.name)
@@ -38,3 +44,6 @@ def check_ranges(data: Any) -> None:
         if (lo is not None and (value <= lo if open_lo else value < lo)) or (
                 hi is not None and value > hi):
             raise ValueError(f"{f.name} = {value} {unit} is outside {allowed}")
+        if abs(value) > MAGNITUDE_LIMIT:
+            raise ValueError(f"{f.name} = {value} {unit} is beyond the magnitude limit "
+                             f"{MAGNITUDE_LIMIT:g} of these models (allowed {allowed})")

@@ -71,6 +71,10 @@ class CoSimFMU:
 
     def set(self, values: Mapping[str, float | bool | str]) -> None:
         """Set Real, Boolean and String variables by name."""
+        with self._watch_fatal():
+            self._set(values)
+
+    def _set(self, values: Mapping[str, float | bool | str]) -> None:
         reals = {n: v for n, v in values.items() if self.variables[n].type == "Real"}
         bools = {n: v for n, v in values.items() if self.variables[n].type == "Boolean"}
         strings = {n: v for n, v in values.items() if self.variables[n].type == "String"}
@@ -110,7 +114,7 @@ class CoSimFMU:
             self.slave.setupExperiment(startTime=start_time, stopTime=stop_time)
             self.slave.enterInitializationMode()
             if parameters:
-                self.set(parameters)
+                self._set(parameters)
             self.slave.exitInitializationMode()
 
     def step(self, time: float, step_size: float) -> None:
