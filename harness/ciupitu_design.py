@@ -38,6 +38,7 @@ from scipy.optimize import minimize, minimize_scalar
 from fmu_src import ciupitu
 from harness import reference, scenarios
 from harness.drive import MotorParameters
+from harness.errors import UserError
 
 COMMAND = "ciupitu-design"
 HELP = "choose the Ciupitu counterweight (m2, OA, AB) of franchetti2021 by minimising E_drawn"
@@ -69,7 +70,7 @@ class TaskEnergy:
     def __init__(self, scenario: scenarios.Scenario, variant: scenarios.Variant,
                  motor: MotorParameters = MotorParameters(), sample: float = SAMPLE) -> None:
         if (variant.model or scenario.model) != MODEL:
-            raise ValueError(f"variant {variant.name} of {scenario.name} is not a {MODEL}")
+            raise UserError(f"variant {variant.name} of {scenario.name} is not a {MODEL}")
         self.params = reference.parameters(ciupitu, scenario, variant, motor)
         self.motor = motor
         self.sample = sample

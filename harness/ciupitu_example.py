@@ -13,6 +13,7 @@ import math
 from dataclasses import fields
 
 from fmu_src import ciupitu
+from harness.errors import UserError
 
 COMMAND = "ciupitu-example"
 HELP = "Ciupitu 2018 Section 4 example: eps and max |M_u| for parabolic and linear payloads"
@@ -39,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         ciupitu.validate_example(data)
     except ValueError as error:  # messages start with the datum's name, i.e. the option's
-        raise ValueError(f"option --{error}") from None
+        raise UserError(f"option --{error}") from None
     strokes = {law: ciupitu.stroke(data, law) for law in ciupitu.PAYLOAD_LAWS}
     if args.json:
         print(json.dumps(results(strokes)))

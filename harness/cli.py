@@ -11,6 +11,8 @@ import importlib
 import sys
 from collections.abc import Sequence
 
+from harness.errors import UserError
+
 COMMANDS = ("harness.fmu_build", "harness.cosim", "harness.system", "harness.compare",
             "harness.ciupitu_example", "harness.ciupitu_design", "harness.sweep",
             "harness.bench", "harness.cross_check")
@@ -31,6 +33,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         return args.run(args)
-    except ValueError as error:  # bad input data: one clear line, non-zero exit
+    except UserError as error:  # bad input: one clear line, non-zero exit; else a traceback
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130

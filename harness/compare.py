@@ -17,6 +17,8 @@ import numpy as np
 import pandas as pd
 from fmpy.util import validate_signal
 
+from harness.errors import UserError
+
 COMMAND = "compare"
 HELP = "compare two result CSV files signal by signal within tolerances"
 
@@ -41,16 +43,16 @@ def read_result(path: Path) -> pd.DataFrame:
     try:
         frame = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as error:
-        raise ValueError(f"{path}: cannot read as CSV ({error})") from None
+        raise UserError(f"{path}: cannot read as CSV ({error})") from None
     if frame.columns.empty or frame.columns[0] != "time":
-        raise ValueError(f"{path}: the first column must be 'time'")
+        raise UserError(f"{path}: the first column must be 'time'")
     if len(frame) < 2:
-        raise ValueError(f"{path}: needs at least two rows")
+        raise UserError(f"{path}: needs at least two rows")
     bad = [c for c in frame.columns if not pd.api.types.is_numeric_dtype(frame[c])]
     if bad:
-        raise ValueError(f"{path}: non-numeric column(s) {', '.join(bad)}")
+        raise UserError(f"{path}: non-numeric column(s) {', '.join(bad)}")
     if not np.all(np.diff(frame.time.to_numpy()) > 0):
-        raise ValueError(f"{path}: time is not strictly increasing")
+        raise UserError(f"{path}: time is not strictly increasing")
     return frame
 
 
@@ -58,13 +60,13 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
             rtol: float = 1e-3, atol: float = 1e-9) -> list[SignalComparison]:
     """Compare the named signals (default: every signal the two tables share)."""
     if not (rtol >= 0 and atol >= 0):
-        raise ValueError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
+        raise UserError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
     shared = [c for c in reference.columns[1:] if c in result.columns]
     if signals is None:
         signals = shared
     unknown = [s for s in signals if s not in shared]
     if unknown:
-        raise ValueError(f"unknown signal(s) {', '.join(unknown)}; shared signals: "
+        raise UserError(f"unknown signal(s) {', '.join(unknown)}; shared signals: "
                          f"{', '.join(shared)}")
     t_ref, t_res = reference.time.to_numpy(float), result.time.to_numpy(float)
     inside = (t_ref >= t_res[0]) & (t_ref <= t_res[-1])

@@ -23,7 +23,9 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
-__all__ = ["CoSimFMU", "FMICallException", "LogMessage"]
+from harness.errors import UserError
+
+__all__ = ["CoSimFMU", "FMICallException", "FMUCallError", "LogMessage"]
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 FATAL = STATUS_NAMES.index("Fatal")
@@ -36,6 +38,21 @@ class LogMessage:
     status: str
     category: str
     message: str
+
+
+class FMUCallError(FMICallException, UserError):
+    """An FMI call the FMU refused, with the messages it logged: the FMU's own words (which
+    name the variable) reach the user instead of only a status code."""
+
+    def __init__(self, failure: FMICallException, model: str, messages: list[LogMessage]):
+        super().__init__(failure.function, failure.status)
+        # the model's Error messages; pythonfmu's own 'Fatal py exception' notes add nothing
+        ours = [m.message for m in messages if m.status == "Error"] or [
+            m.message for m in messages]
+        self.messages = ours
+        status = dict(enumerate(STATUS_NAMES)).get(failure.status, failure.status)
+        self.args = (f"{model}: {failure.function} failed with status {status}"
+                     + (f": {' | '.join(ours)}" if ours else ""),)
 
 
 class CoSimFMU:
@@ -123,11 +140,14 @@ class CoSimFMU:
 
     @contextlib.contextmanager
     def _watch_fatal(self) -> Iterator[None]:
+        """Note a Fatal status, and raise a refused call as FMUCallError with its messages."""
+        logged = len(self.messages)
         try:
             yield
         except FMICallException as error:
             self.fatal = self.fatal or error.status == FATAL
-            raise
+            raise FMUCallError(error, self.model_description.modelName,
+                               self.messages[logged:]) from None
 
     def reset(self) -> None:
         self.slave.reset()

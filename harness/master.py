@@ -27,6 +27,7 @@ import pandas as pd
 from harness import fmu_build, metrics
 from harness.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
 from harness.drive import MotorParameters, motors, sampled_motor
+from harness.errors import UserError
 from harness.fmi import CoSimFMU
 from harness.scenarios import Joint, Scenario, Variant
 
@@ -74,7 +75,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     instance is made and freed.
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
-        raise ValueError(f"step size = {step_size} s is outside (0, inf)")
+        raise UserError(f"step size = {step_size} s is outside (0, inf)")
     joints = scenario.joints
     drive_motors = [motors(motor)[joint.motor] for joint in joints]
     model = variant.model or scenario.model
@@ -89,7 +90,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         context = CoSimFMU(fmu_build.fmu_path(model), f"{scenario.name}.{variant.name}")
     else:
         if fmu.model_description.modelName != model:
-            raise ValueError(f"variant {variant.name} needs model {model}, "
+            raise UserError(f"variant {variant.name} needs model {model}, "
                              f"not {fmu.model_description.modelName}")
         fmu.reset()
         context = contextlib.nullcontext(fmu)
@@ -219,14 +220,14 @@ def _check_names(fmu: CoSimFMU, model: str, variant: Variant, inputs: dict[str, 
     """ValueError naming scenario inputs and joint variables the model does not have."""
     unknown = [n for n in inputs if n not in fmu.variables]
     if unknown:
-        raise ValueError(f"model {model} has no input {', '.join(unknown)}: drop it in "
+        raise UserError(f"model {model} has no input {', '.join(unknown)}: drop it in "
                          f"variant {variant.name} (drop_inputs)")
     for joint in joints:
         names = (joint.position, joint.speed, joint.effort, joint.start_parameter,
                  joint.inertia, joint.friction, joint.drive_inertia, joint.static_output)
         unknown = [n for n in names if n not in fmu.variables]
         if unknown:
-            raise ValueError(f"model {model} has no variable {', '.join(unknown)} "
+            raise UserError(f"model {model} has no variable {', '.join(unknown)} "
                              f"(named by joint {joint.name})")
 
 

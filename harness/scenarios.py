@@ -16,6 +16,7 @@ import numpy as np
 
 from fmu_src import scenario as core
 from fmu_src.scenario import RAMP_SHAPES, Joint, Phase, Ramp, Variant, ramp
+from harness.errors import UserError
 
 __all__ = ["EMBEDDED", "RAMP_SHAPES", "SCENARIO_DIR", "Joint", "Phase", "Ramp", "Scenario",
            "Variant", "available", "embed", "load", "ramp"]
@@ -61,7 +62,7 @@ def scenario_file(name_or_path: str | Path) -> Path:
         path = SCENARIO_DIR / f"{name_or_path}.toml"
     if not path.exists():
         known = ", ".join(available())
-        raise ValueError(f"no scenario {str(name_or_path)!r} (known: {known})")
+        raise UserError(f"no scenario {str(name_or_path)!r} (known: {known})")
     return path
 
 
@@ -71,7 +72,7 @@ def load(name_or_path: str | Path) -> Scenario:
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path.name}: not valid TOML ({error})") from None
+        raise UserError(f"{path.name}: not valid TOML ({error})") from None
     return core.parse(data, path.name, Scenario)
 
 

@@ -66,6 +66,7 @@ from tqdm import tqdm
 from harness import fmu_build, master, results, scenarios
 from harness.controller import ControllerDesign
 from harness.drive import MotorParameters
+from harness.errors import UserError
 from harness.fmi import CoSimFMU
 from harness.metrics import METRICS
 
@@ -129,21 +130,21 @@ def _axis(raw: dict[str, Any], where: str) -> Axis:
     paths = raw.get("set")
     paths = (paths,) if isinstance(paths, str) else tuple(paths or ())
     if not name or not paths:
-        raise ValueError(f"{where}: an axis needs a name and set = [paths]")
+        raise UserError(f"{where}: an axis needs a name and set = [paths]")
     if ("values" in raw) == ("range" in raw):
-        raise ValueError(f"{where}: axis {name} needs either values or range")
+        raise UserError(f"{where}: axis {name} needs either values or range")
     if "values" in raw:
         values = tuple(float(v) for v in raw["values"])
         if not values:
-            raise ValueError(f"{where}: axis {name} has no values")
+            raise UserError(f"{where}: axis {name} has no values")
         return Axis(name, paths, values, unit=raw.get("unit", ""))
     span = raw["range"]
     try:
         start, stop, num = float(span["start"]), float(span["stop"]), int(span.get("num", 2))
     except KeyError as error:
-        raise ValueError(f"{where}: axis {name} range needs {error.args[0]}") from None
+        raise UserError(f"{where}: axis {name} range needs {error.args[0]}") from None
     if num < 1:
-        raise ValueError(f"{where}: axis {name} range num = {num} is below 1")
+        raise UserError(f"{where}: axis {name} range num = {num} is below 1")
     values = tuple(float(v) for v in np.linspace(start, stop, num))
     return Axis(name, paths, values, (start, stop), raw.get("unit", ""))
 
@@ -154,23 +155,23 @@ def load(path: str | Path) -> Sweep:
     if not path.suffix:
         path = SWEEP_DIR / f"{path}.toml"
     if not path.exists():
-        raise ValueError(f"no sweep file {path}")
+        raise UserError(f"no sweep file {path}")
     data = tomllib.loads(path.read_text())
     where = path.name
     scenario_ref = data.get("scenario")
     if not scenario_ref:
-        raise ValueError(f"{where}: no scenario")
+        raise UserError(f"{where}: no scenario")
     scenario = scenarios.load(path.parent / scenario_ref if Path(scenario_ref).suffix
                               else scenario_ref)
     variants = tuple(data.get("variants", scenario.variants))
     for variant in variants:
         scenario.variant(variant)
     if not data.get("axes"):
-        raise ValueError(f"{where}: no [[axes]]")
+        raise UserError(f"{where}: no [[axes]]")
     axes = tuple(_axis(raw, f"{where} axis {i + 1}") for i, raw in enumerate(data["axes"]))
     names = [axis.name for axis in axes]
     if len(set(names)) < len(names):
-        raise ValueError(f"{where}: axis names repeat: {', '.join(names)}")
+        raise UserError(f"{where}: axis names repeat: {', '.join(names)}")
     for axis in axes:  # bad paths stop the sweep here; bad values are runs that fail
         try:
             configure(scenario, [(p, axis.values[0]) for p in axis.paths])
@@ -181,38 +182,38 @@ def load(path: str | Path) -> Sweep:
     metrics = tuple(data.get("metrics", RUN_METRICS))
     unknown = sorted(set(metrics) - set(RUN_METRICS))
     if unknown:
-        raise ValueError(f"{where}: unknown metrics {', '.join(unknown)} "
+        raise UserError(f"{where}: unknown metrics {', '.join(unknown)} "
                          f"(choose from {', '.join(RUN_METRICS)})")
     sample = data.get("sample", "grid")
     if sample not in ("grid", "lhs"):
-        raise ValueError(f"{where}: sample = {sample!r}, not 'grid' or 'lhs'")
+        raise UserError(f"{where}: sample = {sample!r}, not 'grid' or 'lhs'")
     samples = int(data.get("samples", 0))
     if sample == "lhs" and samples < 1:
-        raise ValueError(f"{where}: a Latin-hypercube sample needs samples >= 1")
+        raise UserError(f"{where}: a Latin-hypercube sample needs samples >= 1")
     plots = data.get("plots", {})
     for kind, spec in plots.items():
         if kind not in PLOTS:
-            raise ValueError(f"{where}: unknown plot {kind!r} (choose from {', '.join(PLOTS)})")
+            raise UserError(f"{where}: unknown plot {kind!r} (choose from {', '.join(PLOTS)})")
         roles = [spec.get(role) for role in ("x", "y", "lines", "panels") if spec.get(role)]
         if set(roles) - set(names) or not spec.get("x") or (kind == "map" and not spec.get("y")):
-            raise ValueError(f"{where}: plot {kind} needs x{' and y' if kind == 'map' else ''}"
+            raise UserError(f"{where}: plot {kind} needs x{' and y' if kind == 'map' else ''}"
                              f" and may have lines, panels, all axes ({', '.join(names)})")
         if "E_drawn" not in metrics or {SAVING_REGULATED, SAVING_REFERENCE} - set(variants):
-            raise ValueError(f"{where}: plot {kind} needs the metric E_drawn and the variants "
+            raise UserError(f"{where}: plot {kind} needs the metric E_drawn and the variants "
                              f"{SAVING_REGULATED} and {SAVING_REFERENCE}")
     step_size = float(data.get("step_size", master.DEFAULT_STEP))
     if not step_size > 0.0:
-        raise ValueError(f"{where}: step_size = {step_size} s is outside (0, inf)")
+        raise UserError(f"{where}: step_size = {step_size} s is outside (0, inf)")
     chunk_size = int(data.get("chunk_size", DEFAULT_CHUNK))
     if chunk_size < 1:
-        raise ValueError(f"{where}: chunk_size = {chunk_size} is below 1")
+        raise UserError(f"{where}: chunk_size = {chunk_size} is below 1")
     return Sweep(data.get("name", path.stem), data.get("description", ""), scenario, variants,
                  axes, metrics, step_size, sample, samples, int(data.get("seed", 0)),
                  chunk_size, plots)
 
 
 # ---- configuration paths ------------------------------------------------------------------
-class PathError(ValueError):
+class PathError(UserError):
     """A set path that does not name anything in the run's configuration."""
 
 
@@ -282,7 +283,7 @@ def configure(scenario: scenarios.Scenario, assignments: Iterable[tuple[str, flo
         head = tokens[0][0]
         if tokens == [("duration_scale",)]:
             if not (value > 0.0 and math.isfinite(value)):
-                raise ValueError(f"duration_scale = {value} is outside (0, inf)")
+                raise UserError(f"duration_scale = {value} is outside (0, inf)")
             current = config["scenario"]
             config["scenario"] = replace(current, phases=tuple(
                 replace(p, duration=p.duration * value) for p in current.phases))
@@ -731,7 +732,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1 or (args.chunk_size is not None and args.chunk_size < 1):
-        raise ValueError("--workers and --chunk-size must be at least 1")
+        raise UserError("--workers and --chunk-size must be at least 1")
     try:
         run_sweep(args.file, args.out, args.workers, args.scheduler, args.chunk_size,
               args.retry_failed, args.quiet)
