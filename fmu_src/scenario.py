@@ -36,6 +36,7 @@ shape functions and `ramp` are plain arithmetic, so they work on floats and nump
 from __future__ import annotations
 
 import math
+import re
 from bisect import bisect_right
 from dataclasses import dataclass, field
 from typing import Any
@@ -52,6 +53,24 @@ JOINT_KEYS = ("position", "speed", "effort", "start_parameter", "inertia", "fric
               "drive_inertia", "initial")
 OPTIONAL_JOINT_KEYS = ("kind", "motor", "static_effort", "static_load")
 PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs")
+# scenario and variant names become file and folder names: no path separators, no "..",
+# not empty, not hidden
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_+-]*(\.[A-Za-z0-9_+-]+)*")
+
+
+def check_name(name: Any, what: str) -> str:
+    """name if it is a usable file name (NAME_PATTERN), else ValueError naming `what`."""
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise ValueError(f"{what} = {name!r} must be letters, digits, '_', '-', '+' and inner "
+                         "dots, starting with a letter or digit (it names result files)")
+    return name
+
+
+def finite_number(value: Any, what: str, allowed: str = "a finite number") -> float:
+    """value as a float if it is a finite number (not a boolean), else ValueError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ValueError(f"{what} = {value!r} is not {allowed}")
+    return float(value)
 
 
 def quintic(s: Any) -> Any:
@@ -116,7 +135,7 @@ class Phase:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "target", _positions(self.target))
-        if not self.duration > 0.0:
+        if not 0.0 < self.duration < math.inf:
             raise ValueError(f"phase {self.name}: duration = {self.duration} s is outside "
                              "(0, inf)")
 
@@ -201,6 +220,14 @@ class Scenario:
                                  f"{len(names)} joint(s) {', '.join(names)}")
         if not self.phases:
             raise ValueError(f"scenario {self.name} has no phases")
+        phase_names = [p.name for p in self.phases]
+        repeated = sorted({n for n in phase_names if phase_names.count(n) > 1})
+        if repeated:
+            raise ValueError(f"scenario {self.name}: phase names repeat: {', '.join(repeated)} "
+                             "(each phase needs its own name)")
+        if not self.variants:
+            raise ValueError(f"scenario {self.name} has no variants: [variants] needs at least "
+                             "one table")
 
     @property
     def duration(self) -> float:
@@ -315,10 +342,10 @@ def _input_change(name: str, value: Any) -> Any:
         if "ramp" not in value or set(value) - {"ramp", "shape"} or shape not in RAMP_SHAPES:
             raise ValueError(f"input {name} must be a value or {{ ramp = value, "
                              f"shape = one of {', '.join(RAMP_SHAPES)} }}")
-        return Ramp(float(value["ramp"]), shape)
-    if not isinstance(value, bool | int | float) or not math.isfinite(value):
-        raise ValueError(f"input {name} = {value!r} is not a finite number or boolean")
-    return value if isinstance(value, bool) else float(value)
+        return Ramp(finite_number(value["ramp"], f"input {name} ramp"), shape)
+    if isinstance(value, bool):
+        return value
+    return finite_number(value, f"input {name}", "a finite number or boolean")
 
 
 def _input_changes(raw: dict[str, Any], where: str) -> dict[str, Any]:
@@ -328,8 +355,12 @@ def _input_changes(raw: dict[str, Any], where: str) -> dict[str, Any]:
         raise ValueError(f"{where}: {error}") from None
 
 
-def _parameter_values(raw: dict[str, Any]) -> dict[str, float | bool]:
-    return {k: v if isinstance(v, bool) else float(v) for k, v in raw.items()}
+def _parameter_values(raw: Any, where: str) -> dict[str, float | bool]:
+    if not isinstance(raw, dict):
+        raise ValueError(f"{where} = {raw!r} must be a table of name = number or boolean")
+    return {k: v if isinstance(v, bool) else finite_number(v, f"{where} {k}", "a finite "
+                                                           "number or boolean")
+            for k, v in raw.items()}
 
 
 def _unknown_keys(raw: dict[str, Any], allowed: tuple[str, ...], where: str) -> None:
@@ -358,7 +389,7 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
     if "joints" not in data:
         if "initial_angle_deg" not in data:
             raise ValueError("initial_angle_deg is missing (or declare [joints.<name>] tables)")
-        initial = math.radians(float(data["initial_angle_deg"]))
+        initial = math.radians(finite_number(data["initial_angle_deg"], "initial_angle_deg"))
         names = data.get("joint", {})
         default = {k: v for k, v in DEFAULT_JOINT.items()
                    if not (k == "static_load" and "static_effort" in names)}
@@ -388,7 +419,7 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
             raise ValueError("target_deg is for a scenario with one revolute joint; give "
                              f"targets = {{ {', '.join(f'{n} = ...' for n in names)} }} in rad "
                              "(revolute) or m (prismatic)")
-        return (math.radians(float(raw["target_deg"])),)
+        return (math.radians(finite_number(raw["target_deg"], "target_deg")),)
     targets = raw.get("targets", {})
     unknown = sorted(set(targets) - set(names))
     if unknown:
@@ -414,7 +445,9 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
             target = _targets(raw, joints, target)
         except ValueError as error:
             raise ValueError(f"{where}: {error}") from None
-        phases.append(Phase(name, float(raw["duration"]), target,
+        duration = finite_number(raw["duration"], f"{where}: duration", "a number of seconds "
+                                 "in (0, inf)")
+        phases.append(Phase(name, duration, target,
                             _input_changes(raw.get("inputs", {}), where)))
     return tuple(phases)
 
@@ -422,6 +455,7 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
 def _variants(data: dict[str, Any], phase_names: set[str]) -> dict[str, Variant]:
     variants = {}
     for name, raw in data["variants"].items():
+        check_name(name, "variant name")
         phase_inputs = raw.get("phase_inputs", {})
         unknown = set(phase_inputs) - phase_names
         if unknown:
@@ -429,8 +463,9 @@ def _variants(data: dict[str, Any], phase_names: set[str]) -> dict[str, Variant]
                              f"{', '.join(sorted(unknown))}")
         variants[name] = Variant(
             name, raw.get("description", ""), raw.get("model"),
-            _parameter_values(raw.get("parameters", {})),
-            dict(raw.get("inputs", {})), tuple(raw.get("drop_inputs", ())),
+            _parameter_values(raw.get("parameters", {}), f"variant {name} parameters"),
+            _parameter_values(raw.get("inputs", {}), f"variant {name} inputs"),
+            tuple(raw.get("drop_inputs", ())),
             {phase: _input_changes(changes, f"variant {name} phase {phase}")
              for phase, changes in phase_inputs.items()},
             raw.get("baseline"))
@@ -445,10 +480,11 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
         phases = _phases(data, joints, initial)
         variants = _variants(data, {phase.name for phase in phases})
         scenario = scenario_type(
-            name=data["name"], description=data.get("description", ""), model=data["model"],
-            parameters=_parameter_values(data.get("parameters", {})), initial_angle=initial,
-            phases=phases, variants=variants,
-            baseline=data.get("baseline", next(iter(variants))), joints=joints)
+            name=check_name(data["name"], "name"), description=data.get("description", ""),
+            model=data["model"],
+            parameters=_parameter_values(data.get("parameters", {}), "parameters"),
+            initial_angle=initial, phases=phases, variants=variants,
+            baseline=data.get("baseline", next(iter(variants), "")), joints=joints)
         unknown = sorted(set(scenario.baselines.values()) - set(variants))
         if unknown:
             raise ValueError(f"baseline {', '.join(unknown)} names no variant; choose from "
@@ -458,3 +494,6 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
         raise ValueError(f"{where}: {error}") from None
     except KeyError as error:
         raise ValueError(f"{where}: {error.args[0]} is missing") from None
+    except (TypeError, AttributeError) as error:  # a list or value where a table belongs
+        raise ValueError(f"{where}: a value has the wrong type ({error}); see the scenario "
+                         "file format") from None

@@ -1,5 +1,9 @@
 """`python -m harness compare REFERENCE.csv RESULT.csv`: signal-by-signal comparison.
 
+The result must cover the reference's time range (to within half a sample of each end),
+share at least one signal with it and hold no NaN in the compared signals; otherwise the
+comparison is refused with a message saying what is missing.
+
 Two checks per signal, both on the result interpolated to the reference's time points:
 - tolerance: |result - reference| <= atol + rtol * max |reference| at every point;
 - band: the FMI cross-check band of `fmpy.util.validate_signal` (a band around the
@@ -62,6 +66,9 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
     if not (rtol >= 0 and atol >= 0):
         raise UserError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
     shared = [c for c in reference.columns[1:] if c in result.columns]
+    if not shared:
+        raise UserError(f"no signal in common: the reference has {', '.join(reference.columns[1:])}"
+                        f"; the result has {', '.join(result.columns[1:])}")
     if signals is None:
         signals = shared
     unknown = [s for s in signals if s not in shared]
@@ -69,6 +76,11 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
         raise UserError(f"unknown signal(s) {', '.join(unknown)}; shared signals: "
                          f"{', '.join(shared)}")
     t_ref, t_res = reference.time.to_numpy(float), result.time.to_numpy(float)
+    _check_coverage(t_ref, t_res)
+    for name, table in (("reference", reference), ("result", result)):
+        holes = [s for s in signals if table[s].isna().any()]
+        if holes:
+            raise UserError(f"the {name} has NaN in signal(s) {', '.join(holes)}")
     inside = (t_ref >= t_res[0]) & (t_ref <= t_res[-1])
     out = []
     for name in signals:
@@ -81,6 +93,15 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
         out.append(SignalComparison(name, float(np.max(error, initial=0.0)), allowed,
                                     int(np.sum(error > allowed)), int(np.sum(band_out))))
     return out
+
+
+def _check_coverage(t_ref: np.ndarray, t_res: np.ndarray) -> None:
+    """UserError unless the result spans the reference's time range, to within half of the
+    reference's sample interval at each end (its own sampling may differ)."""
+    slack = 0.5 * float(np.min(np.diff(t_ref)))
+    if t_res[0] > t_ref[0] + slack or t_res[-1] < t_ref[-1] - slack:
+        raise UserError(f"the result covers time [{t_res[0]:g}, {t_res[-1]:g}] s, not the "
+                        f"reference's [{t_ref[0]:g}, {t_ref[-1]:g}] s")
 
 
 def report(comparisons: list[SignalComparison]) -> str:

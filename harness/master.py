@@ -17,12 +17,14 @@ an initial condition, not a feedforward: during the task each drive gets only it
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from fmpy import read_model_description
 
 from harness import fmu_build, metrics
 from harness.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
@@ -86,6 +88,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     inputs = scenario.inputs(times, variant)
     record_every = max(1, round(RECORD_INTERVAL / step_size))
 
+    check_names(scenario, variant, parameters)
     if fmu is None:
         context = CoSimFMU(fmu_build.fmu_path(model), f"{scenario.name}.{variant.name}")
     else:
@@ -96,7 +99,6 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         context = contextlib.nullcontext(fmu)
     with context as fmu:
         first_message = len(fmu.messages)
-        _check_names(fmu, model, variant, inputs, joints)
         fmu.set({name: signal[0] for name, signal in inputs.items()})
         fmu.initialize(parameters, stop_time=scenario.duration)
 
@@ -215,20 +217,39 @@ def joint_drive(fmu: CoSimFMU, joint: Joint, drive_motor: MotorParameters,
     return gains, joint.hold_effort(values[joint.static_output]) / drive_motor.torque_per_amp
 
 
-def _check_names(fmu: CoSimFMU, model: str, variant: Variant, inputs: dict[str, np.ndarray],
-                 joints: tuple[Joint, ...]) -> None:
-    """ValueError naming scenario inputs and joint variables the model does not have."""
-    unknown = [n for n in inputs if n not in fmu.variables]
+@functools.cache
+def model_variables(model: str) -> dict[str, str]:
+    """{variable name: causality} of one of our models; UserError for an unknown model."""
+    if model not in fmu_build.MODELS:
+        raise UserError(f"unknown model {model!r}; choose from {', '.join(fmu_build.MODELS)}")
+    description = read_model_description(str(fmu_build.fmu_path(model)))
+    return {v.name: v.causality for v in description.modelVariables}
+
+
+def check_names(scenario: Scenario, variant: Variant,
+                parameters: Mapping[str, float | bool]) -> None:
+    """UserError naming a model, parameter, input or joint variable the run's model does not
+    have: found before anything runs (a sweep checks its first point before the others)."""
+    model = variant.model or scenario.model
+    variables = model_variables(model)
+    unknown = [n for n in parameters if variables.get(n) != "parameter"]
+    if unknown:
+        known = ", ".join(n for n, c in variables.items() if c == "parameter")
+        raise UserError(f"model {model} has no parameter {', '.join(unknown)} (set in "
+                        f"scenario {scenario.name} or variant {variant.name}); its "
+                        f"parameters: {known}")
+    inputs = scenario.input_segments(variant)[0]
+    unknown = [n for n in inputs if variables.get(n) != "input"]
     if unknown:
         raise UserError(f"model {model} has no input {', '.join(unknown)}: drop it in "
-                         f"variant {variant.name} (drop_inputs)")
-    for joint in joints:
+                        f"variant {variant.name} (drop_inputs)")
+    for joint in scenario.joints:
         names = (joint.position, joint.speed, joint.effort, joint.start_parameter,
                  joint.inertia, joint.friction, joint.drive_inertia, joint.static_output)
-        unknown = [n for n in names if n not in fmu.variables]
+        unknown = [n for n in names if n not in variables]
         if unknown:
             raise UserError(f"model {model} has no variable {', '.join(unknown)} "
-                             f"(named by joint {joint.name})")
+                            f"(named by joint {joint.name})")
 
 
 def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:

@@ -41,6 +41,13 @@ class Scenario(core.Scenario):
         ref[times > self.duration] = segments[-1][3]
         return ref
 
+    def variant(self, name: str) -> Variant:
+        """The named variant; UserError naming the choices."""
+        try:
+            return super().variant(name)
+        except ValueError as error:
+            raise UserError(str(error)) from None
+
     def inputs(self, times: np.ndarray, variant: Variant) -> dict[str, np.ndarray]:
         """Input signals at the given times (a phase's changes apply from its start)."""
         signals: dict[str, np.ndarray] = {}
@@ -73,7 +80,10 @@ def load(name_or_path: str | Path) -> Scenario:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
         raise UserError(f"{path.name}: not valid TOML ({error})") from None
-    return core.parse(data, path.name, Scenario)
+    try:
+        return core.parse(data, path.name, Scenario)
+    except ValueError as error:  # the core is standard library only: it raises ValueError
+        raise UserError(str(error)) from None
 
 
 def available() -> list[str]:

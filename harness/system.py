@@ -50,6 +50,7 @@ from tqdm import tqdm
 from harness import cosim, fmu_build, master, results, scenarios
 from harness.controller import ControllerDesign, PIDGains
 from harness.drive import motors
+from harness.errors import UserError
 from harness.fmi import CoSimFMU
 
 ENGINES = ("libcosim", "fmpy-ssp")
@@ -85,7 +86,7 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
              design: ControllerDesign = ControllerDesign()) -> System:
     """The system of FMUs for a variant, with the harness's parameters and start."""
     if len(scenario.joints) != 1:
-        raise ValueError(f"scenario {scenario.name} has {len(scenario.joints)} joints; the "
+        raise UserError(f"scenario {scenario.name} has {len(scenario.joints)} joints; the "
                          "system has one drive and one controller (one-joint scenarios)")
     (joint,) = scenario.joints
     motor = motors()[joint.motor]
@@ -420,7 +421,7 @@ def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
                step_size: float, out: Path, source: str = "osp") -> list[master.RunResult]:
     """Describe, write and run each variant's system; write results into out."""
     if engine not in ENGINES:
-        raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
+        raise UserError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
     _check_sequencer(scenario)
     runs = []
     for name in tqdm(variants, desc=f"{scenario.name} system ({engine})", unit="variant"):
@@ -442,13 +443,13 @@ def _check_sequencer(scenario: scenarios.Scenario) -> None:
     from fmpy import read_model_description
     description = read_model_description(fmu_build.fmu_path("ScenarioSequencer")).description
     if f"plays scenario {scenario.name} " not in (description or ""):
-        raise ValueError(f"the ScenarioSequencer FMU does not play scenario {scenario.name} "
+        raise UserError(f"the ScenarioSequencer FMU does not play scenario {scenario.name} "
                          f"({description}); build one for it with build-fmus")
 
 
 def run(args: argparse.Namespace) -> int:
     if not (args.step > 0.0):
-        raise ValueError(f"--step = {args.step} s is outside (0, inf)")
+        raise UserError(f"--step = {args.step} s is outside (0, inf)")
     scenario = scenarios.load(args.scenario)
     variants = cosim.selected_variants(scenario, args.variant)
     out = args.out or SYSTEM_DIR / scenario.name / args.engine
