@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from dataclasses import fields
 
 from fmu_src import ciupitu
@@ -43,7 +44,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"option --{error}") from None
     strokes = {law: ciupitu.stroke(data, law) for law in ciupitu.PAYLOAD_LAWS}
     if args.json:
-        print(json.dumps(results(strokes)))
+        values = results(strokes)
+        undefined = [key for key, value in values.items() if not math.isfinite(value)]
+        if undefined:  # e.g. eps with no unbalanced work (E_u = 0): JSON has no NaN or inf
+            print(f"note: {', '.join(undefined)} undefined for these data: written as null",
+                  file=sys.stderr)
+        print(json.dumps({key: value if key not in undefined else None
+                          for key, value in values.items()}, allow_nan=False))
         return 0
     print("Ciupitu 2018, Figure 4a: one stroke, phi = +pi/2 -> -pi/2")
     print(f"G_pv,max = {data.Gmax:g} N at OP = {data.OP:g} m, G2 = {data.G2:g} N, "
