@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+import zipfile
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,9 +61,13 @@ class CoSimFMU:
 
     def __init__(self, path: str | Path, instance_name: str = "instance") -> None:
         self.path = Path(path)
-        self.model_description = read_model_description(str(self.path))
+        try:
+            self.model_description = read_model_description(str(self.path))
+            self._unzip_dir = extract(str(self.path))
+        except (zipfile.BadZipFile, OSError) as error:  # truncated or missing FMU
+            raise UserError(f"{self.path}: not a readable FMU ({error}); rebuild it "
+                            "(python -m harness build-fmus)") from None
         self.variables = {v.name: v for v in self.model_description.modelVariables}
-        self._unzip_dir = extract(str(self.path))
         self.messages: list[LogMessage] = []
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)

@@ -149,7 +149,7 @@ def _axis(raw: Any, where: str) -> Axis:
         raise UserError(f"{where}: an axis is a table ([[axes]]), not {raw!r}")
     name = raw.get("name")
     paths = raw.get("set")
-    paths = (paths,) if isinstance(paths, str) else paths
+    paths = [paths] if isinstance(paths, str) else paths
     if not isinstance(name, str) or not name or not isinstance(paths, list) or not paths or not all(
             isinstance(p, str) for p in paths):
         raise UserError(f"{where}: an axis needs name = \"...\" and set = a path or a list of "
