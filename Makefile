@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: venv fmu test cosim bench lint xc sweep clean
+.PHONY: venv fmu test fuzz cosim bench lint xc sweep clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,11 @@ fmu: $(STAMP)
 
 test: fmu
 	$(PY) -m pytest -q
+
+# property tests with random seeds and many examples (about 10 min); `make test` runs the
+# same suite with a fixed seed and a small budget
+fuzz: fmu
+	HYPOTHESIS_PROFILE=deep $(PY) -m pytest -q tests/fuzz
 
 cosim: fmu
 	$(PY) -m harness cosim --scenario all --variants all

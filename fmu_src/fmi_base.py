@@ -213,6 +213,12 @@ class ModelSlave(Fmi2Slave):
         except ValueError as error:
             self.fail(f"invalid parameter: {error}")
             raise
+        for name, lowest, highest in self.real_input_bounds:  # initial outputs use them
+            value = getattr(self, name)
+            if not lowest <= value <= highest:
+                problem = self._input_problem(name, value)
+                self.fail(f"initialisation failed: {problem}")
+                raise ValueError(problem)
         try:
             self.params = params
             self.initialise(params)

@@ -66,6 +66,20 @@ def check_name(name: Any, what: str) -> str:
     return name
 
 
+def table(value: Any, what: str) -> dict[str, Any]:
+    """value if it is a table (dict), else ValueError naming `what`."""
+    if not isinstance(value, dict):
+        raise ValueError(f"{what} = {value!r} must be a table")
+    return value
+
+
+def table_list(value: Any, what: str) -> list[dict[str, Any]]:
+    """value if it is a non-empty list of tables ([[what]]), else ValueError naming it."""
+    if not isinstance(value, list) or not value or not all(isinstance(v, dict) for v in value):
+        raise ValueError(f"{what} = {value!r} must be a list of [[{what}]] tables")
+    return value
+
+
 def finite_number(value: Any, what: str, allowed: str = "a finite number") -> float:
     """value as a float if it is a finite number (not a boolean), else ValueError naming it."""
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
@@ -348,9 +362,10 @@ def _input_change(name: str, value: Any) -> Any:
     return finite_number(value, f"input {name}", "a finite number or boolean")
 
 
-def _input_changes(raw: dict[str, Any], where: str) -> dict[str, Any]:
+def _input_changes(raw: Any, where: str) -> dict[str, Any]:
     try:
-        return {name: _input_change(name, value) for name, value in raw.items()}
+        return {name: _input_change(name, value)
+                for name, value in table(raw, "inputs").items()}
     except ValueError as error:
         raise ValueError(f"{where}: {error}") from None
 
@@ -390,7 +405,7 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
         if "initial_angle_deg" not in data:
             raise ValueError("initial_angle_deg is missing (or declare [joints.<name>] tables)")
         initial = math.radians(finite_number(data["initial_angle_deg"], "initial_angle_deg"))
-        names = data.get("joint", {})
+        names = table(data.get("joint", {}), "joint")
         default = {k: v for k, v in DEFAULT_JOINT.items()
                    if not (k == "static_load" and "static_effort" in names)}
         raw = default | names | {"initial": initial}
@@ -398,7 +413,8 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
     if "joint" in data or "initial_angle_deg" in data:
         raise ValueError("with [joints.<name>] tables give each joint's names and `initial` "
                          "there, not [joint] or initial_angle_deg")
-    joints = tuple(_joint(name, raw) for name, raw in data["joints"].items())
+    joints = tuple(_joint(name, table(raw, f"joints.{name}"))
+                   for name, raw in table(data["joints"], "joints").items())
     initial = []
     for joint, raw in zip(joints, data["joints"].values(), strict=True):
         value = raw["initial"]
@@ -420,7 +436,7 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
                              f"targets = {{ {', '.join(f'{n} = ...' for n in names)} }} in rad "
                              "(revolute) or m (prismatic)")
         return (math.radians(finite_number(raw["target_deg"], "target_deg")),)
-    targets = raw.get("targets", {})
+    targets = table(raw.get("targets", {}), "targets")
     unknown = sorted(set(targets) - set(names))
     if unknown:
         raise ValueError(f"targets name no joint {', '.join(unknown)} "
@@ -435,7 +451,7 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
 def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[float, ...]
             ) -> tuple[Phase, ...]:
     phases, target = [], initial
-    for i, raw in enumerate(data["phases"]):
+    for i, raw in enumerate(table_list(data["phases"], "phases")):
         name = str(raw.get("name", i + 1))
         where = f"phase {name}"
         _unknown_keys(raw, PHASE_KEYS, where)
@@ -454,9 +470,17 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
 
 def _variants(data: dict[str, Any], phase_names: set[str]) -> dict[str, Variant]:
     variants = {}
-    for name, raw in data["variants"].items():
+    for name, raw in table(data["variants"], "variants").items():
         check_name(name, "variant name")
-        phase_inputs = raw.get("phase_inputs", {})
+        raw = table(raw, f"variant {name}")
+        phase_inputs = table(raw.get("phase_inputs", {}), f"variant {name} phase_inputs")
+        drop = raw.get("drop_inputs", [])
+        if not isinstance(drop, list) or not all(isinstance(n, str) for n in drop):
+            raise ValueError(f"variant {name} drop_inputs = {drop!r} must be a list of input "
+                             "names")
+        for key in ("description", "model", "baseline"):
+            if not isinstance(raw.get(key, ""), str):
+                raise ValueError(f"variant {name} {key} = {raw[key]!r} must be a string")
         unknown = set(phase_inputs) - phase_names
         if unknown:
             raise ValueError(f"variant {name} phase_inputs names no phase "
@@ -465,7 +489,7 @@ def _variants(data: dict[str, Any], phase_names: set[str]) -> dict[str, Variant]
             name, raw.get("description", ""), raw.get("model"),
             _parameter_values(raw.get("parameters", {}), f"variant {name} parameters"),
             _parameter_values(raw.get("inputs", {}), f"variant {name} inputs"),
-            tuple(raw.get("drop_inputs", ())),
+            tuple(drop),
             {phase: _input_changes(changes, f"variant {name} phase {phase}")
              for phase, changes in phase_inputs.items()},
             raw.get("baseline"))
@@ -476,6 +500,9 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
           ) -> Scenario:
     """A scenario from the data of its TOML file (where: the file's name, for messages)."""
     try:
+        for key in ("name", "description", "model", "baseline"):
+            if not isinstance(data.get(key, ""), str):
+                raise ValueError(f"{key} = {data[key]!r} must be a string")
         joints, initial = _joints(data)
         phases = _phases(data, joints, initial)
         variants = _variants(data, {phase.name for phase in phases})

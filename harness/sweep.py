@@ -151,7 +151,7 @@ def _axis(raw: Any, where: str) -> Axis:
     paths = raw.get("set")
     paths = [paths] if isinstance(paths, str) else paths
     if not isinstance(name, str) or not name or not isinstance(paths, list) or not paths or not all(
-            isinstance(p, str) for p in paths):
+            isinstance(p, str) and p.strip() for p in paths):
         raise UserError(f"{where}: an axis needs name = \"...\" and set = a path or a list of "
                         f"paths (strings); got name = {name!r}, set = {raw.get('set')!r}")
     paths = tuple(paths)
@@ -161,7 +161,7 @@ def _axis(raw: Any, where: str) -> Axis:
         if not isinstance(raw["values"], list) or not raw["values"]:
             raise UserError(f"{where}: axis {name} values = {raw['values']!r} must be a "
                             "non-empty list of numbers")
-        values = tuple(_number(v, f"{where}: axis {name} value") for v in raw["values"])
+        values = tuple(_number(v, f"{where}: axis {name} values item") for v in raw["values"])
         range_ = None
     else:
         span = raw["range"]
@@ -175,7 +175,7 @@ def _axis(raw: Any, where: str) -> Axis:
         values, range_ = tuple(float(v) for v in np.linspace(start, stop, num)), (start, stop)
     repeated = sorted({v for v in values if values.count(v) > 1})
     if repeated:
-        raise UserError(f"{where}: axis {name} repeats the value(s) "
+        raise UserError(f"{where}: axis {name} values repeat: "
                         f"{', '.join(f'{v:g}' for v in repeated)} (runs would share run ids)")
     return Axis(name, paths, values, range_, raw.get("unit", ""))
 

@@ -225,7 +225,7 @@ values = [981.0, 500.0]
     ("values = [981.0, 500.0]", 'range = "0:1"', "range = '0:1'"),
     ("values = [981.0, 500.0]", "range = { start = 0, stop = 1, num = 1e12 }", "num"),
     ("values = [981.0, 500.0]", "range = { start = 0, stop = 1, num = 2.7 }", "num = 2.7"),
-    ("values = [981.0, 500.0]", "values = [981.0, 981.0]", "repeats the value(s) 981"),
+    ("values = [981.0, 500.0]", "values = [981.0, 981.0]", "values repeat: 981"),
     ("values = [981.0, 500.0]", "values = [981.0, nan]", "nan"),
     ('name = "tiny"', 'name = "tiny"\nstep_size = inf', "step_size"),
     ('name = "tiny"', 'name = "../../x"', "../../x"),
