@@ -25,6 +25,7 @@ initialisation.
 from __future__ import annotations
 
 import math
+import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
@@ -97,6 +98,13 @@ class ModelSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        # pythonfmu's runtime puts the resources folder (where it reads slavemodule.txt)
+        # first on sys.path at every instantiation, to import the slave module, and never
+        # takes it out: one entry per instance, pointing at folders hosts delete. The module
+        # is imported by now. (pythonfmu's builder removes its own entry itself.)
+        if self.resources in sys.path and os.path.exists(
+                os.path.join(self.resources, "slavemodule.txt")):
+            sys.path.remove(self.resources)
         self.author = "Gravity balancer co-simulation project"
         self.license = "MIT"
         self.info: dict[str, VariableInfo] = {}

@@ -223,3 +223,21 @@ def test_restored_state_is_validated(original: bytes, replacement: bytes, named:
         assert named in errors(fmu)[-1] and "FMU state refused" in errors(fmu)[-1]
     finally:
         fmu.close()
+
+
+# ---- section 9: per-instance growth that is ours
+
+def test_instances_leave_sys_path_as_it_was() -> None:
+    """pythonfmu's runtime adds the resources folder to sys.path at every instantiation
+    (200 entries after 200 instances, most of them deleted folders); the slaves take it out."""
+    import sys
+
+    path = fmu_build.fmu_path(SRB)
+    CoSimFMU(path).close()  # modules imported, build checked
+    before = list(sys.path)
+    for _ in range(5):
+        fmu = CoSimFMU(path)
+        fmu.initialize()
+        fmu.step(0.0, DT)
+        fmu.close()
+    assert sys.path == before
