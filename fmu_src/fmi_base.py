@@ -24,6 +24,7 @@ initialisation.
 
 from __future__ import annotations
 
+import builtins
 import math
 import os
 import sys
@@ -37,7 +38,9 @@ from xml.etree.ElementTree import Element, SubElement
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
-from fmu_src.parameters import check_ranges
+from fmu_src.parameters import MAGNITUDE_LIMIT, check_ranges, magnitude_problem
+
+SMALLEST = 1.0 / MAGNITUDE_LIMIT  # the smallest non-zero magnitude of an input
 
 # ValueError texts of the math module: a failed computation, not a message of ours.
 MATH_ERRORS = ("math domain error", "math range error")
@@ -108,8 +111,8 @@ class ModelSlave(Fmi2Slave):
         self.author = "Gravity balancer co-simulation project"
         self.license = "MIT"
         self.info: dict[str, VariableInfo] = {}
-        # (name, lowest, highest) per Real input; +-float max stand in for a missing bound,
-        # so one chained comparison per input also rejects NaN and +-inf.
+        # (name, lowest, highest) per Real input within +-MAGNITUDE_LIMIT, so one chained
+        # comparison per input also rejects NaN, +-inf and huge values.
         self.real_input_bounds: list[tuple[str, float, float]] = []
         self.params = None
         self.start_time = 0.0
@@ -173,8 +176,8 @@ class ModelSlave(Fmi2Slave):
             var = Real(name, causality=Fmi2Causality.input,
                        variability=Fmi2Variability.continuous, description=description)
             self.real_input_bounds.append((
-                name, -sys.float_info.max if min is None else min,
-                sys.float_info.max if max is None else max))
+                name, -MAGNITUDE_LIMIT if min is None else builtins.max(min, -MAGNITUDE_LIMIT),
+                MAGNITUDE_LIMIT if max is None else builtins.min(max, MAGNITUDE_LIMIT)))
         self._add(var, VariableInfo(unit, description, min, max))
 
     def add_output(self, name: str, unit: str | None, description: str) -> None:
@@ -223,7 +226,7 @@ class ModelSlave(Fmi2Slave):
             raise
         for name, lowest, highest in self.real_input_bounds:  # initial outputs use them
             value = getattr(self, name)
-            if not lowest <= value <= highest:
+            if not lowest <= value <= highest or 0.0 < abs(value) < SMALLEST:
                 problem = self._input_problem(name, value)
                 self.fail(f"initialisation failed: {problem}")
                 raise ValueError(problem)
@@ -252,7 +255,7 @@ class ModelSlave(Fmi2Slave):
             return False
         for name, lowest, highest in self.real_input_bounds:
             value = getattr(self, name)
-            if not lowest <= value <= highest:
+            if not lowest <= value <= highest or 0.0 < abs(value) < SMALLEST:
                 self.fail(self._input_problem(name, value))
                 return False
         # What a step changes: the outputs and the hidden state (C-level getters: cheap).
@@ -311,6 +314,8 @@ class ModelSlave(Fmi2Slave):
         info = self.info[name]
         if not math.isfinite(value):
             return f"input {name} = {value} is not a finite number"
+        if magnitude_problem(value):
+            return f"input {name} = {value} {info.unit} {magnitude_problem(value)}"
         low = -math.inf if info.min is None else info.min
         high = math.inf if info.max is None else info.max
         return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"

@@ -89,8 +89,8 @@ def test_huge_drive_torque_step_then_refusal_keeps_the_state() -> None:
 
 
 @pytest.mark.parametrize("parameters", [
-    {"J_link": 1e-300}, {"d_link": 1e6}, {"k": 1e14}, {"m": 1e12, "c": 1e6},
-], ids=["J_link=1e-300", "d_link=1e6", "k=1e14", "m c=1e18"])
+    {"J_link": 1e-40}, {"d_link": 1e6}, {"k": 1e14}, {"m": 1e12, "c": 1e6},
+], ids=["J_link=1e-40", "d_link=1e6", "k=1e14", "m c=1e18"])
 def test_stiff_self_regulating_balancer_refuses_steps(parameters: dict[str, float]) -> None:
     with open_fmu(fmu_build.fmu_path(SRB), parameters) as fmu:
         before = fmu.get(fmu.names("output"))
@@ -114,7 +114,8 @@ def test_fast_initial_speed_costs_at_most_the_bound() -> None:
 @pytest.mark.parametrize(("model", "parameters", "named"), [
     (SRB, {"k": 1e300}, "k"), (SRB, {"m": 1e300}, "m"), (SRB, {"d_link": 1e300}, "d_link"),
     (SRB, {"L0": 1e300}, "L0"), (SRB, {"omega0": 1e300}, "omega0"), (SRB, {"w": 1e300}, "w"),
-    (SRB, {"J_link": 0.0}, "J_link"), (SRB, {"g": 0.0}, "g"),
+    (SRB, {"J_link": 0.0}, "J_link"), (SRB, {"J_link": 1e-300}, "J_link"),
+    (SRB, {"g": 0.0}, "g"), (SRB, {"R": 5e-324}, "R"),
     (CIUPITU, {"AB": 1e300}, "AB"), (CIUPITU, {"c_fixed_cw": 1e300}, "c_fixed_cw"),
     (CIUPITU, {"omega0": 1e300}, "omega0"), (PRISMATIC, {"lc1": 1e300}, "lc1"),
     ("DcMotorDrive", {"N": 1e300}, "N"),
@@ -138,8 +139,7 @@ def test_huge_prismatic_force_is_refused_not_infinite() -> None:
     with open_fmu(fmu_build.fmu_path(PRISMATIC)) as fmu:
         before = fmu.get(fmu.names("output"))
         fmu.set({"f2": 1e300})
-        message = refused_step(fmu)
-        assert "would be inf" in message or "would be nan" in message
+        assert "input f2 = 1e+300 N is beyond the magnitude limit" in refused_step(fmu)
         assert fmu.get(fmu.names("output")) == before
 
 
@@ -148,7 +148,7 @@ def test_huge_prismatic_torque_is_refused_and_the_state_survives() -> None:
     with open_fmu(fmu_build.fmu_path(PRISMATIC)) as fmu:
         fmu.set({"tau1": 1e300})
         message = refused_step(fmu)
-        assert "tau1 = 1e+300" in message and "arithmetic" in message
+        assert "input tau1 = 1e+300 N.m is beyond the magnitude limit" in message
         fmu.set({"tau1": 0.0})
         fmu.step(0.0, DT)
         assert all(math.isfinite(v) for v in fmu.get(fmu.names("output")).values()
