@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -222,7 +223,12 @@ def model_variables(model: str) -> dict[str, str]:
     """{variable name: causality} of one of our models; UserError for an unknown model."""
     if model not in fmu_build.MODELS:
         raise UserError(f"unknown model {model!r}; choose from {', '.join(fmu_build.MODELS)}")
-    description = read_model_description(str(fmu_build.fmu_path(model)))
+    path = fmu_build.fmu_path(model)
+    try:
+        description = read_model_description(str(path))
+    except (zipfile.BadZipFile, OSError) as error:  # e.g. a truncated build
+        raise UserError(f"{path}: not a readable FMU ({error}); rebuild it "
+                        "(python -m harness build-fmus)") from None
     return {v.name: v.causality for v in description.modelVariables}
 
 

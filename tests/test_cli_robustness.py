@@ -258,3 +258,15 @@ def test_ciupitu_json_is_json_for_degenerate_data(capsys: pytest.CaptureFixture[
 def test_scenarios_load_error_is_a_user_error(tmp_path: Path) -> None:
     with pytest.raises(UserError, match="duration"):
         scenarios.load(scenario_file(tmp_path, "duration = 0.2", "duration = -1.0"))
+
+
+@pytest.mark.slow
+def test_sweep_whose_runs_all_fail_exits_non_zero(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Every run refused by the FMU (k < 0): exit 1 with the first error, not 0."""
+    scenario_file(tmp_path)
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP.replace("values = [981.0, 500.0]", "values = [-1.0, -2.0]"))
+    assert cli.main(["sweep", str(path), "--out", str(tmp_path / "out"), "--workers", "1",
+                     "--quiet"]) == 1
+    assert "all 2 runs failed" in capsys.readouterr().err
