@@ -18,7 +18,7 @@ A refused step leaves the instance as it was before the call: `do_step` refuses 
 whose work would exceed the integrator's bound (`fmu_src.integration.MAX_SUBSTEPS`), whose
 arithmetic fails, or whose outputs would not be finite, and restores the state. Fixed and
 calculated parameters cannot be set after initialisation (their setters raise, which
-pythonfmu reports as an error status); a restored FMU state is validated like a fresh
+pythonfmu reports as fmi2Fatal); a restored FMU state is validated like a fresh
 initialisation.
 """
 
@@ -224,12 +224,10 @@ class ModelSlave(Fmi2Slave):
         except ValueError as error:
             self.fail(f"invalid parameter: {error}")
             raise
-        for name, lowest, highest in self.real_input_bounds:  # initial outputs use them
-            value = getattr(self, name)
-            if not lowest <= value <= highest or 0.0 < abs(value) < SMALLEST:
-                problem = self._input_problem(name, value)
-                self.fail(f"initialisation failed: {problem}")
-                raise ValueError(problem)
+        problem = self._input_problem()  # the initial outputs use the inputs' start values
+        if problem is not None:
+            self.fail(f"initialisation failed: {problem}")
+            raise ValueError(problem)
         try:
             self.params = params
             self.initialise(params)
@@ -253,11 +251,10 @@ class ModelSlave(Fmi2Slave):
         if not (step_size > 0.0 and math.isfinite(step_size)):
             self.fail(f"communication step size = {step_size} s is outside (0, inf)")
             return False
-        for name, lowest, highest in self.real_input_bounds:
-            value = getattr(self, name)
-            if not lowest <= value <= highest or 0.0 < abs(value) < SMALLEST:
-                self.fail(self._input_problem(name, value))
-                return False
+        problem = self._input_problem()
+        if problem is not None:
+            self.fail(problem)
+            return False
         # What a step changes: the outputs and the hidden state (C-level getters: cheap).
         outputs, hidden = self._outputs_of(self.__dict__), self._hidden_of(self)
         try:
@@ -309,16 +306,23 @@ class ModelSlave(Fmi2Slave):
                                              for name, value in zip(state._fields, state))
         return f" (inputs {inputs})" if inputs else ""
 
-    def _input_problem(self, name: str, value: float) -> str:
-        """Error message for a Real input that is not finite or outside its range."""
-        info = self.info[name]
-        if not math.isfinite(value):
-            return f"input {name} = {value} is not a finite number"
-        if magnitude_problem(value):
-            return f"input {name} = {value} {info.unit} {magnitude_problem(value)}"
-        low = -math.inf if info.min is None else info.min
-        high = math.inf if info.max is None else info.max
-        return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
+    def _input_problem(self) -> str | None:
+        """Error message naming the first Real input that is not finite, outside its range or
+        its magnitudes, else None."""
+        for name, lowest, highest in self.real_input_bounds:
+            value = getattr(self, name)
+            if lowest <= value <= highest and not 0.0 < abs(value) < SMALLEST:
+                continue
+            info = self.info[name]
+            if not math.isfinite(value):
+                return f"input {name} = {value} is not a finite number"
+            magnitude = magnitude_problem(value)
+            if magnitude:
+                return f"input {name} = {value} {info.unit} {magnitude}"
+            low = -math.inf if info.min is None else info.min
+            high = math.inf if info.max is None else info.max
+            return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
+        return None
 
     def validate(self, params: Any) -> None:
         """Raise ValueError naming the first parameter outside its range."""
