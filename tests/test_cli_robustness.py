@@ -270,3 +270,32 @@ def test_sweep_whose_runs_all_fail_exits_non_zero(tmp_path: Path,
     assert cli.main(["sweep", str(path), "--out", str(tmp_path / "out"), "--workers", "1",
                      "--quiet"]) == 1
     assert "all 2 runs failed" in capsys.readouterr().err
+
+
+def test_sweep_tables_are_replaced_together(tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """A failure (or kill) while the final tables are written leaves the old parquet and CSV
+    together: it used to leave a 20-row parquet beside a 17-row CSV."""
+    scenario_file(tmp_path)
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    definition = sweep.load(path)
+    out = tmp_path / "out"
+    runs = sweep.plan(definition)
+    row = {"status": "failed", "error": "test"}
+    sweep._write_part(definition, out, [{"run_id": runs[0].run_id, "point": runs[0].point,
+                                         "variant": runs[0].variant, **runs[0].values, **row}])
+    sweep.consolidate(definition, out)
+    sweep._write_part(definition, out, [{"run_id": runs[1].run_id, "point": runs[1].point,
+                                         "variant": runs[1].variant, **runs[1].values, **row}])
+
+    def killed(*_args: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(results, "write_csv", killed)
+    with pytest.raises(KeyboardInterrupt):
+        sweep.consolidate(definition, out)
+    parquet = pd.read_parquet(out / "tiny.parquet")
+    csv = pd.read_csv(out / "tiny.csv")
+    assert len(parquet) == len(csv) == 1
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
