@@ -299,3 +299,17 @@ def test_sweep_tables_are_replaced_together(tmp_path: Path,
     csv = pd.read_csv(out / "tiny.csv")
     assert len(parquet) == len(csv) == 1
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+def test_closing_a_cluster_whose_workers_are_gone_is_quiet() -> None:
+    """After Ctrl-C the workers may be gone: closing the client used to end in a
+    CommClosedError traceback instead of the 'interrupted' line."""
+    from distributed.comm.core import CommClosedError
+
+    class GoneClient:
+        cluster = None
+
+        def close(self) -> None:
+            raise CommClosedError("in <TCP (closed)>: Stream is closed")
+
+    sweep._close(GoneClient())  # type: ignore[arg-type]
