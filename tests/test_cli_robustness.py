@@ -246,13 +246,22 @@ def test_bad_sweep_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
 
 # ---- ciupitu-example --json (section 12)
 
-def test_ciupitu_json_is_json_for_degenerate_data(capsys: pytest.CaptureFixture[str]) -> None:
-    """OP = 5e-324 m leaves no unbalanced work (E_u = 0): eps is undefined, written null."""
-    assert cli.main(["ciupitu-example", "--json", "--OP=5e-324"]) == 0
+def test_ciupitu_json_is_json_for_degenerate_data(capsys: pytest.CaptureFixture[str],
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Data with no unbalanced work (E_u = 0, as OP = 5e-324 m gave before the magnitude
+    limits) leave eps undefined: written null, not NaN or -Infinity (which are not JSON)."""
+    from fmu_src import ciupitu
+
+    undefined = ciupitu.StrokeResult(0.0, 1.0, -math.inf, 6.0, -0.46)
+    monkeypatch.setattr(ciupitu, "stroke", lambda data, law: undefined._replace(
+        eps=math.nan if law == "linear" else -math.inf))
+    assert cli.main(["ciupitu-example", "--json"]) == 0
     captured = capsys.readouterr()
     values = json.loads(captured.out, parse_constant=lambda name: pytest.fail(name))
-    assert values["eps_parabolic"] is None and "eps_parabolic" in captured.err
+    assert values["eps_parabolic"] is None and values["eps_linear"] is None
+    assert "eps_parabolic" in captured.err
     assert all(v is None or math.isfinite(v) for v in values.values())
+    assert cli.main(["ciupitu-example", "--json", "--OP=5e-324"]) == 2  # now out of range
 
 
 def test_scenarios_load_error_is_a_user_error(tmp_path: Path) -> None:
