@@ -6,9 +6,10 @@ booleans as 0/1. Every file is written to a temporary file in the target folder 
 over the old one, so a crash never leaves a half-written result.
 
 A scenario's folder is one result set: `write_run` merges the variants just run into it
-(their CSVs replaced, the other variants' rows and curves kept), writes the summary last,
-and holds an exclusive lock on the folder meanwhile, so concurrent runs into one folder are
-serialised instead of overwriting each other's rows.
+(their CSVs replaced, the other variants' rows and curves kept), makes every file in a
+staging folder first and then renames them into place in one burst, summary last, and holds
+an exclusive lock on the folder meanwhile, so concurrent runs into one folder are serialised
+instead of overwriting each other's rows.
 """
 
 from __future__ import annotations
@@ -137,9 +138,11 @@ def locked(out_dir: Path) -> Iterator[None]:
 def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path) -> list[Path]:
     """Write <variant>.csv for each run, then the plot and summary.csv of the whole result set
     in out_dir: variants run before (with a summary row and a CSV there) are kept, eps is
-    recomputed over all rows. The summary goes last: it lists what the set holds."""
-    with locked(out_dir):
-        written = [write_csv(r.series, out_dir / f"{r.variant}.csv") for r in results]
+    recomputed over all rows. A failure before the renames leaves the old set untouched;
+    the summary is renamed last: it lists what the set holds."""
+    with locked(out_dir), tempfile.TemporaryDirectory(dir=out_dir, prefix=".staging.") as tmp:
+        staging = Path(tmp)  # every file is made here first, then renamed in one burst
+        staged = [write_csv(r.series, staging / f"{r.variant}.csv") for r in results]
         table = summary(results, scenario.baselines)
         earlier = _earlier_runs(out_dir, scenario, table.columns, set(table.variant))
         order = list(scenario.variants)
@@ -148,8 +151,9 @@ def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path) -> li
         table = with_eps(table.reset_index(drop=True), scenario.baselines)
         runs: list[RunResult | StoredRun] = [*results, *(run for run, _ in earlier)]
         runs.sort(key=lambda r: order.index(r.variant))
-        written.append(plot(runs, scenario, out_dir / f"{scenario.name}.png"))
-        written.append(write_csv(table, out_dir / "summary.csv"))
+        staged.append(plot(runs, scenario, staging / f"{scenario.name}.png"))
+        staged.append(write_csv(table, staging / "summary.csv"))
+        written = [path.replace(out_dir / path.name) for path in staged]
     return written
 
 

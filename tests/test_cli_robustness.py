@@ -158,6 +158,23 @@ def test_one_variant_merges_into_the_result_set(tmp_path: Path) -> None:
     pd.testing.assert_frame_equal(first, second)  # same runs, same numbers, both rows
 
 
+def test_interrupted_write_leaves_the_result_set_as_it_was(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Killed mid-write, cosim used to leave a new CSV and a 1-row summary beside the old
+    plot; now every file is staged first, so a failure before the renames changes nothing."""
+    path, out = scenario_file(tmp_path), tmp_path / "out"
+    assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet"]) == 0
+    before = {p.name: p.read_bytes() for p in (out / "short").iterdir()}
+
+    def killed(*_args: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(results, "plot", killed)
+    assert cli.main(["cosim", "--scenario", str(path), "--variants", "unbalanced", "--step",
+                     "0.002", "--out", str(out), "--quiet"]) == 130
+    assert {p.name: p.read_bytes() for p in (out / "short").iterdir()} == before
+
+
 def test_concurrent_writers_are_serialised(tmp_path: Path) -> None:
     """A second writer waits for the folder lock instead of interleaving its files."""
     out = tmp_path / "set"
