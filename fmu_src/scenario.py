@@ -242,6 +242,11 @@ class Scenario:
         if not self.variants:
             raise ValueError(f"scenario {self.name} has no variants: [variants] needs at least "
                              "one table")
+        for name, t0, t1 in self.phase_times():  # a duration lost in rounding, or a sum
+            if not t0 < t1 < math.inf:             # of durations overflowing
+                raise ValueError(f"scenario {self.name}: phase {name} spans [{t0}, {t1}] s: "
+                                 "its duration must be positive against its start time, and "
+                                 "the scenario's duration finite")
 
     @property
     def duration(self) -> float:

@@ -68,11 +68,14 @@ def refused(argv: list[str], capsys: pytest.CaptureFixture[str], *named: str) ->
     ("parameters = { k = 0.0 }", "parameters = { k = 0.0 }\ninputs = { payload = nan }",
      ("variant unbalanced inputs payload", "nan")),
     ('name = "move"', 'name = "hold"', ("phase names repeat", "hold")),
+    ("duration = 0.2", "duration = 1e308", ("phase move", "finite")),
+    ('name = "move"\nduration = 0.2', 'name = "move"\nduration = 1e-18', ("phase move",)),
     ('name = "short"', 'name = "../../x"', ("name", "../../x")),
     ('name = "short"', 'name = ""', ("name", "''")),
     ("[variants.balanced]", "[variants.\"../up\"]", ("variant name", "../up")),
 ], ids=["duration=inf", "duration=list", "parameter=list", "unknown-parameter", "unknown-model",
-        "target_deg=nan", "ramp=nan", "variant-input=nan", "duplicate-phase", "name=../../x",
+        "target_deg=nan", "ramp=nan", "variant-input=nan", "duplicate-phase",
+        "duration-huge", "duration-vanishes", "name=../../x",
         "name=empty", "variant-name=../up"])
 def test_bad_scenario_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                        old: str, new: str, named: tuple[str, ...]) -> None:
