@@ -74,7 +74,7 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
     unknown = [s for s in signals if s not in shared]
     if unknown:
         raise UserError(f"unknown signal(s) {', '.join(unknown)}; shared signals: "
-                         f"{', '.join(shared)}")
+                        f"{', '.join(shared)}")
     t_ref, t_res = reference.time.to_numpy(float), result.time.to_numpy(float)
     _check_coverage(t_ref, t_res)
     for name, table in (("reference", reference), ("result", result)):

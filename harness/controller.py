@@ -64,7 +64,7 @@ def design_pid(motor: MotorParameters, inertia: float, d_link: float,
     """
     if not (inertia > 0.0 and d_link >= 0.0):
         raise UserError(f"joint inertia = {inertia} must be in (0, inf) and friction = "
-                         f"{d_link} in [0, inf)")
+                        f"{d_link} in [0, inf)")
     alpha, beta = reduced_plant(motor, inertia, d_link)
     w = design.omega_c
     return PIDGains(Kp=3 * w ** 2 / beta, Ki=w ** 3 / beta, Kd=(3 * w - alpha) / beta,

@@ -95,7 +95,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     else:
         if fmu.model_description.modelName != model:
             raise UserError(f"variant {variant.name} needs model {model}, "
-                             f"not {fmu.model_description.modelName}")
+                            f"not {fmu.model_description.modelName}")
         fmu.reset()
         context = contextlib.nullcontext(fmu)
     with context as fmu:

@@ -52,7 +52,7 @@ def physics_module(model: str) -> ModuleType:
         return importlib.import_module(PHYSICS[model])
     except KeyError:
         raise UserError(f"no monolithic reference for model {model}; "
-                         f"known: {', '.join(PHYSICS)}") from None
+                        f"known: {', '.join(PHYSICS)}") from None
 
 
 def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,

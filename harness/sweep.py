@@ -223,7 +223,7 @@ def load(path: str | Path) -> Sweep:
     unknown = sorted(set(metrics) - set(RUN_METRICS))
     if unknown:
         raise UserError(f"{where}: unknown metrics {', '.join(unknown)} "
-                         f"(choose from {', '.join(RUN_METRICS)})")
+                        f"(choose from {', '.join(RUN_METRICS)})")
     sample = data.get("sample", "grid")
     if sample not in ("grid", "lhs"):
         raise UserError(f"{where}: sample = {sample!r}, not 'grid' or 'lhs'")
@@ -242,10 +242,10 @@ def load(path: str | Path) -> Sweep:
         roles = [spec.get(role) for role in ("x", "y", "lines", "panels") if spec.get(role)]
         if set(roles) - set(names) or not spec.get("x") or (kind == "map" and not spec.get("y")):
             raise UserError(f"{where}: plot {kind} needs x{' and y' if kind == 'map' else ''}"
-                             f" and may have lines, panels, all axes ({', '.join(names)})")
+                            f" and may have lines, panels, all axes ({', '.join(names)})")
         if "E_drawn" not in metrics or {SAVING_REGULATED, SAVING_REFERENCE} - set(variants):
             raise UserError(f"{where}: plot {kind} needs the metric E_drawn and the variants "
-                             f"{SAVING_REGULATED} and {SAVING_REFERENCE}")
+                            f"{SAVING_REGULATED} and {SAVING_REFERENCE}")
     step_size = _number(data.get("step_size", master.DEFAULT_STEP), f"{where}: step_size")
     if not 0.0 < step_size <= scenario.duration:
         raise UserError(f"{where}: step_size = {step_size} s is outside (0, "
@@ -394,7 +394,7 @@ def plan(sweep: Sweep) -> list[Run]:
     for values in points(sweep):
         setting = {a.name: {"set": list(a.paths), "value": values[a.name]} for a in sweep.axes}
         point = _digest({"scenario": scenario.name, "step_size": sweep.step_size,
-                         "axes": setting})
+                        "axes": setting})
         runs.extend(Run(_digest({"scenario": definitions[v], "step_size": sweep.step_size,
                                  "axes": setting}), point, v, values)
                     for v in sweep.variants)
@@ -633,8 +633,8 @@ def plot_saving(sweep: Sweep, points: pd.DataFrame, spec: dict[str, Any], path: 
             ax.grid(alpha=0.3)
         if mark and mark in group and group[mark].notna().any():
             top.annotate(f"{mark} = {float(group[mark].median()):.3g} ",
-                         (float(group[mark].median()), 0.5), ha="right",
-                         xycoords=("data", "axes fraction"), fontsize=8)
+                        (float(group[mark].median()), 0.5), ha="right",
+                        xycoords=("data", "axes fraction"), fontsize=8)
         top.axhline(0.0, color="0.5", lw=0.8)
         top.set_ylim(SAVING_FLOOR - 8.0, 105.0)
         top.set_title(_panel_title(sweep, spec, value), fontsize=10)
@@ -774,7 +774,7 @@ def sweep_benchmark(runs: int = 12, workers: Sequence[int] = (1, 2)) -> pd.DataF
             if failed:
                 raise RuntimeError(f"{failed} of {done} benchmark runs failed")
             rows.append({"workers": n, "runs": done, "seconds": seconds,
-                         "runs_per_s": done / seconds})
+                        "runs_per_s": done / seconds})
     table = pd.DataFrame(rows)
     table["speed_up"] = table.runs_per_s / table.runs_per_s.iloc[0]
     return table

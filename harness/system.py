@@ -87,7 +87,7 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
     """The system of FMUs for a variant, with the harness's parameters and start."""
     if len(scenario.joints) != 1:
         raise UserError(f"scenario {scenario.name} has {len(scenario.joints)} joints; the "
-                         "system has one drive and one controller (one-joint scenarios)")
+                        "system has one drive and one controller (one-joint scenarios)")
     (joint,) = scenario.joints
     motor = motors()[joint.motor]
     model = variant.model or scenario.model
@@ -444,7 +444,7 @@ def _check_sequencer(scenario: scenarios.Scenario) -> None:
     description = read_model_description(fmu_build.fmu_path("ScenarioSequencer")).description
     if f"plays scenario {scenario.name} " not in (description or ""):
         raise UserError(f"the ScenarioSequencer FMU does not play scenario {scenario.name} "
-                         f"({description}); build one for it with build-fmus")
+                        f"({description}); build one for it with build-fmus")
 
 
 def run(args: argparse.Namespace) -> int:
