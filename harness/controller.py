@@ -33,6 +33,7 @@ import numpy as np
 
 from fmu_src.pid import DiscretePID, PIDCoefficients, PIDGains
 from harness.drive import MotorParameters, motor_system
+from harness.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -62,8 +63,8 @@ def design_pid(motor: MotorParameters, inertia: float, d_link: float,
     own damping alpha should stay below 3 omega_c, else the rule gives a negative Kd.
     """
     if not (inertia > 0.0 and d_link >= 0.0):
-        raise ValueError(f"joint inertia = {inertia} must be in (0, inf) and friction = "
-                         f"{d_link} in [0, inf)")
+        raise UserError(f"joint inertia = {inertia} must be in (0, inf) and friction = "
+                        f"{d_link} in [0, inf)")
     alpha, beta = reduced_plant(motor, inertia, d_link)
     w = design.omega_c
     return PIDGains(Kp=3 * w ** 2 / beta, Ki=w ** 3 / beta, Kd=(3 * w - alpha) / beta,
