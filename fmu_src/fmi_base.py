@@ -1,8 +1,8 @@
 """Shared pythonfmu base class for the FMUs of this project (standard library only).
 
 `ModelSlave` is a thin FMI layer over a pure model module: the mechanisms, the DC motor
-drive and the position controller all use it (`MechanismSlave` is its name in the mechanism
-slaves).
+drive and the position controller all use it. `MechanismSlave` adds the step, event and
+state plumbing every mechanism shares, from the physics module's common functions.
 
 PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns
 (its issue #33). `ModelSlave.to_xml` adds them, in the way DNV's component-model does,
@@ -489,8 +489,56 @@ class ModelSlave(Fmi2Slave):
         return root
 
 
-# The mechanism slaves' name for the base.
-MechanismSlave = ModelSlave
+class MechanismSlave(ModelSlave):
+    """Base of the mechanism slaves: a thin layer over a pure physics module.
+
+    `physics` is the module. It provides Parameters, Inputs, State, validate(p),
+    initial_state(p), advance(p, u, s, dt) (one communication step with the inputs held),
+    outputs(p, u, s) (a NamedTuple named like the output variables) and, where inputs change
+    the state at a communication point (a payload caught or released, a lock engaged),
+    switch_inputs(p, before, after, s). Subclasses register the variables and map them to
+    physics.Inputs in `inputs()`.
+    """
+
+    physics: Any
+    hidden_state = ("state", "previous_inputs")
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.state = None
+        self.previous_inputs = None
+
+    def validate(self, params: Any) -> None:
+        self.physics.validate(params)
+
+    def inputs(self) -> Any:
+        raise NotImplementedError
+
+    def initialise(self, params: Any) -> None:
+        self.state = self.physics.initial_state(params)
+        self.previous_inputs = self.inputs()
+        self.set_outputs(self.physics.outputs(params, self.previous_inputs, self.state))
+
+    def step(self, dt: float) -> None:
+        u = self.inputs()
+        if u != self.previous_inputs:
+            self.switch_inputs(u)
+        self.state = self.physics.advance(self.params, u, self.state, dt)
+        self.set_outputs(self.physics.outputs(self.params, u, self.state))
+
+    def switch_inputs(self, u: Any) -> None:
+        """Book the change from previous_inputs to u at this communication point."""
+        switch = getattr(self.physics, "switch_inputs", None)
+        if switch is not None:
+            self.state = switch(self.params, self.previous_inputs, u, self.state)
+        self.previous_inputs = u
+
+    def refresh_outputs(self) -> None:
+        self.set_outputs(self.physics.outputs(self.params, self.inputs(), self.state))
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        self.state = self.physics.State(*hidden["state"])
+        self.previous_inputs = self.physics.Inputs(*hidden["previous_inputs"])
 
 
 def _indices(indices: Any) -> str:
