@@ -12,33 +12,7 @@ from typing import Any
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import ciupitu as physics
-from fmu_src.fmi_base import MechanismSlave
-
-
-class CiupituBalancer(MechanismSlave):
-    """1-DOF arm balanced by a counterweight sliding along it, guided by a bar to a ground
-    pivot above the arm's pivot (Ciupitu 2018, Figure 4a), plus a fixed counterweight."""
-
-    physics = physics
-    parameters_type = physics.Parameters
-    # 1 ms is the harness's communication step (as for SelfRegulatingBalancer); 20 s spans
-    # several strokes of a rocking cycle and many periods of the default arm's free swing.
-    default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.description = ("Passive translational counterweight balancer (Ciupitu 2018, "
-                            "Figure 4a): 1-DOF arm, counterweight sliding along the arm, "
-                            "guided by one bar to a ground pivot")
-        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the arm about O, along theta")
-        self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's G_pv/g)",
-                       min=0.0)
-        for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
-
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau_drive), float(self.payload))
-
+from fmu_src.fmi_base import PayloadArmSlave
 
 OUTPUTS = (
     ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
@@ -64,3 +38,22 @@ OUTPUTS = (
 # dependencies; an output not listed is a function of the state alone.
 INPUT_DEPENDENCIES = {name: ("payload",)
                       for name in ("tau_gravity", "E_p", "E_kin", "M_g", "M_u")}
+
+
+class CiupituBalancer(PayloadArmSlave):
+    """1-DOF arm balanced by a counterweight sliding along it, guided by a bar to a ground
+    pivot above the arm's pivot (Ciupitu 2018, Figure 4a), plus a fixed counterweight."""
+
+    physics = physics
+    parameters_type = physics.Parameters
+    output_table = OUTPUTS
+    input_dependencies = INPUT_DEPENDENCIES
+    # 1 ms is the harness's communication step (as for SelfRegulatingBalancer); 20 s spans
+    # several strokes of a rocking cycle and many periods of the default arm's free swing.
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Passive translational counterweight balancer (Ciupitu 2018, "
+                            "Figure 4a): 1-DOF arm, counterweight sliding along the arm, "
+                            "guided by one bar to a ground pivot")

@@ -13,32 +13,7 @@ from typing import Any
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import rocking_counterweight as physics
-from fmu_src.fmi_base import MechanismSlave
-
-
-class RockingCounterweightBalancer(MechanismSlave):
-    """1-DOF arm balanced by a counterweight on a bar pivoted on the arm and tied to the
-    ground by a second bar (Ciupitu 2018, Figure 4b), plus a fixed counterweight."""
-
-    physics = physics
-    parameters_type = physics.Parameters
-    # as CiupituBalancer: the harness's 1 ms step, 20 s for several strokes of a cycle
-    default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.description = ("Passive rocking counterweight balancer (Ciupitu 2018, Figure 4b): "
-                            "1-DOF arm, counterweight on a bar pivoted on the arm, tied to a "
-                            "ground pivot by a second bar")
-        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the arm about O, along theta")
-        self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's G_pv/g)",
-                       min=0.0)
-        for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
-
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau_drive), float(self.payload))
-
+from fmu_src.fmi_base import PayloadArmSlave
 
 OUTPUTS = (
     ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
@@ -66,3 +41,21 @@ OUTPUTS = (
 # The inputs each output depends on directly (`physics.outputs`), its ModelStructure
 # dependencies; an output not listed is a function of the state alone.
 INPUT_DEPENDENCIES = {name: ("payload",) for name in ("tau_gravity", "E_p", "E_kin", "M_g", "M_u")}
+
+
+class RockingCounterweightBalancer(PayloadArmSlave):
+    """1-DOF arm balanced by a counterweight on a bar pivoted on the arm and tied to the
+    ground by a second bar (Ciupitu 2018, Figure 4b), plus a fixed counterweight."""
+
+    physics = physics
+    parameters_type = physics.Parameters
+    output_table = OUTPUTS
+    input_dependencies = INPUT_DEPENDENCIES
+    # as CiupituBalancer: the harness's 1 ms step, 20 s for several strokes of a cycle
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Passive rocking counterweight balancer (Ciupitu 2018, Figure 4b): "
+                            "1-DOF arm, counterweight on a bar pivoted on the arm, tied to a "
+                            "ground pivot by a second bar")

@@ -362,11 +362,10 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
         loss = _damping(p, geometry(p.OA, p.AB, HALF_PI - theta).dOB) * omega * omega
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
-    gain, drop = max(rates.payload, 0.0), min(rates.payload, 0.0)
-    kinetic = 0.5 * (p.w * omega) ** 2
-    return State(omega, omega_dot - gain * p.w * p.w * omega / inertia(p, u.payload, theta)[0],
-                 u.tau_drive * omega, loss + gain * kinetic,
-                 rates.payload * p.g * p.w * math.cos(theta) + drop * kinetic)
+    flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
+                               inertia(p, u.payload, theta)[0])
+    return State(omega, omega_dot + flow.omega_dot, u.tau_drive * omega, loss + flow.loss,
+                 flow.added)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:

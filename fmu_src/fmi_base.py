@@ -541,6 +541,26 @@ class MechanismSlave(ModelSlave):
         self.previous_inputs = self.physics.Inputs(*hidden["previous_inputs"])
 
 
+class PayloadArmSlave(MechanismSlave):
+    """A one-link arm with a drive torque and a payload at distance w: inputs tau_drive and
+    payload (physics.Inputs(tau_drive, payload)); outputs from the subclass's table."""
+
+    # (name, unit, description) per output, and the inputs each depends on (ModelStructure)
+    output_table: tuple[tuple[str, str, str], ...] = ()
+    input_dependencies: dict[str, tuple[str, ...]] = {}
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the arm about O, along theta")
+        self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's G_pv/g)",
+                       min=0.0)
+        for name, unit, description in self.output_table:
+            self.add_output(name, unit, description, self.input_dependencies.get(name, ()))
+
+    def inputs(self) -> Any:
+        return self.physics.Inputs(float(self.tau_drive), float(self.payload))
+
+
 def _indices(indices: Any) -> str:
     """A ModelStructure dependencies attribute: variable indices in increasing order."""
     return " ".join(str(i) for i in sorted(indices))

@@ -8,7 +8,7 @@ one-link arms share: a payload that joins or leaves at a communication point.
 from __future__ import annotations
 
 import math
-from typing import Callable, TypeVar
+from typing import Callable, NamedTuple, TypeVar
 
 # a NamedTuple state with fields theta [rad], omega [rad/s], E_loss [J] and E_added [J]
 S = TypeVar("S")
@@ -36,3 +36,24 @@ def change_payload(s: S, before: float, after: float, w: float, g: float,
         return s._replace(omega=omega, E_loss=s.E_loss + lost, E_added=s.E_added + potential)
     kinetic = 0.5 * added * (w * s.omega) ** 2
     return s._replace(E_added=s.E_added + potential + kinetic)
+
+
+class PayloadFlow(NamedTuple):
+    """Rates [1/s, W, W] that a payload changing continuously adds to a one-link arm's
+    equations: the continuous-time limit of `change_payload`."""
+
+    omega_dot: float   # braking of the arm by mass joining from rest [rad/s^2]
+    loss: float        # kinetic energy lost as it joins [W]
+    added: float       # potential energy joining, kinetic energy leaving [W]
+
+
+def payload_flow(rate: float, w: float, g: float, theta: float, omega: float,
+                 inertia: float) -> PayloadFlow:
+    """The terms a payload changing at rate [kg/s] at distance w [m] adds, with the arm at
+    theta [rad], omega [rad/s] and moment of inertia [kg m2]: mass joining from rest brakes
+    the arm (J omega' gains -rate w^2 omega) and loses 1/2 rate w^2 omega^2; mass leaving
+    takes its kinetic energy with it (E_added)."""
+    gain, drop = max(rate, 0.0), min(rate, 0.0)
+    kinetic = 0.5 * (w * omega) ** 2
+    return PayloadFlow(-gain * w * w * omega / inertia, gain * kinetic,
+                       rate * g * w * math.cos(theta) + drop * kinetic)
