@@ -69,12 +69,14 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     """Co-simulate one variant of a scenario and return its series and metrics.
 
     motor: the drives by name (`harness.drive.motors`; default MOTORS, one MotorParameters
-    replaces the geared motor). fmu: an instance of the variant's model to reuse (it is
+    replaces the geared motor). The variant's own joints are driven too
+    (`Scenario.for_variant`). fmu: an instance of the variant's model to reuse (it is
     reset first and left open), e.g. one per worker in a parameter sweep; by default a new
     instance is made and freed.
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
         raise ValueError(f"step size = {step_size} s is outside (0, inf)")
+    scenario = scenario.for_variant(variant)
     joints = scenario.joints
     drive_motors = [motors(motor)[joint.motor] for joint in joints]
     model = variant.model or scenario.model

@@ -84,6 +84,10 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
              step_size: float = master.DEFAULT_STEP,
              design: ControllerDesign = ControllerDesign()) -> System:
     """The system of FMUs for a variant, with the harness's parameters and start."""
+    if variant.joints:
+        raise ValueError(f"variant {variant.name} drives joints of its own "
+                         f"({', '.join(j.name for j in variant.joints)}); the system has one "
+                         "drive and one controller (one-joint variants): run it with cosim")
     if len(scenario.joints) != 1:
         raise ValueError(f"scenario {scenario.name} has {len(scenario.joints)} joints; the "
                          "system has one drive and one controller (one-joint scenarios)")
@@ -449,6 +453,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--step = {args.step} s is outside (0, inf)")
     scenario = scenarios.load(args.scenario)
     variants = cosim.selected_variants(scenario, args.variant)
+    if args.variant == "all":  # leave out the variants describe refuses
+        variants = [v for v in variants if not scenario.variant(v).joints]
     out = args.out or SYSTEM_DIR / scenario.name / args.engine
     run_system(scenario, variants, args.engine, args.step, out, args.source)
     print(results.summary_text(out / "summary.csv", scenario))
