@@ -92,6 +92,28 @@ def test_demian_joints_and_targets() -> None:
     assert scenario.variant("uncompensated").parameters == {"compensated": False}
 
 
+def test_a_variant_drives_joints_of_its_own() -> None:
+    """franchetti2021's active_relocation: the link, then the carriage q, which holds 0 until
+    phase III takes it to 58.3 mm (a quintic: half way at 15.5 s) and holds that after."""
+    scenario = scenarios.load("franchetti2021")
+    variant = scenario.variant("active_relocation")
+    assert scenario.for_variant(scenario.variant("self_regulating")) is scenario
+    resolved = scenario.for_variant(variant)
+    assert [j.name for j in resolved.joints] == ["theta", "q"]
+    assert resolved.joints[1].motor == "trapezoidal_screw" and resolved.joints[1].unit == "m"
+    assert resolved.for_variant(variant) is resolved      # resolving twice adds nothing
+    q_bal = 0.35 * 9.81 / (981.0 * 0.06)                  # payload w g / (k x1A) for 1 kg
+    assert resolved.reference_at(9.0) == (pytest.approx(math.radians(120.0)), 0.0)
+    assert resolved.reference_at(15.5) == pytest.approx((math.pi, q_bal / 2), abs=1e-15)
+    assert resolved.reference_at(30.0) == pytest.approx((math.radians(340.0), q_bal),
+                                                        abs=1e-15)
+    # the payload follows q's quintic, so the link stays balanced on the way
+    segments = scenario.input_segments(variant)
+    assert scenario.inputs_at(15.5, segments) == {"payload": 0.5}
+    assert scenario.inputs_at(14.3, segments)["payload"] == pytest.approx(
+        resolved.reference_at(14.3)[1] / q_bal, rel=1e-12)
+
+
 def test_default_joint_holds_the_negative_load() -> None:
     (joint,) = scenarios.load("franchetti2021").joints
     assert (joint.position, joint.static_output, joint.static_is_load) == (
@@ -154,6 +176,17 @@ FRANCHETTI = (scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text()
      "phase II move: unknown key.* targt"),
     (FRANCHETTI.replace('baseline = "unbalanced"', 'baseline = "balanced"'),
      "baseline balanced names no variant; choose from self_regulating"),
+    (FRANCHETTI.replace("[variants.active_relocation.joints.q]",
+                        "[variants.active_relocation.joints.theta]"),
+     "variant active_relocation joints theta: the scenario has joints of these names"),
+    (FRANCHETTI.replace('phase_targets = { "III regulate" = { q',
+                        'phase_targets = { "III regulat" = { q'),
+     "variant active_relocation phase_targets names no phase III regulat"),
+    (FRANCHETTI.replace('phase_targets = { "III regulate" = { q',
+                        'phase_targets = { "III regulate" = { theta'),
+     "variant active_relocation phase_targets III regulate: targets name no joint theta"),
+    (FRANCHETTI.replace('static_effort = "F_hold"', ""),
+     r"joint q needs .*static_effort, static_load"),
 ])
 def test_bad_files_are_rejected_with_clear_messages(tmp_path: Path, text: str,
                                                     message: str) -> None:
