@@ -454,7 +454,10 @@ def run(args: argparse.Namespace) -> int:
     scenario = scenarios.load(args.scenario)
     variants = cosim.selected_variants(scenario, args.variant)
     if args.variant == "all":  # leave out the variants describe refuses
-        variants = [v for v in variants if not scenario.variant(v).joints]
+        own = [v for v in variants if scenario.variant(v).joints]
+        if own:
+            print(f"left out (joints of their own, run them with cosim): {', '.join(own)}")
+        variants = [v for v in variants if v not in own]
     out = args.out or SYSTEM_DIR / scenario.name / args.engine
     run_system(scenario, variants, args.engine, args.step, out, args.source)
     print(results.summary_text(out / "summary.csv", scenario))
