@@ -35,7 +35,7 @@ class ActiveSpringBalancer(MechanismSlave):
                        "(upward)")
         self.add_input("payload", 0.0, "kg", "Payload mass at distance w", min=0.0)
         for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description)
+            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.state = None
         self.payload_held = 0.0     # the payload the state refers to [kg]
         self.compression_reported = False   # once per spell of F_s < 0
@@ -66,6 +66,9 @@ class ActiveSpringBalancer(MechanismSlave):
                       "extension spring would go slack")
         self.compression_reported = out.F_s < 0.0
         self.set_outputs(out)
+
+    def refresh_outputs(self) -> None:
+        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])
@@ -100,3 +103,13 @@ OUTPUTS = (
      "catches)"),
     ("E_added", "J", "Energy brought in (taken out) by payload changes"),
 )
+# The inputs each output depends on directly (`physics.outputs`), its ModelStructure
+# dependencies; an output not listed is a function of the state alone.
+INPUT_DEPENDENCIES = {
+    "tau_gravity": ("payload",),
+    "balance_error": ("payload",),
+    "E_p": ("payload",),
+    "E_t": ("payload",),
+    "E_kin": ("payload",),
+    "F_lock": ("F_adjust",),
+}

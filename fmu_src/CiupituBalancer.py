@@ -34,7 +34,7 @@ class CiupituBalancer(MechanismSlave):
         self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's G_pv/g)",
                        min=0.0)
         for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description)
+            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.state = None
 
     def validate(self, params: physics.Parameters) -> None:
@@ -51,6 +51,9 @@ class CiupituBalancer(MechanismSlave):
         u = self.inputs()
         self.state = physics.advance(self.params, u, self.state, dt)
         self.set_outputs(physics.outputs(self.params, u, self.state))
+
+    def refresh_outputs(self) -> None:
+        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])
@@ -71,3 +74,7 @@ OUTPUTS = (
     ("M_bar", "N.m", "Static moment about O of the bar AB's force on the counterweight, "
                      "m2 g (dOB/dphi) sin(phi) (omitted by the paper)"),
 )
+# The inputs each output depends on directly (`physics.outputs`), its ModelStructure
+# dependencies; an output not listed is a function of the state alone.
+INPUT_DEPENDENCIES = {name: ("payload",)
+                      for name in ("tau_gravity", "E_p", "E_kin", "M_g", "M_u")}

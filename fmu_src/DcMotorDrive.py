@@ -58,7 +58,9 @@ class DcMotorDrive(ModelSlave):
                        "V_supply] before it reaches the armature")
         self.add_input("omega", 0.0, "rad/s", "Joint speed (back-EMF K_t N omega)")
         for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description)
+            # outputs of the last step, so of no input now; P_elec = V i0 at the start
+            self.add_output(name, unit, description,
+                            initial_depends_on=("V",) if name == "P_elec" else ())
         self.motor: SampledMotor | None = None
         self.step_size = 0.0  # the step size the motor's coefficients are for [s]
 

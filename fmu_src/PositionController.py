@@ -63,10 +63,13 @@ class PositionController(ModelSlave):
                             "output limit and anti-windup (Tustin at the communication step)")
         self.add_input("theta_ref", 0.0, "rad", "Reference joint angle")
         self.add_input("theta", 0.0, "rad", "Measured joint angle")
+        # V is held over the last step, so of no input now; at the start it is the output at
+        # rest for the error of the inputs then
+        at_start = ("theta_ref", "theta")
         self.add_output("V", "V", "Voltage command held over the last step, limited to "
-                        "[-V_supply, V_supply]")
+                        "[-V_supply, V_supply]", initial_depends_on=at_start)
         self.add_output("saturated", None, "V is at its limit; the integrator holds while the "
-                        "error pushes further into the limit")
+                        "error pushes further into the limit", initial_depends_on=at_start)
         self.pid: DiscretePID | None = None
         self.step_size = 0.0  # the step size the PID's coefficients are for [s]
 

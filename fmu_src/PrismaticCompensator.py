@@ -51,6 +51,9 @@ class PrismaticCompensator(MechanismSlave):
         self.state = physics.advance(self.params, u, self.state, dt)
         self.set_outputs(physics.outputs(self.params, u, self.state))
 
+    def refresh_outputs(self) -> None:
+        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
+
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])
 

@@ -5,16 +5,23 @@ A thin layer over `fmu_src.scenario`, the definitions the harness uses. The scen
 file embedded at build time as the module `fmu_src/sequencer_scenario.py` of the FMU's
 resources: franchetti2021 by default (`harness.scenarios.embed`), or any scenario file with
 `python -m harness build-fmus --sequencer-scenario FILE`. The String parameter `variant`
-picks one of its variants. Each instance reads the module from its own resources folder by
-path rather than importing it by name: pythonfmu runs every FMU of a process in one
-interpreter, which caches modules by name, so two sequencers playing different scenarios
-would otherwise both play the one imported first.
+picks one of its variants by name, or the Integer parameter `variant_number` by its position
+in the scenario file (1, 2, ...; 0, the default, leaves the choice to `variant`), for hosts
+that cannot set String parameters (OMSimulator reads no String parameter binding of an SSP).
+Each instance reads the module from its own resources folder by path rather than importing
+it by name: pythonfmu runs every FMU of a process in one interpreter, which caches modules
+by name, so two sequencers playing different scenarios would otherwise both play the one
+imported first.
 
 Outputs at a communication point t (after fmi2DoStep(t - h, h); at the start time after
 initialisation), with t on the scenario's clock (t = 0 is its start):
-- `<position>_ref` per joint [rad or m]: the quintic reference (`Scenario.reference_at`);
+- `<position>_ref` per joint of any variant [rad or m]: the quintic reference
+  (`Scenario.reference_at` of the scenario resolved for the variant, `Scenario.for_variant`);
+  0 for a variant's own joint when another variant is played;
 - every input that a phase or a variant of the scenario sets (`Scenario.inputs_at`), Real or
   Boolean as in the file; an input the chosen variant drops stays at 0 or false.
+A t less than `scenario.STEP_TIME_TOLERANCE` h before a phase start counts as that start, so
+hosts that add up their time (t += h) switch at the same step as those that compute it.
 """
 
 from __future__ import annotations
@@ -25,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pythonfmu import Fmi2Causality, Fmi2Variability, String
+from pythonfmu import Fmi2Causality, Fmi2Variability, Integer, String
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import scenario as core
@@ -37,7 +44,8 @@ INPUT_UNITS = {"payload": "kg", "counterweight_added": "kg"}
 
 @dataclass(frozen=True)
 class NoParameters:
-    """The sequencer has no Real or Boolean parameters (its `variant` is a String)."""
+    """The sequencer has no Real or Boolean parameters (`variant` is a String,
+    `variant_number` an Integer)."""
 
 
 def embedded_scenario(resources: str | None) -> core.Scenario:
@@ -97,10 +105,22 @@ class ScenarioSequencer(ModelSlave):
         self._add(String("variant", causality=Fmi2Causality.parameter,
                          variability=Fmi2Variability.fixed, description=description),
                   VariableInfo(None, description))
-        self.reference_names = [f"{joint.position}_ref" for joint in scenario.joints]
-        for name, joint in zip(self.reference_names, scenario.joints, strict=True):
-            self.add_output(name, joint.unit, f"Reference position of joint {joint.name} "
-                            "(quintic between the phases' targets)")
+        self.variant_number = 0
+        numbers = ", ".join(f"{n} = {name}" for n, name in enumerate(scenario.variants, 1))
+        description = (f"Variant of scenario {scenario.name} by number: {numbers}; 0 plays "
+                       "the variant named by `variant`")
+        self._add(Integer("variant_number", causality=Fmi2Causality.parameter,
+                          variability=Fmi2Variability.fixed, description=description),
+                  VariableInfo(None, description))
+        # the joints of every variant: the scenario's, then variants' own (0 where the
+        # variant played does not drive them)
+        joints = {j.name: j for v in scenario.variants.values()
+                  for j in scenario.for_variant(v).joints}
+        self.reference_names = {name: f"{j.position}_ref" for name, j in joints.items()}
+        for name, joint in joints.items():
+            self.add_output(self.reference_names[name], joint.unit, "Reference position of "
+                            f"joint {name} (quintic between the phases' targets)")
+        self.played = scenario                # resolved for the variant played
         self.defaults = scenario_inputs(scenario)
         for name, unit in input_units(scenario).items():
             self.add_output(name, unit, f"Scenario input {name} for the mechanism")
@@ -108,28 +128,48 @@ class ScenarioSequencer(ModelSlave):
         self.step_start = 0.0
         self.segments: list[dict[str, tuple]] = []
 
+    def chosen_variant(self) -> core.Variant:
+        """The variant `variant_number` picks, or else the one `variant` names; ValueError
+        naming the allowed range or the choices."""
+        names = list(self.scenario.variants)
+        number = int(self.variant_number)
+        if not 0 <= number <= len(names):
+            raise ValueError(f"variant_number = {number} is outside [0, {len(names)}] (0: "
+                             "the variant named by `variant`)")
+        return self.scenario.variant(names[number - 1] if number else str(self.variant))
+
     def validate(self, params: NoParameters) -> None:
-        self.scenario.variant(str(self.variant))  # ValueError naming the choices
+        self.chosen_variant()
 
     def setup_experiment(self, start_time: float, stop_time: float | None,
                          tolerance: float | None) -> None:
         self.start_time = start_time
 
     def initialise(self, params: NoParameters) -> None:
-        self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
+        self.play(self.chosen_variant())
         self.show(self.start_time)
+
+    def play(self, variant: core.Variant) -> None:
+        """Prepare to play a variant: its input segments and its joints' references."""
+        self.segments = self.scenario.input_segments(variant)
+        self.played = self.scenario.for_variant(variant)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         self.step_start = current_time
         return super().do_step(current_time, step_size)
 
     def step(self, dt: float) -> None:
-        self.show(self.step_start + dt)
+        self.show(self.step_start + dt, core.STEP_TIME_TOLERANCE * dt)
 
-    def show(self, time: float) -> None:
-        """Set the outputs to the scenario's values at time [s]."""
-        self.__dict__.update(zip(self.reference_names, self.scenario.reference_at(time)))
-        self.__dict__.update(self.defaults | self.scenario.inputs_at(time, self.segments))
+    def show(self, time: float, tolerance: float = 0.0) -> None:
+        """Set the outputs to the scenario's values at time [s]; a time within tolerance [s]
+        before a phase start counts as that start."""
+        played = self.played
+        references = dict(zip((j.name for j in played.joints),
+                              played.reference_at(time, tolerance), strict=True))
+        self.__dict__.update({output: references.get(name, 0.0)
+                              for name, output in self.reference_names.items()})
+        self.__dict__.update(self.defaults | played.inputs_at(time, self.segments, tolerance))
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.segments = self.scenario.input_segments(self.scenario.variant(str(self.variant)))
+        self.play(self.chosen_variant())

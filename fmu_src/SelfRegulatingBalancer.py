@@ -44,7 +44,7 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.add_input("pulley_locked", True, None,
                        "Pulley locked to the frame: counterweight idle, slider wire unloaded")
         for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description)
+            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.state = None
         self.previous_inputs = None
         self.stop_reported = False
@@ -82,6 +82,9 @@ class SelfRegulatingBalancer(MechanismSlave):
                       f"balance_error = {out.balance_error:.4g} N m")
         self.stop_reported = out.slider_at_stop
         self.set_outputs(out)
+
+    def refresh_outputs(self) -> None:
+        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
 
     def report_misuse(self, p: physics.Parameters, u: physics.Inputs) -> None:
         """Warn, at the communication point where inputs change, about misuse the model allows."""
@@ -133,3 +136,15 @@ OUTPUTS = (
     ("E_kin", "J", "Kinetic energy of link, payload, drive rotor, slider and counterweight"),
     ("slider_at_stop", None, "Free slider resting on an end stop (b_min or b_max)"),
 )
+# The inputs each output depends on directly (`physics.outputs`), its ModelStructure
+# dependencies; an output not listed is a function of the state alone.
+INPUT_DEPENDENCIES = {
+    "tau_gravity": ("payload",),
+    "balance_error": ("payload",),
+    "E_p": ("payload",),
+    "E_t": ("payload",),
+    "E_cw": ("counterweight_added",),
+    # the slider's effective mass includes the counterweight's while slider and pulley are free
+    "E_kin": ("payload", "counterweight_added", "slider_locked", "pulley_locked"),
+    "slider_at_stop": ("slider_locked",),
+}

@@ -6,7 +6,13 @@ slaves).
 
 PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns
 (its issue #33). `ModelSlave.to_xml` adds them, in the way DNV's component-model does,
-from one table of variable metadata that is also used to check inputs at run time.
+from one table of variable metadata that is also used to check inputs at run time. It also
+writes each output's `dependencies`, from the inputs `add_output` declares it depends on.
+
+Outputs are up to date whenever they are read: in a slave whose outputs are functions of
+its state and inputs (`refresh_outputs`), an output read after an input was set is recomputed
+first, so a host sees a changed payload in tau_gravity at once, not one step later. Outputs
+declared independent of the inputs then read the same, which the tests check input by input.
 
 Error reporting: pythonfmu turns any Python exception into fmi2Fatal and a False return
 of do_step into fmi2Discard; it has no route to fmi2Error. So a bad parameter fails
@@ -19,12 +25,14 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
+from pythonfmu.variables import ScalarVariable
 
 from fmu_src.parameters import check_ranges
 
@@ -76,7 +84,8 @@ class ModelSlave(Fmi2Slave):
     `fmu_src.parameters.parameter`; bool fields become Boolean parameters, the others Real
     parameters), register inputs and outputs with `add_input`/`add_output`, and implement
     `initialise(params)` and `step(dt)`; `validate(params)` checks the field ranges unless
-    overridden. Their hidden state is listed in `hidden_state`.
+    overridden. Their hidden state is listed in `hidden_state`. A subclass whose outputs are
+    functions of its state and inputs implements `refresh_outputs`.
     """
 
     parameters_type: type
@@ -90,6 +99,10 @@ class ModelSlave(Fmi2Slave):
         # (name, lowest, highest) per Real input; +-float max stand in for a missing bound,
         # so one chained comparison per input also rejects NaN and +-inf.
         self.real_input_bounds: list[tuple[str, float, float]] = []
+        # per output, the inputs it depends on at communication points and in initialisation
+        self.dependencies: dict[str, tuple[str, ...]] = {}
+        self.initial_dependencies: dict[str, tuple[str, ...]] = {}
+        self.outputs_stale = False  # an input was set since the outputs were computed
         self.params = None
         for f in fields(self.parameters_type):
             meta = f.metadata
@@ -133,8 +146,28 @@ class ModelSlave(Fmi2Slave):
                 sys.float_info.max if max is None else max))
         self._add(var, VariableInfo(unit, description, min, max))
 
-    def add_output(self, name: str, unit: str | None, description: str) -> None:
-        """A Real (unit given) or Boolean (unit None) output computed by the model."""
+    def add_output(self, name: str, unit: str | None, description: str,
+                   depends_on: tuple[str, ...] = (),
+                   initial_depends_on: tuple[str, ...] | None = None) -> None:
+        """A Real (unit given) or Boolean (unit None) output computed by the model.
+
+        depends_on: the inputs whose current values the output depends on at a communication
+        point (its ModelStructure dependencies); empty for a function of the state alone.
+        initial_depends_on: the inputs it depends on at initialisation, where they differ (an
+        output of the last step, computed at the start from the inputs then).
+        """
+        inputs = {var.name: var for var in self.vars.values()
+                  if var.causality == Fmi2Causality.input}
+        unknown = [n for n in (*depends_on, *(initial_depends_on or ())) if n not in inputs]
+        if unknown:
+            raise ValueError(f"output {name} depends on {', '.join(unknown)}, which are not "
+                             "inputs registered before it")
+        if depends_on and not self.refreshes_outputs:
+            raise TypeError(f"{type(self).__name__}.{name} depends on inputs: implement "
+                            "refresh_outputs")
+        self.dependencies[name] = tuple(depends_on)
+        self.initial_dependencies[name] = tuple(
+            depends_on if initial_depends_on is None else initial_depends_on)
         setattr(self, name, False if unit is None else 0.0)
         if unit is None:
             var = Boolean(name, causality=Fmi2Causality.output,
@@ -146,9 +179,52 @@ class ModelSlave(Fmi2Slave):
                        description=description)
         self._add(var, VariableInfo(unit, description))
 
+    @property
+    def refreshes_outputs(self) -> bool:
+        """The slave recomputes its outputs when read after an input was set."""
+        return type(self).refresh_outputs is not ModelSlave.refresh_outputs
+
+    def register_variable(self, var: ScalarVariable, nested: bool = True) -> None:
+        """pythonfmu's registration, with inputs that make the outputs stale when set and,
+        where the slave refreshes its outputs, outputs recomputed when read stale."""
+        super().register_variable(var, nested)
+        if var.causality == Fmi2Causality.input:
+            var.setter = self._input_setter(var.name)
+        elif var.causality == Fmi2Causality.output and self.refreshes_outputs:
+            var.getter = self._output_getter(var.name)
+
+    # Closures over the instance's __dict__: they run at every fmi2Get/fmi2Set call.
+    def _input_setter(self, name: str) -> Callable[[Any], None]:
+        """Setter of an input: the outputs become stale."""
+        attributes = self.__dict__
+
+        def set_input(value: Any) -> None:
+            attributes[name] = value
+            attributes["outputs_stale"] = True
+        return set_input
+
+    def _output_getter(self, name: str) -> Callable[[], Any]:
+        """Getter of an output: all are recomputed first if an input was set since they were
+        (before initialisation there is nothing to compute them from)."""
+        attributes = self.__dict__
+
+        def current_output() -> Any:
+            if attributes["outputs_stale"]:
+                attributes["outputs_stale"] = False
+                if self.params is not None:
+                    self.refresh_outputs()
+            return attributes[name]
+        return current_output
+
+    def refresh_outputs(self) -> None:
+        """Recompute all outputs from the current inputs and state (with `set_outputs`)."""
+        raise NotImplementedError
+
     def set_outputs(self, values: Any) -> None:
-        """Copy a NamedTuple of outputs onto the output variables of the same names."""
+        """Copy a NamedTuple of all outputs onto the output variables of the same names: the
+        outputs are then current for the inputs they were computed from."""
         self.__dict__.update(zip(values._fields, values))  # plain attributes: no setattr needed
+        self.outputs_stale = False
 
     def read_parameters(self) -> Any:
         """The parameters dataclass built from the current parameter variables."""
@@ -235,8 +311,10 @@ class ModelSlave(Fmi2Slave):
         root.insert(position + 1, _type_definitions(used_units))
 
         initial_unknowns = []
+        index_of: dict[str, int] = {}
         for index, element in enumerate(root.find("ModelVariables"), start=1):
             name = element.get("name")
+            index_of[name] = index
             info = self.info[name]
             real = element.find("Real")
             if real is not None:
@@ -249,15 +327,31 @@ class ModelSlave(Fmi2Slave):
             if element.get("initial") == "calculated":
                 initial_unknowns.append(index)
         structure = root.find("ModelStructure")
+        names = list(index_of)
+        for unknown in structure.iterfind("Outputs/Unknown"):
+            inputs = self.dependencies[names[int(unknown.get("index")) - 1]]
+            unknown.set("dependencies", _indices(index_of[n] for n in inputs))
+        # At initialisation the knowns also include the parameters, which the initial state
+        # is computed from: every parameter is listed (a superset), with the inputs declared.
+        parameters = [index_of[v.name] for v in self.vars.values()
+                      if v.causality == Fmi2Causality.parameter]
         if initial_unknowns:
             node = SubElement(structure, "InitialUnknowns")
             for index in initial_unknowns:
-                SubElement(node, "Unknown", attrib={"index": str(index)})
+                inputs = self.initial_dependencies.get(names[index - 1], ())
+                dependencies = _indices([*parameters, *(index_of[n] for n in inputs)])
+                SubElement(node, "Unknown", attrib={"index": str(index),
+                                                    "dependencies": dependencies})
         return root
 
 
 # The mechanism slaves' name for the base.
 MechanismSlave = ModelSlave
+
+
+def _indices(indices: Any) -> str:
+    """A ModelStructure dependencies attribute: variable indices in increasing order."""
+    return " ".join(str(i) for i in sorted(indices))
 
 
 def _unit_definitions(units: list[str]) -> Element:

@@ -36,6 +36,8 @@ targets [rad or m] (a phase it does not name holds the previous one);
 
 Evaluation: `Scenario.reference_at(t)` and `Scenario.inputs_at(t, segments)` on floats. The
 shape functions and `ramp` are plain arithmetic, so they work on floats and numpy arrays alike.
+Both take a `tolerance` [s]: a time less than that before a phase start counts as that
+start, for hosts that add up their time (STEP_TIME_TOLERANCE).
 """
 
 from __future__ import annotations
@@ -58,6 +60,12 @@ JOINT_KEYS = ("position", "speed", "effort", "start_parameter", "inertia", "fric
               "drive_inertia", "initial")
 OPTIONAL_JOINT_KEYS = ("kind", "motor", "static_effort", "static_load")
 PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs")
+# Tolerance of phase start times, as a fraction of the communication step: a host that adds up
+# its time (t += h) reaches a phase start a little early or late (13.99999999999768 for 14 s
+# after 14 000 steps of 1 ms; at most 1.6e-8 steps after 35 000 steps of 1 ms and 1e-4 steps
+# after 3.5 million steps of 10 us), so a time less than 1e-3 of a step before a phase start
+# counts as that start: the phase switches at the same step as at the exact time i h.
+STEP_TIME_TOLERANCE = 1e-3
 
 
 def quintic(s: Any) -> Any:
@@ -274,15 +282,16 @@ class Scenario:
             position = phase.target[j]
         return out
 
-    def _phase_at(self, time: float) -> int:
-        """Index of the phase that holds time (phases hold [start, end)); -1 before 0."""
-        return bisect_right([t0 for _, t0, _ in self.phase_times()], time) - 1
+    def _phase_at(self, time: float, tolerance: float = 0.0) -> int:
+        """Index of the phase that holds time (phases hold [start, end)); -1 before 0. A time
+        within tolerance [s] before a phase start counts as that start."""
+        return bisect_right([t0 for _, t0, _ in self.phase_times()], time + tolerance) - 1
 
-    def reference_at(self, time: float) -> tuple[float, ...]:
-        """Reference position of each joint [rad or m] at a time [s]."""
+    def reference_at(self, time: float, tolerance: float = 0.0) -> tuple[float, ...]:
+        """Reference position of each joint [rad or m] at a time [s] (tolerance: `_phase_at`)."""
         if time > self.duration:
             return self.phases[-1].target
-        k = self._phase_at(time)
+        k = self._phase_at(time, tolerance)
         if k < 0:
             return self.initial_angle
         out = []
@@ -320,13 +329,13 @@ class Scenario:
             segments.append(segment)
         return segments
 
-    def inputs_at(self, time: float, segments: list[dict[str, tuple[Any, Any, str]]]
-                  ) -> dict[str, float | bool]:
+    def inputs_at(self, time: float, segments: list[dict[str, tuple[Any, Any, str]]],
+                  tolerance: float = 0.0) -> dict[str, float | bool]:
         """Input values at a time [s] (a phase's changes apply from its start; none before 0).
 
-        segments: `input_segments(variant)`, computed once per variant.
+        segments: `input_segments(variant)`, computed once per variant; tolerance: `_phase_at`.
         """
-        k = self._phase_at(time)
+        k = self._phase_at(time, tolerance)
         if k < 0:
             return {n: False if isinstance(end, bool) else 0.0
                     for n, (_, end, _) in segments[0].items()}

@@ -56,7 +56,7 @@ STEP_LOOPS = {
         "u", ("y",)),
     **{model: StepLoop(lambda model=model: fmu_build.fmu_path(model), "tau_drive",
                        ("theta", "omega"))
-       for model in ("SelfRegulatingBalancer", "CiupituBalancer")},
+       for model in ("SelfRegulatingBalancer", "CiupituBalancer", "RockingCounterweightBalancer")},
 }
 
 

@@ -39,6 +39,9 @@ COMMANDS = {
     "active-design": Command("harness.active_design",
                              "Ciupitu 2018 Fig. 8: the frame joint ordinate Y_B that balances "
                              "a payload change (eq. 27, solved numerically)"),
+    "rocking-design": Command("harness.rocking_design",
+                              "design Ciupitu's rocking counterweight (Figure 4b) for the "
+                              "Section 4 example by least squares on M_u"),
     "sweep": Command("harness.sweep", "run a parameter sweep file on Dask and write "
                      "results/sweeps/<name>.parquet/.csv/plots"),
     "bench": Command("harness.bench",

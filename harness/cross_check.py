@@ -5,7 +5,11 @@ For every FMU of `harness.fmu_build.MODELS` it writes, under the destination fol
 
 - `<Model>.fmu`: the built FMU;
 - `<Model>_in.csv`: its input signals, if it has inputs (every input; linear interpolation
-  between rows, a repeated time is a step);
+  between rows). A step is written as a ramp over the communication step before it
+  (`importer_inputs`), not as a repeated time: an importer that samples the inputs at its
+  communication points then reads the same values whether its clock lands a little before or
+  after them (fmuCheck accumulates t += h and lands on either side; with a repeated time at
+  a communication point it applied the step there or one step later);
 - `<Model>_ref.csv`: the reference result, simulated with FMPy (time, then up to ten
   recorded variables; Booleans as 0 and 1, which the cross-check's CSV reader takes as
   numbers);
@@ -24,6 +28,7 @@ from __future__ import annotations
 import argparse
 import shutil
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import fmpy
@@ -36,6 +41,8 @@ from fmpy.model_description import ModelDescription
 
 from harness import fmu_build, fmu_docs
 from harness.results import write_atomic, write_csv
+
+__all__ = ["export", "importer_inputs", "model_dir"]
 
 TOOL = "pythonfmu"
 DEFAULT_DEST = fmu_build.DEFAULT_DEST.parent / "cross-check"
@@ -51,6 +58,37 @@ def frame(table: np.ndarray) -> pd.DataFrame:
     return pd.DataFrame({name: table[name] for name in table.dtype.names})
 
 
+def importer_inputs(table: np.ndarray, step: float) -> np.ndarray:
+    """The input table with every step (rows (t, a), (t, b)) made a ramp over the
+    communication step before t: rows (t - step, u(t - step)), (t, b), where u(t - step)
+    lies on the segment that led to a (no row is added when one is already there).
+
+    At every communication point the inputs keep the values FMPy applies from the original
+    table (b from t on: it applies the right-hand value at an event), and no time repeats:
+    FMPy, which shortens a step to end on an input event, steps as a fixed-step importer
+    does, and an importer whose clock lands a little off a communication point reads nearly
+    the same values (for a clock error e, (b - a) e / step), not a or b by rounding.
+    ValueError if a step lies within one communication step of the row before it.
+    """
+    rows = [tuple(float(v) for v in row) for row in table]
+    out = [rows[0]]
+    for i in range(1, len(rows)):
+        t, before = rows[i][0], rows[i - 1]
+        if i + 1 < len(rows) and rows[i + 1][0] == t:       # (t, a) of a step
+            start = t - step
+            if np.isclose(start, before[0], rtol=0.0, atol=1e-9 * step):
+                continue                                     # a row is there already
+            if start < before[0]:
+                raise ValueError(f"input step at t = {t} s lies within one communication "
+                                 f"step ({step} s) of the row at {before[0]} s")
+            weight = (start - before[0]) / (t - before[0])
+            out.append((start, *(u0 + weight * (u1 - u0)
+                                 for u0, u1 in zip(before[1:], rows[i][1:], strict=True))))
+        else:                                                # (t, b) of a step, or a plain row
+            out.append(rows[i])
+    return np.array(out, dtype=table.dtype)
+
+
 def ref_opt(md: ModelDescription, run: fmu_docs.ReferenceRun) -> str:
     """The <Model>_ref.opt file: the settings that reproduce the reference."""
     dt = fmu_docs.step_size(md)
@@ -64,7 +102,9 @@ def readme(md: ModelDescription, run: fmu_docs.ReferenceRun) -> str:
     name = md.modelName
     inputs = ("the model has no inputs" if run.inputs is None else
               f"the inputs of `{name}_in.csv` interpolated linearly and applied at each "
-              "communication point")
+              "communication point (a step is a ramp over the communication step before the "
+              "point from which it applies, so that no discontinuity falls on a "
+              "communication point)")
     return f"""# {name}
 
 {md.description}
@@ -100,6 +140,7 @@ def export(model: str, dest: Path) -> Path:
     folder = model_dir(dest, model)
     write_atomic(folder / f"{model}.fmu", lambda tmp: shutil.copyfile(fmu, tmp))
     if run.inputs is not None:
+        run = replace(run, inputs=importer_inputs(run.inputs, fmu_docs.step_size(md)))
         write_csv(frame(run.inputs), folder / f"{model}_in.csv")
     write_csv(frame(fmu_docs.simulate_reference(fmu, run)), folder / f"{model}_ref.csv")
     write_atomic(folder / f"{model}_ref.opt", lambda tmp: tmp.write_text(ref_opt(md, run)))

@@ -33,13 +33,14 @@ from pathlib import Path
 
 from pythonfmu.builder import FmuBuilder
 
-from harness import fmu_docs, scenarios
+from harness import fmu_docs, osp, scenarios
 
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
 MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator", "DcMotorDrive",
-          "PositionController", "ScenarioSequencer", "ActiveSpringBalancer")
+          "PositionController", "ScenarioSequencer", "ActiveSpringBalancer",
+          "RockingCounterweightBalancer")
 SEQUENCER = "ScenarioSequencer"
 
 
@@ -120,6 +121,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     except BaseException:
         Path(partial).unlink(missing_ok=True)
         raise
+    osp.write_model_description(fmu)  # <Model>_OspModelDescription.xml beside it, for OSP
     return fmu
 
 

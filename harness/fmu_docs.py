@@ -77,6 +77,10 @@ REFERENCE_RUNS = {
         MOVE.format("tau_drive = 0.1 N m", "; no payload"),
         rest_to_rest_move({"tau_drive": 0.1}, {"payload": 0.0}, 5.0),
         ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar")),
+    "RockingCounterweightBalancer": ReferenceRun(
+        MOVE.format("tau_drive = 0.1 N m", "; no payload"),
+        rest_to_rest_move({"tau_drive": 0.1}, {"payload": 0.0}, 5.0),
+        ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi")),
     "PrismaticCompensator": ReferenceRun(
         MOVE.format("tau1 = 0.1 N m and f2 = 0.02 N", ""),
         rest_to_rest_move({"tau1": 0.1, "f2": 0.02}, {}, 5.0),
@@ -200,7 +204,7 @@ def model_sections(script: Path, modules: list[Path]) -> list[tuple[str, str]]:
 
 
 VARIABLE_COLUMNS = ("Name", "Causality", "Variability", "Type", "Unit", "Start", "Min", "Max",
-                    "Description")
+                    "Depends on", "Description")
 
 
 def unit_of(variable: ModelVariable) -> str:
@@ -210,7 +214,10 @@ def unit_of(variable: ModelVariable) -> str:
 
 
 def variable_cells(md: ModelDescription) -> list[tuple[str, ...]]:
-    """Per model variable, its VARIABLE_COLUMNS as text ('' where not given)."""
+    """Per model variable, its VARIABLE_COLUMNS as text ('' where not given); an output's
+    'Depends on' names the inputs it depends on."""
+    depends_on = {u.variable.name: ", ".join(d.name for d in u.dependencies or ())
+                  for u in md.outputs}
     rows = []
     for v in md.modelVariables:
         declared = v.declaredType
@@ -218,7 +225,7 @@ def variable_cells(md: ModelDescription) -> list[tuple[str, ...]]:
         high = v.max if v.max is not None else getattr(declared, "max", None)
         rows.append(tuple("" if c is None else str(c) for c in (
             v.name, v.causality, v.variability, v.type, unit_of(v), v.start, low, high,
-            v.description)))
+            depends_on.get(v.name), v.description)))
     return rows
 
 

@@ -30,6 +30,7 @@ from harness.scenarios import Scenario, Variant, ramp
 # model identifier -> its pure physics module in fmu_src
 PHYSICS = {"SelfRegulatingBalancer": "fmu_src.self_regulating",
            "CiupituBalancer": "fmu_src.ciupitu",
+           "RockingCounterweightBalancer": "fmu_src.rocking_counterweight",
            "PrismaticCompensator": "fmu_src.prismatic"}
 ENERGIES = ("E_in", "E_drawn", "E_copper", "E_mech", "W_link")
 DRIVE_STATES = 3  # per joint: armature current, PID integral, filtered error

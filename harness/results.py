@@ -127,8 +127,8 @@ MECHANISM_PANELS = (
     ("(b) energies", "J", [("E_p", None), ("E_e", None), ("E_t", None)]),
     ("(c) slider travel, carriage travel and payload", "mm | kg",
      [("delta_b", _to_mm), ("payload", None), ("q", _to_mm)]),
-    ("(d) spring length x (l_s), counterweight distance OB", "mm",
-     [("x", _to_mm), ("OB", _to_mm), ("l_s", _to_mm)]),
+    ("(d) spring length x (l_s), counterweight distance OB or height Y_cw", "mm",
+     [("x", _to_mm), ("OB", _to_mm), ("Y_cw", _to_mm), ("l_s", _to_mm)]),
 )
 # the mechanism panels of multi-joint models, after one tracking panel per joint
 MODEL_PANELS = {

@@ -1,12 +1,17 @@
 """`python -m harness system`: the task as a system of FMUs, described in SSP and OSP and run
 by DNV's libcosim or by FMPy's SSP runner, with results in the harness's format.
 
-The system of a one-joint scenario variant (the ScenarioSequencer FMU plays the scenario it
-was built for, franchetti2021 by default):
+The system of a scenario variant, per joint (a one-joint scenario such as franchetti2021):
 
     sequencer (ScenarioSequencer) --theta_ref--> controller (PositionController) --V--> drive
     (DcMotorDrive) --tau_drive--> mechanism (the variant's model) --theta--> controller,
     --omega--> drive; sequencer --payload, locks, ...--> mechanism.
+
+With several joints (demian2022) each joint has its own controller and drive, named
+`controller_<joint>` and `drive_<joint>`, wired to that joint's position, speed and effort.
+The ScenarioSequencer FMU plays the scenario it was built for: build/fmus' one when it plays
+the scenario (franchetti2021 by default), else one built for the scenario into
+build/system/<scenario>/fmus/.
 
 Its parameters are the harness's: the mechanism's scenario and variant parameters, the motor
 defaults (harness.drive), the PID gains designed for the joint (harness.controller) and the
@@ -22,9 +27,10 @@ drive energies by less than the tolerances of tests/test_system.py.
 FMPy 0.3.32's `simulate_ssp` (engine `fmpy-ssp`), compared with libcosim on this system:
 - right: the connections, the fixed step, the Jacobi exchange;
 - wrong, worked around here: it ignores the SSD's parameter bindings (they are passed as its
-  `parameter_set` argument instead), it cannot set String parameters (the sequencer's
-  `variant`: its set_value is extended to strings for the run) and it reads Boolean literals
-  as true whatever they say (values are passed as Python types);
+  `parameter_set` argument instead) and it reads Boolean literals as true whatever they say
+  (values are passed as Python types). It cannot set String parameters either, which is one
+  reason the sequencer's variant is bound by number (`variant_number`, an Integer), the
+  other that OMSimulator reads no String binding;
 - wrong, not worked around (it shows in the results): every connected input starts at 0.0
   instead of the source's start value, so in the first step the controller sees theta = 0
   and the mechanism gets tau_drive = 0; and the rows are stamped with the time at the start
@@ -34,20 +40,17 @@ FMPy 0.3.32's `simulate_ssp` (engine `fmpy-ssp`), compared with libcosim on this
 from __future__ import annotations
 
 import argparse
-import contextlib
 import shutil
 import zipfile
-from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
 from xml.etree import ElementTree as ET
 
 import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from harness import cosim, fmu_build, master, results, scenarios
+from harness import cosim, fmu_build, master, osp, results, scenarios
 from harness.controller import ControllerDesign, PIDGains
 from harness.drive import motors
 from harness.fmi import CoSimFMU
@@ -55,18 +58,22 @@ from harness.fmi import CoSimFMU
 ENGINES = ("libcosim", "fmpy-ssp")
 SEQUENCER, CONTROLLER, DRIVE, MECHANISM = "sequencer", "controller", "drive", "mechanism"
 SYSTEM_DIR = fmu_build.DEFAULT_DEST.parent / "system"
+# OMSimulator matches SSD elements by their qualified names: keep these prefixes
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
       "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
-      "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations"}
+      "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+      "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"}
+# OMSimulator's fixed-step master ("oms-ma") needs tolerances although it steps no solver
+OMS_TOLERANCE = 1e-4
 OSP_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
-Value = float | bool | str
+Value = float | bool | int
 
 
 @dataclass(frozen=True)
 class System:
-    """A scenario variant as FMUs: components (name -> model and parameters) and
-    connections (source component, output, destination component, input)."""
+    """A scenario variant as FMUs: components (name -> model and parameters), the FMU of
+    each model, and connections (source component, output, destination component, input)."""
 
     scenario: scenarios.Scenario
     variant: scenarios.Variant
@@ -74,52 +81,82 @@ class System:
     models: dict[str, str]
     parameters: dict[str, dict[str, Value]]
     connections: tuple[tuple[str, str, str, str], ...]
+    fmus: dict[str, Path]
 
     @property
     def name(self) -> str:
         return f"{self.scenario.name}_{self.variant.name}"
 
 
+def controller(scenario: scenarios.Scenario, joint: scenarios.Joint) -> str:
+    """The component name of a joint's controller: `controller` or `controller_<joint>`."""
+    return CONTROLLER + master.suffix(scenario, joint)
+
+
+def drive(scenario: scenarios.Scenario, joint: scenarios.Joint) -> str:
+    """The component name of a joint's drive: `drive` or `drive_<joint>`."""
+    return DRIVE + master.suffix(scenario, joint)
+
+
 def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
              step_size: float = master.DEFAULT_STEP,
              design: ControllerDesign = ControllerDesign()) -> System:
-    """The system of FMUs for a variant, with the harness's parameters and start."""
-    if variant.joints:
-        raise ValueError(f"variant {variant.name} drives joints of its own "
-                         f"({', '.join(j.name for j in variant.joints)}); the system has one "
-                         "drive and one controller (one-joint variants): run it with cosim")
-    if len(scenario.joints) != 1:
-        raise ValueError(f"scenario {scenario.name} has {len(scenario.joints)} joints; the "
-                         "system has one drive and one controller (one-joint scenarios)")
-    (joint,) = scenario.joints
-    motor = motors()[joint.motor]
+    """The system of FMUs for a variant, with the harness's parameters and start (the
+    ScenarioSequencer built for the scenario if build/fmus' one plays another). A variant's
+    own joints get their controllers and drives too (`Scenario.for_variant`)."""
+    scenario = scenario.for_variant(variant)
+    drive_motors = [motors()[joint.motor] for joint in scenario.joints]
     model = variant.model or scenario.model
-    mechanism_parameters = master.run_parameters(scenario, variant, [motor])
+    mechanism_parameters = master.run_parameters(scenario, variant, drive_motors)
     inputs = {name: signal[0] for name, signal in
               scenario.inputs(np.zeros(1), variant).items()}
+    # the variant by number: SSP tools read Integer parameters, not all read Strings
+    number = list(scenario.variants).index(variant.name) + 1
+    parameters: dict[str, dict[str, Value]] = {SEQUENCER: {"variant_number": number}}
+    models = {SEQUENCER: fmu_build.SEQUENCER}
+    connections = []
     with CoSimFMU(fmu_build.fmu_path(model), f"{scenario.name}.{variant.name}.design") as fmu:
         fmu.set(inputs)
         fmu.initialize(mechanism_parameters, stop_time=scenario.duration)
-        gains, hold_current = master.joint_drive(fmu, joint, motor, design)
-    parameters = {
-        SEQUENCER: {"variant": variant.name},
-        CONTROLLER: {**gains._asdict(), "V_supply": motor.V_supply,
-                     "integral0": hold_current * motor.R_a},
-        DRIVE: {**asdict(motor), "i0": hold_current},
-        MECHANISM: mechanism_parameters,
-    }
-    reference = f"{joint.position}_ref"
-    connections = (
-        (SEQUENCER, reference, CONTROLLER, "theta_ref"),
-        (MECHANISM, joint.position, CONTROLLER, "theta"),
-        (CONTROLLER, "V", DRIVE, "V"),
-        (MECHANISM, joint.speed, DRIVE, "omega"),
-        (DRIVE, "tau_drive", MECHANISM, joint.effort),
-        *((SEQUENCER, name, MECHANISM, name) for name in inputs),
-    )
-    models = {SEQUENCER: "ScenarioSequencer", CONTROLLER: "PositionController",
-              DRIVE: "DcMotorDrive", MECHANISM: model}
-    return System(scenario, variant, step_size, models, parameters, connections)
+        for joint, motor in zip(scenario.joints, drive_motors, strict=True):
+            gains, hold_current = master.joint_drive(fmu, joint, motor, design)
+            control, power = controller(scenario, joint), drive(scenario, joint)
+            models |= {control: "PositionController", power: "DcMotorDrive"}
+            parameters[control] = {**gains._asdict(), "V_supply": motor.V_supply,
+                                   "integral0": hold_current * motor.R_a}
+            parameters[power] = {**asdict(motor), "i0": hold_current}
+            connections += [(SEQUENCER, f"{joint.position}_ref", control, "theta_ref"),
+                            (MECHANISM, joint.position, control, "theta"),
+                            (control, "V", power, "V"),
+                            (MECHANISM, joint.speed, power, "omega"),
+                            (power, "tau_drive", MECHANISM, joint.effort)]
+    models[MECHANISM] = model
+    parameters[MECHANISM] = mechanism_parameters
+    connections += [(SEQUENCER, name, MECHANISM, name) for name in inputs]
+    fmus = {m: fmu_build.fmu_path(m) for m in set(models.values()) - {fmu_build.SEQUENCER}}
+    fmus[fmu_build.SEQUENCER] = sequencer_fmu(scenario)
+    return System(scenario, variant, step_size, models, parameters, tuple(connections), fmus)
+
+
+def _plays(fmu: Path, scenario: scenarios.Scenario) -> bool:
+    """Whether a ScenarioSequencer FMU plays this scenario (its description names it)."""
+    from fmpy import read_model_description
+    return f"plays scenario {scenario.name} " in (read_model_description(fmu).description or "")
+
+
+def sequencer_fmu(scenario: scenarios.Scenario) -> Path:
+    """A ScenarioSequencer FMU that plays the scenario: build/fmus' one if it does, else one
+    built for the (shipped) scenario into build/system/<scenario>/fmus/, rebuilt when older
+    than the scenario file or build/fmus' sequencer."""
+    default = fmu_build.fmu_path(fmu_build.SEQUENCER)
+    if _plays(default, scenario):
+        return default
+    source = scenarios.scenario_file(scenario.name)  # ValueError naming the known scenarios
+    fmu = SYSTEM_DIR / scenario.name / "fmus" / f"{fmu_build.SEQUENCER}.fmu"
+    if not fmu.exists() or fmu.stat().st_mtime < max(source.stat().st_mtime,
+                                                     default.stat().st_mtime):
+        fmu_build.build(fmu_build.SEQUENCER, fmu.parent, sequencer_scenario=source)
+    return fmu
 
 
 # ---- system descriptions ------------------------------------------------------------------
@@ -127,26 +164,29 @@ def _model_variables(system: System) -> dict[str, dict]:
     """Model variables by component and name, from the built FMUs."""
     from fmpy import read_model_description
     return {component: {v.name: v for v in
-                        read_model_description(fmu_build.fmu_path(model)).modelVariables}
+                        read_model_description(system.fmus[model]).modelVariables}
             for component, model in system.models.items()}
 
 
-def _type_name(value: Value) -> str:
-    return "Boolean" if isinstance(value, bool) else "String" if isinstance(value, str) else "Real"
-
-
-def _literal(value: Value) -> str:
-    return str(value).lower() if isinstance(value, bool) else str(value)
+def _bindings(system: System) -> dict[str, list[tuple[str, str, str]]]:
+    """Per component, its parameters as (name, FMI type of the variable, literal)."""
+    variables = _model_variables(system)
+    return {component: [(name, variables[component][name].type,
+                         str(value).lower() if isinstance(value, bool) else str(value))
+                        for name, value in values.items()]
+            for component, values in system.parameters.items()}
 
 
 def ssd_tree(system: System) -> ET.ElementTree:
     """SystemStructure.ssd: components with connectors (every output, every connected
-    input) and inline parameter bindings, connections, and a DefaultExperiment whose OSP
-    annotation gives the fixed step."""
+    input) and inline parameter bindings, connections, the system's OpenModelica annotation
+    (OMSimulator's fixed-step master, without which OMSimulator 3.0 aborts) and a
+    DefaultExperiment whose OSP annotation gives the fixed step (libcosim)."""
     for prefix, uri in NS.items():
         ET.register_namespace(prefix, uri)
-    ssd, ssc, ssv, osp = (f"{{{NS[p]}}}" for p in ("ssd", "ssc", "ssv", "osp"))
+    ssd, ssc, ssv, osp_, oms = (f"{{{NS[p]}}}" for p in ("ssd", "ssc", "ssv", "osp", "oms"))
     variables = _model_variables(system)
+    bindings = _bindings(system)
     root = ET.Element(f"{ssd}SystemStructureDescription", version="1.0", name=system.name)
     root_system = ET.SubElement(root, f"{ssd}System", name=system.name,
                                 description=system.variant.description or system.name)
@@ -162,32 +202,41 @@ def ssd_tree(system: System) -> ET.ElementTree:
                 connector = ET.SubElement(connectors, f"{ssd}Connector", name=name,
                                           kind=variable.causality)
                 ET.SubElement(connector, f"{ssc}{variable.type}")
-        bindings = ET.SubElement(element, f"{ssd}ParameterBindings")
-        values = ET.SubElement(ET.SubElement(bindings, f"{ssd}ParameterBinding"),
-                               f"{ssd}ParameterValues")
+        values = ET.SubElement(ET.SubElement(ET.SubElement(element, f"{ssd}ParameterBindings"),
+                                             f"{ssd}ParameterBinding"), f"{ssd}ParameterValues")
         parameter_set = ET.SubElement(values, f"{ssv}ParameterSet", version="1.0",
                                       name=component)
         parameters = ET.SubElement(parameter_set, f"{ssv}Parameters")
-        for name, value in system.parameters[component].items():
+        for name, type_name, literal in bindings[component]:
             parameter = ET.SubElement(parameters, f"{ssv}Parameter", name=name)
-            ET.SubElement(parameter, f"{ssv}{_type_name(value)}", value=_literal(value))
+            ET.SubElement(parameter, f"{ssv}{type_name}", value=literal)
     connections = ET.SubElement(root_system, f"{ssd}Connections")
     for start, start_connector, end, end_connector in system.connections:
         ET.SubElement(connections, f"{ssd}Connection", startElement=start,
                       startConnector=start_connector, endElement=end,
                       endConnector=end_connector)
+    annotation = ET.SubElement(ET.SubElement(root_system, f"{ssd}Annotations"),
+                               f"{ssc}Annotation", type="org.openmodelica")
+    information = ET.SubElement(ET.SubElement(annotation, f"{oms}Annotations"),
+                                f"{oms}SimulationInformation")
+    ET.SubElement(information, f"{oms}FixedStepMaster", description="oms-ma",
+                  stepSize=str(system.step_size), absoluteTolerance=str(OMS_TOLERANCE),
+                  relativeTolerance=str(OMS_TOLERANCE))
     experiment = ET.SubElement(root, f"{ssd}DefaultExperiment", startTime="0.0",
                                stopTime=str(system.scenario.duration))
     annotation = ET.SubElement(ET.SubElement(experiment, f"{ssd}Annotations"),
                                f"{ssc}Annotation", type="com.opensimulationplatform")
-    ET.SubElement(ET.SubElement(annotation, f"{osp}Algorithm"), f"{osp}FixedStepAlgorithm",
+    ET.SubElement(ET.SubElement(annotation, f"{osp_}Algorithm"), f"{osp_}FixedStepAlgorithm",
                   baseStepSize=str(system.step_size))
     ET.indent(root)
     return ET.ElementTree(root)
 
 
-def osp_tree(system: System) -> ET.ElementTree:
-    """OspSystemStructure.xml: the same simulators, initial values and connections."""
+def osp_tree(system: System, by_group: bool = True) -> ET.ElementTree:
+    """OspSystemStructure.xml: the same simulators, initial values and connections; with
+    by_group, the connections that join two FMUs' variable groups whole (the drive's shaft
+    and the mechanism's joint, the controller's command and the drive's armature voltage;
+    harness.osp) as one VariableGroupConnection each."""
     ET.register_namespace("", OSP_NS)
     ns = f"{{{OSP_NS}}}"
     root = ET.Element(f"{ns}OspSystemStructure", version="0.1")
@@ -195,18 +244,26 @@ def osp_tree(system: System) -> ET.ElementTree:
     ET.SubElement(root, f"{ns}BaseStepSize").text = str(system.step_size)
     ET.SubElement(root, f"{ns}Algorithm").text = "fixedStep"
     simulators = ET.SubElement(root, f"{ns}Simulators")
+    bindings = _bindings(system)
     for component, model in system.models.items():
         simulator = ET.SubElement(simulators, f"{ns}Simulator", name=component,
                                   source=f"{model}.fmu", stepSize=str(system.step_size))
         initial_values = ET.SubElement(simulator, f"{ns}InitialValues")
-        for name, value in system.parameters[component].items():
+        for name, type_name, literal in bindings[component]:
             initial = ET.SubElement(initial_values, f"{ns}InitialValue", variable=name)
-            ET.SubElement(initial, f"{ns}{_type_name(value)}", value=_literal(value))
+            ET.SubElement(initial, f"{ns}{type_name}", value=literal)
     connections = ET.SubElement(root, f"{ns}Connections")
+    groups = osp.group_connections(system.models, system.connections) if by_group else []
+    grouped = {c for *_, covered in groups for c in covered}
     for start, start_variable, end, end_variable in system.connections:
-        connection = ET.SubElement(connections, f"{ns}VariableConnection")
-        ET.SubElement(connection, f"{ns}Variable", simulator=start, name=start_variable)
-        ET.SubElement(connection, f"{ns}Variable", simulator=end, name=end_variable)
+        if (start, start_variable, end, end_variable) not in grouped:
+            connection = ET.SubElement(connections, f"{ns}VariableConnection")
+            ET.SubElement(connection, f"{ns}Variable", simulator=start, name=start_variable)
+            ET.SubElement(connection, f"{ns}Variable", simulator=end, name=end_variable)
+    for a, group_a, b, group_b, _ in groups:
+        connection = ET.SubElement(connections, f"{ns}VariableGroupConnection")
+        ET.SubElement(connection, f"{ns}VariableGroup", simulator=a, name=group_a)
+        ET.SubElement(connection, f"{ns}VariableGroup", simulator=b, name=group_b)
     ET.indent(root)
     return ET.ElementTree(root)
 
@@ -219,29 +276,34 @@ def write_ssp(system: System, path: Path) -> Path:
                              ET.tostring(ssd_tree(system).getroot(), encoding="unicode",
                                          xml_declaration=True))
             for model in sorted(set(system.models.values())):
-                archive.write(fmu_build.fmu_path(model), f"resources/{model}.fmu")
+                archive.write(system.fmus[model], f"resources/{model}.fmu")
     return results.write_atomic(path, write)
 
 
-def write_osp(system: System, folder: Path) -> Path:
-    """folder/OspSystemStructure.xml beside copies of the FMUs it names."""
+def write_osp(system: System, folder: Path, by_group: bool = True) -> Path:
+    """folder/OspSystemStructure.xml beside copies of the FMUs it names and their
+    <Model>_OspModelDescription.xml (by_group: see osp_tree)."""
     folder.mkdir(parents=True, exist_ok=True)
     for model in set(system.models.values()):
-        shutil.copy2(fmu_build.fmu_path(model), folder / f"{model}.fmu")
+        fmu = shutil.copy2(system.fmus[model], folder / f"{model}.fmu")
+        osp.write_model_description(Path(fmu))
     return results.write_atomic(
         folder / "OspSystemStructure.xml",
-        lambda tmp: osp_tree(system).write(tmp, encoding="utf-8", xml_declaration=True))
+        lambda tmp: osp_tree(system, by_group).write(tmp, encoding="utf-8",
+                                                     xml_declaration=True))
 
 
 # ---- running ------------------------------------------------------------------------------
 def _recorded(system: System, variables: dict[str, dict]) -> dict[str, list[str]]:
     """Per component, the variables a run reads: as the harness records them (the
-    mechanism's outputs and scenario inputs, the reference) plus the drive's signals."""
-    (joint,) = system.scenario.joints
+    mechanism's outputs and scenario inputs, the references) plus the drives' signals."""
+    scenario = system.scenario
     fed = [end for start, _, component, end in system.connections
            if start == SEQUENCER and component == MECHANISM]
     mechanism = [n for n, v in variables[MECHANISM].items() if v.causality == "output"]
-    return {SEQUENCER: [f"{joint.position}_ref"], CONTROLLER: ["V"], DRIVE: ["i", "tau_drive"],
+    return {SEQUENCER: [f"{joint.position}_ref" for joint in scenario.joints],
+            **{controller(scenario, joint): ["V"] for joint in scenario.joints},
+            **{drive(scenario, joint): ["i", "tau_drive"] for joint in scenario.joints},
             MECHANISM: mechanism + fed}
 
 
@@ -249,8 +311,7 @@ def _result(system: System, frame: pd.DataFrame, booleans: pd.DataFrame,
             messages: list[str]) -> master.RunResult:
     """A RunResult from every communication point's values (frame, row k at t_k, columns
     `component.variable`) and the Boolean values at the recording points."""
-    (joint,) = system.scenario.joints
-    motor = motors()[joint.motor]
+    scenario = system.scenario
     variables = _model_variables(system)
     record = _recorded(system, variables)
     every = max(1, round(master.RECORD_INTERVAL / system.step_size))
@@ -262,15 +323,21 @@ def _result(system: System, frame: pd.DataFrame, booleans: pd.DataFrame,
                           for n in mechanism_columns})
     # Jacobi: over step k the drive holds the controller's V(t_k) and the mechanism gets the
     # drive's effort of step k - 1, i.e. its output at t_k
-    voltage = frame[f"{CONTROLLER}.V"].to_numpy()[:-1]
-    current = frame[f"{DRIVE}.i"].to_numpy()[1:]
-    effort = frame[f"{DRIVE}.tau_drive"].to_numpy()[:-1]
-    gains = PIDGains(*(float(system.parameters[CONTROLLER][n]) for n in PIDGains._fields))
+    records, gains = [], {}
+    for joint in scenario.joints:
+        control, power = controller(scenario, joint), drive(scenario, joint)
+        records.append((frame[f"{control}.V"].to_numpy()[:-1],
+                        frame[f"{power}.i"].to_numpy()[1:],
+                        frame[f"{power}.tau_drive"].to_numpy()[:-1]))
+        gains[joint.name] = PIDGains(*(float(system.parameters[control][n])
+                                       for n in PIDGains._fields))
     return master.assemble(
-        system.scenario, system.variant, system.models[MECHANISM], system.step_size,
-        table.to_dict("records"), frame[[f"{MECHANISM}.{joint.position}"]].to_numpy(),
-        [frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy()], [(voltage, current, effort)],
-        [motor], [float(current[-1])], {joint.name: gains},
+        scenario, system.variant, system.models[MECHANISM], system.step_size,
+        table.to_dict("records"),
+        frame[[f"{MECHANISM}.{joint.position}" for joint in scenario.joints]].to_numpy(),
+        [frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy() for joint in scenario.joints],
+        records, [motors()[joint.motor] for joint in scenario.joints],
+        [float(current[-1]) for _, current, _ in records], gains,
         dict(system.parameters[MECHANISM]), messages)
 
 
@@ -344,28 +411,6 @@ def run_libcosim(system: System, source: Path) -> master.RunResult:
     return _result(system, frame, pd.DataFrame([first, *boolean_rows]), [])
 
 
-@contextlib.contextmanager
-def _fmpy_strings() -> Iterator[None]:
-    """FMPy 0.3.32's SSP runner sets only Real, Integer and Boolean variables: let it set
-    String parameters too, for the duration of a run."""
-    from fmpy.ssp import simulation
-
-    original = simulation.set_value
-
-    def set_value(component: Any, name: str, value: Value) -> None:
-        variable = component.variables[name]
-        if variable.type == "String":
-            component.fmu.setString([variable.valueReference], [str(value)])
-        else:
-            original(component, name, value)
-
-    simulation.set_value = set_value
-    try:
-        yield
-    finally:
-        simulation.set_value = original
-
-
 def run_fmpy_ssp(system: System, ssp: Path) -> master.RunResult:
     """Run the SSP archive with fmpy.ssp.simulate_ssp, which returns every connector after
     every step (stamped with the step's start time). It has no row for t = 0: that row is
@@ -379,17 +424,17 @@ def run_fmpy_ssp(system: System, ssp: Path) -> master.RunResult:
     for component, values in system.parameters.items():
         for name, value in values.items():
             parameter_set.parameters.append(Parameter(name=f"{component}.{name}", value=value))
-    with _fmpy_strings():
-        table = simulate_ssp(str(ssp), stop_time=system.scenario.duration,
-                             step_size=system.step_size, parameter_set=parameter_set)
+    table = simulate_ssp(str(ssp), stop_time=system.scenario.duration,
+                         step_size=system.step_size, parameter_set=parameter_set)
     frame = pd.DataFrame({name: table[name] for name in table.dtype.names[1:]})
-    (joint,) = system.scenario.joints
+    scenario = system.scenario
     start = frame.iloc[[0]].copy()
-    start_inputs = system.scenario.inputs(np.zeros(1), system.variant)
-    start[f"{MECHANISM}.{joint.position}"] = system.scenario.initial_angle[0]
-    start[f"{SEQUENCER}.{joint.position}_ref"] = system.scenario.initial_angle[0]
-    start[f"{CONTROLLER}.V"] = 0.0   # FMPy: connected inputs start at 0, the drive's V too
-    start[f"{DRIVE}.tau_drive"] = 0.0
+    start_inputs = scenario.inputs(np.zeros(1), system.variant)
+    for joint, initial in zip(scenario.joints, scenario.initial_angle, strict=True):
+        start[f"{MECHANISM}.{joint.position}"] = initial
+        start[f"{SEQUENCER}.{joint.position}_ref"] = initial
+        start[f"{controller(scenario, joint)}.V"] = 0.0   # FMPy: connected inputs start at 0
+        start[f"{drive(scenario, joint)}.tau_drive"] = 0.0
     for name, signal in start_inputs.items():
         start[f"{MECHANISM}.{name}"] = signal[0]
     frame = pd.concat([start, frame], ignore_index=True)
@@ -404,7 +449,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--engine", choices=ENGINES, default="libcosim",
                         help="the master that runs the system")
     parser.add_argument("--scenario", default="franchetti2021",
-                        help="one-joint scenario the ScenarioSequencer FMU plays")
+                        help="shipped scenario (franchetti2021, ciupitu2018, demian2022)")
     parser.add_argument("--variants", dest="variant", default="all", metavar="VARIANTS",
                         help="'all' or a comma-separated list (eps baselines are added)")
     parser.add_argument("--variant", dest="variant", default=argparse.SUPPRESS,
@@ -423,7 +468,6 @@ def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
     """Describe, write and run each variant's system; write results into out."""
     if engine not in ENGINES:
         raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
-    _check_sequencer(scenario)
     runs = []
     for name in tqdm(variants, desc=f"{scenario.name} system ({engine})", unit="variant"):
         system = describe(scenario, scenario.variant(name), step_size)
@@ -439,25 +483,11 @@ def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
     return runs
 
 
-def _check_sequencer(scenario: scenarios.Scenario) -> None:
-    """ValueError unless the built ScenarioSequencer plays this scenario."""
-    from fmpy import read_model_description
-    description = read_model_description(fmu_build.fmu_path("ScenarioSequencer")).description
-    if f"plays scenario {scenario.name} " not in (description or ""):
-        raise ValueError(f"the ScenarioSequencer FMU does not play scenario {scenario.name} "
-                         f"({description}); build one for it with build-fmus")
-
-
 def run(args: argparse.Namespace) -> int:
     if not (args.step > 0.0):
         raise ValueError(f"--step = {args.step} s is outside (0, inf)")
     scenario = scenarios.load(args.scenario)
     variants = cosim.selected_variants(scenario, args.variant)
-    if args.variant == "all":  # leave out the variants describe refuses
-        own = [v for v in variants if scenario.variant(v).joints]
-        if own:
-            print(f"left out (joints of their own, run them with cosim): {', '.join(own)}")
-        variants = [v for v in variants if v not in own]
     out = args.out or SYSTEM_DIR / scenario.name / args.engine
     run_system(scenario, variants, args.engine, args.step, out, args.source)
     print(results.summary_text(out / "summary.csv", scenario))

@@ -30,7 +30,9 @@ FRANCHETTI = scenarios.load("franchetti2021")
 
 def test_cycle_holds_the_paper_data() -> None:
     p = CYCLE.parameters
-    assert (p["w"], p["m2"] * G, p["OA"], p["AB"]) == pytest.approx((OP, G2, OA, AB))
+    for variant in ("parabolic_balanced", "linear_balanced"):
+        bar = CYCLE.variant(variant).parameters
+        assert (p["w"], p["m2"] * G, bar["OA"], bar["AB"]) == pytest.approx((OP, G2, OA, AB))
     assert p["m"] * p["c"] == pytest.approx(p["m_fixed_cw"] * p["c_fixed_cw"])  # arm balanced
     down = next(phase for phase in CYCLE.phases if phase.name == "down")
     assert down.inputs["payload"].target * G == pytest.approx(G_MAX)

@@ -14,6 +14,9 @@ from fmpy.cross_check import validate_vendor_repo
 from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
 from harness import cli, cross_check, fmu_build, fmu_docs, scenarios
+from harness.fmi import CoSimFMU
+
+INPUT_MODELS = [m for m in fmu_build.MODELS if fmu_docs.reference_run(m).inputs is not None]
 
 
 @pytest.fixture(scope="module")
@@ -94,3 +97,83 @@ def test_sequencer_reference_is_small_and_keeps_its_switches(repo: Path) -> None
     # slider and pulley are released at the start of phase III (14 s): recorded 1 ms before
     switch = np.flatnonzero(np.diff(reference["slider_locked"]))[0]
     assert reference["time"][switch:switch + 2] == pytest.approx([13.999, 14.0], abs=1e-9)
+
+
+def fixed_step_importer(fmu: Path, table: np.ndarray, reference: np.ndarray,
+                        clock_error: float) -> np.ndarray:
+    """What fmuCheck and fmusim do: fixed steps h (the reference's StepSize), the inputs
+    interpolated linearly in the table at each communication point and held over the step,
+    here read at t_k + clock_error (fmuCheck's clock accumulates t += h). The reference's
+    variables at its times."""
+    md = read_model_description(str(fmu))
+    types = {v.name: v.type for v in md.modelVariables}
+    step = fmu_docs.step_size(md)
+    names = table.dtype.names[1:]
+
+    def inputs(t: float) -> dict[str, float | bool]:
+        values = {n: float(np.interp(t, table["time"], table[n])) for n in names}
+        return {n: bool(round(v)) if types[n] == "Boolean" else v for n, v in values.items()}
+
+    outputs = list(reference.dtype.names[1:])
+    recorded = set(np.round(reference["time"] / step).astype(int))
+    rows = []
+    with CoSimFMU(fmu) as instance:
+        instance.initialize(inputs(0.0), stop_time=float(reference["time"][-1]))
+        rows.append([float(v) for v in instance.get(outputs).values()])
+        for k in range(round(reference["time"][-1] / step)):
+            instance.set(inputs(k * step + clock_error))
+            instance.step(k * step, step)
+            if k + 1 in recorded:
+                rows.append([float(v) for v in instance.get(outputs).values()])
+    return np.array(rows)
+
+
+def largest_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """The largest difference of two results, per variable relative to its range."""
+    return max(np.max(np.abs(a[:, j] - b[:, j])) / (np.ptp(b[:, j]) or 1.0)
+               for j in range(b.shape[1]))
+
+
+@pytest.mark.parametrize("model", INPUT_MODELS)
+def test_inputs_read_alike_whatever_the_importers_clock_rounding(repo: Path,
+                                                                 model: str) -> None:
+    """A fixed-step importer whose clock lands just before or just after each communication
+    point reproduces the reference (FMPy) from the published <Model>_in.csv: no time repeats
+    in it (FMPy steps to a repeated time, fixed-step importers do not) and no step falls on a
+    communication point. The same importer on the documentation's table, whose steps repeat
+    a time at a communication point, applies the voltage step of DcMotorDrive one step later
+    when its clock is early: what made fmuCheck differ."""
+    folder = cross_check.model_dir(repo, model)
+    table = read_csv(folder / f"{model}_in.csv")
+    reference = read_csv(folder / f"{model}_ref.csv")
+    expected = np.array([list(row)[1:] for row in reference], dtype=float)
+    assert np.all(np.diff(table["time"]) > 0.0)
+    step = read_ref_opt_file(folder / f"{model}_ref.opt")["StepSize"]
+    clock_error = 1e-9 * step
+    for error in (-clock_error, clock_error):
+        result = fixed_step_importer(folder / f"{model}.fmu", table, reference, error)
+        assert largest_difference(result, expected) < 1e-6, error
+    if model == "DcMotorDrive":
+        stepped = fmu_docs.reference_run(model).inputs
+        early, late = (fixed_step_importer(folder / f"{model}.fmu", stepped, reference, error)
+                       for error in (-clock_error, clock_error))
+        assert largest_difference(early, late) > 1e-3   # the energies, one step of 3 V
+        assert largest_difference(late, expected) < 1e-6
+
+
+def test_importer_inputs_keep_the_values_at_communication_points() -> None:
+    """A step of the table becomes a ramp over the step before it: the same values at every
+    communication point (b from t on, as FMPy applies a repeated time), the other signals'
+    ramps kept; a step closer than one communication step to the row before is refused."""
+    table = fmu_docs.input_table(("u", "w"), [(0.0, 0.0, 0.0), (0.1, 0.0, 1.0),
+                                              (0.1, 3.0, 1.0), (0.2, 3.0, 2.0)])
+    out = cross_check.importer_inputs(table, 0.01)
+    np.testing.assert_allclose(np.array(out.tolist()), [
+        (0.0, 0.0, 0.0), (0.09, 0.0, 0.9), (0.1, 3.0, 1.0), (0.2, 3.0, 2.0)], atol=1e-15)
+    times = np.arange(21) * 0.01
+    expected = {"u": np.where(times < 0.1 - 1e-12, 0.0, 3.0), "w": times * 10.0}
+    for name, values in expected.items():
+        np.testing.assert_allclose(np.interp(times, out["time"], out[name]), values,
+                                   atol=1e-12)
+    with pytest.raises(ValueError, match="within one communication step"):
+        cross_check.importer_inputs(table, 0.2)

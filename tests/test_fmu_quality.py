@@ -297,5 +297,6 @@ def test_a_failed_build_leaves_the_previous_fmu(tmp_path: Path,
     monkeypatch.setattr(fmu_build.fmu_docs, "add_documentation", broken)
     with pytest.raises(RuntimeError, match="interrupted"):
         fmu_build.build(model, tmp_path)
-    assert [p.name for p in tmp_path.iterdir()] == [fmu.name]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        fmu.name, f"{model}_OspModelDescription.xml"]   # the first build's OSP-IS file
     assert fmu.read_bytes() == before

@@ -223,9 +223,12 @@ def test_sequencer_model_description(sequencer: Path) -> None:
     variant = variables["variant"]
     assert (variant.type, variant.causality, variant.start) == ("String", "parameter",
                                                                 "self_regulating")
+    # the references of every variant's joints (active_relocation's carriage q too)
     assert [v.name for v in md.modelVariables if v.causality == "output"] == [
-        "theta_ref", "slider_locked", "pulley_locked", "payload", "counterweight_added"]
+        "theta_ref", "q_ref", "slider_locked", "pulley_locked", "payload",
+        "counterweight_added"]
     assert variables["theta_ref"].declaredType.unit == "rad"
+    assert variables["q_ref"].declaredType.unit == "m"
     assert variables["slider_locked"].type == "Boolean"
     assert variables["slider_locked"].variability == "discrete"
     # the Real inputs carry the units of the mechanism's inputs they feed
@@ -242,11 +245,14 @@ def test_sequencer_plays_the_scenario_as_the_harness(sequencer: Path, variant: s
     times = np.arange(n + 1) * SEQUENCER_STEP
     with CoSimFMU(sequencer, variant) as fmu:
         played = play_sequencer(fmu, variant, n, SEQUENCER_STEP)
-    outputs = list(played)
-    np.testing.assert_allclose(played["theta_ref"], scenario.reference(times), rtol=0.0,
-                               atol=1e-12)
+    resolved = scenario.for_variant(scenario.variant(variant))
+    np.testing.assert_allclose(played["theta_ref"], resolved.reference(times, "theta"),
+                               rtol=0.0, atol=1e-12)
+    # the carriage's reference where the variant drives it, else 0
+    q = resolved.reference(times, "q") if len(resolved.joints) > 1 else np.zeros(n + 1)
+    np.testing.assert_allclose(played["q_ref"], q, rtol=0.0, atol=1e-12)
     inputs = scenario.inputs(times, scenario.variant(variant))
-    for name in outputs[1:]:
+    for name in list(played)[2:]:
         if name not in inputs:  # dropped by the variant: stays at its default
             assert not played[name].any(), name
         elif inputs[name].dtype == bool:

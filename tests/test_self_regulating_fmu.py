@@ -347,7 +347,8 @@ def test_bench_writes_the_step_cost_table(tmp_path: Path) -> None:
                      "--out", str(tmp_path)]) == 0
     assert [p.name for p in tmp_path.iterdir()] == ["fmu_step.csv"]
     table = pd.read_csv(tmp_path / "fmu_step.csv")
-    assert list(table["model"]) == ["BenchFloor", SRB, "CiupituBalancer"]
+    assert list(table["model"]) == ["BenchFloor", SRB, "CiupituBalancer",
+                                   "RockingCounterweightBalancer"]
     assert (table["us_per_step"] > 0).all() and table["ratio_to_floor"].iloc[0] == 1.0
     assert cli.main(["bench", "--steps", "0", "--out", str(tmp_path)]) == 2
     assert cli.main(["bench", "--only", "fmu_steps", "--out", str(tmp_path)]) == 2

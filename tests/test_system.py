@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import zipfile
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import numpy as np
 import pandas as pd
@@ -89,6 +90,56 @@ def test_libcosim_runs_the_ssp_archive_as_the_osp_file(described: system.System,
     pd.testing.assert_frame_equal(from_ssp.series, from_osp.series)
 
 
+def _libcosim_end_values(osp_file: Path, steps: int) -> dict[str, float]:
+    """Run an OspSystemStructure.xml for some steps; the mechanism's position and speed and
+    the drive's speed input and torque output at the end."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+
+    execution = CosimExecution.from_osp_config_file(str(osp_file))
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    assert execution.step(steps)
+    values = {}
+    for component, names in (("mechanism", ("theta", "omega")), ("drive", ("omega", "tau_drive"))):
+        index = execution.slave_index_from_instance_name(component)
+        references = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
+        for name in names:
+            (values[f"{component}.{name}"],) = observer.last_real_values(
+                index, [references[name]])
+    return values
+
+
+def test_osp_variable_group_connections_give_the_per_variable_numbers(
+        described: system.System, tmp_path: Path) -> None:
+    """OspSystemStructure.xml joins the drive's shaft port to the mechanism's joint port and
+    the controller's command to the drive's armature voltage by variable group (libcosim reads
+    the groups from the <Model>_OspModelDescription.xml beside each FMU): the same numbers as
+    the three per-variable connections; without the shaft connection the link falls."""
+    by_group = system.write_osp(described, tmp_path / "group")
+    by_variable = system.write_osp(described, tmp_path / "variable", by_group=False)
+    ns = {"osp": system.OSP_NS}
+    tree = ET.parse(by_group)
+    groups = {tuple((v.get("simulator"), v.get("name")) for v in c)
+              for c in tree.iterfind(".//osp:VariableGroupConnection", ns)}
+    assert groups == {(("drive", "shaft"), ("mechanism", "joint")),
+                      (("controller", "command"), ("drive", "armature_voltage"))}
+    variables = {(c[0].get("name"), c[1].get("name"))
+                 for c in tree.iterfind(".//osp:VariableConnection", ns)}
+    assert not variables & {("tau_drive", "tau_drive"), ("omega", "omega"), ("V", "V")}
+    steps = 300
+    expected = _libcosim_end_values(by_variable, steps)
+    assert _libcosim_end_values(by_group, steps) == expected
+    connections = tree.find(".//osp:Connections", ns)
+    shaft = next(c for c in connections.iterfind("osp:VariableGroupConnection", ns)
+                 if c[0].get("name") == "shaft")
+    connections.remove(shaft)
+    tree.write(by_group)
+    cut = _libcosim_end_values(by_group, steps)
+    assert expected["mechanism.theta"] == pytest.approx(np.radians(60.0))   # held at the start
+    assert cut["drive.omega"] == 0.0 and abs(cut["mechanism.theta"] - np.radians(60.0)) > 0.5
+
+
 def test_fmpy_ssp_runner_agrees_despite_its_start(
         tmp_path: Path, harness_run: master.RunResult) -> None:
     """simulate_ssp starts every connected input at 0: the mechanism gets no drive torque in
@@ -109,7 +160,7 @@ def test_ssd_is_valid_ssp_with_the_harness_parameters(
     assert set(components) == {"sequencer", "controller", "drive", "mechanism"}
     values = {c: {p.name: p.value for b in components[c].parameterBindings
                   for s in b.parameterValues for p in s.parameters} for c in components}
-    assert values["sequencer"]["variant"] == VARIANT
+    assert int(values["sequencer"]["variant_number"]) == list(SCENARIO.variants).index(VARIANT) + 1
     assert float(values["mechanism"]["k"]) == 0.0
     (gains,) = harness_run.gains.values()
     for name, value in gains._asdict().items():
@@ -123,20 +174,138 @@ def test_ssd_is_valid_ssp_with_the_harness_parameters(
             ["SystemStructure.ssd", *(f"resources/{m}.fmu" for m in described.models.values())])
 
 
-def test_multi_joint_scenarios_are_refused() -> None:
+@pytest.mark.slow   # about 20 s: a harness run and a libcosim run of the 35 s task
+def test_libcosim_runs_active_relocation_with_the_variants_own_drive(tmp_path: Path) -> None:
+    """active_relocation's own joint q (the spring anchor's carriage) gets a controller and a
+    trapezoidal-screw drive of its own, fed by the sequencer's q_ref."""
+    described = system.describe(SCENARIO, SCENARIO.variant("active_relocation"))
+    assert set(described.models) == {"sequencer", "controller_theta", "drive_theta",
+                                     "controller_q", "drive_q", "mechanism"}
+    assert ("sequencer", "q_ref", "controller_q", "theta_ref") in described.connections
+    assert described.parameters["drive_q"]["N"] == pytest.approx(2 * np.pi / 0.002)
+    harness_run = harness_run_of("active_relocation")
+    summary = run_command("libcosim", tmp_path, "active_relocation")
+    series = pd.read_csv(tmp_path / "active_relocation.csv")
+    # the energies of both drives; the carriage's tracking error peaks within 1.2 % (the
+    # loop's two steps of delay), outside the 1 % band of the other summary metrics
+    for name in ("E_drawn", "E_in", "E_copper", "E_mech", "E_drawn_theta", "E_drawn_q",
+                 "tau_rms_q", "W_adjust"):
+        expected = (harness_run.metrics[name] if name in harness_run.metrics
+                    else harness_run.series[name].iloc[-1])
+        assert summary.loc["active_relocation", name] == pytest.approx(
+            expected, rel=METRIC_RTOL), name
+    assert list(series.columns) == list(harness_run.series.columns)
+    assert np.max(np.abs(series.theta - harness_run.series.theta)) < THETA_TOL
+    assert np.max(np.abs(series.Y_B - harness_run.series.Y_B)) < 1e-4     # anchor [m]
+
+
+@pytest.mark.slow   # about 7 s: a harness run and a libcosim run of the 8 s task
+def test_libcosim_runs_the_two_drive_demian2022_system_like_the_harness(
+        tmp_path: Path) -> None:
+    """demian2022 as a system of six FMUs: a sequencer built for the scenario, a controller
+    and a drive per joint (the lead-screw drive on q2), the compensator. Compensated: the
+    smallest drive energies, where the loop's delay weighs most."""
     demian = scenarios.load("demian2022")
-    with pytest.raises(ValueError, match="one-joint"):
-        system.describe(demian, demian.variant("compensated"))
+    variant = demian.variant("compensated")
+    described = system.describe(demian, variant)
+    assert set(described.models) == {"sequencer", "controller_q1", "drive_q1",
+                                     "controller_q2", "drive_q2", "mechanism"}
+    assert described.parameters["drive_q2"]["N"] == pytest.approx(2 * np.pi / 0.04)  # screw
+    ns = {"osp": system.OSP_NS}
+    tree = ET.parse(system.write_osp(described, tmp_path / "osp"))
+    groups = {tuple((v.get("simulator"), v.get("name")) for v in c)
+              for c in tree.iterfind(".//osp:VariableGroupConnection", ns)}
+    # the q1 drive meets the revolute joint port to port; the lead-screw drive's shaft is
+    # declared angular, so it meets the prismatic joint variable by variable
+    assert (("drive_q1", "shaft"), ("mechanism", "q1")) in groups
+    assert not any("drive_q2" in (a[0], b[0]) and "shaft" in (a[1], b[1]) for a, b in groups)
+    run = system.run_libcosim(described, tmp_path / "osp" / "OspSystemStructure.xml")
+    expected = master.run(demian, variant)
+    assert list(run.series.columns) == list(expected.series.columns)
+    for name in ("E_drawn", "E_in", "E_copper", "E_mech", "tau_rms_q1", "tau_rms_q2",
+                 "i_rms_q1", "i_rms_q2", "V_peak_q1", "V_peak_q2", "track_err_rms_q1",
+                 "track_err_rms_q2"):
+        assert run.metrics[name] == pytest.approx(expected.metrics[name], rel=METRIC_RTOL), name
+    assert run.metrics["E_drawn"] == pytest.approx(expected.metrics["E_drawn"], rel=3e-3)
+    assert np.max(np.abs(run.series.q1 - expected.series.q1)) < 1e-4     # rad
+    assert np.max(np.abs(run.series.q2 - expected.series.q2)) < 1e-4     # m
 
 
-def test_variants_with_joints_of_their_own_are_refused() -> None:
-    with pytest.raises(ValueError, match="variant active_relocation drives joints of its own "
-                       r"\(q\).*run it with cosim"):
-        system.describe(SCENARIO, SCENARIO.variant("active_relocation"))
+def test_ssd_carries_what_omsimulator_reads(described: system.System, tmp_path: Path) -> None:
+    """OMSimulator 3.0 aborts on a system without its org.openmodelica annotation (fixed-step
+    master), matches elements by their prefixed names, and reads no String binding: the SSD
+    has the annotation in OMSimulator's documented form, a DefaultExperiment over the task,
+    and only Real, Integer and Boolean bindings, each of its variable's type."""
+    from fmpy import read_model_description
+
+    ssp = system.write_ssp(described, tmp_path / "x.ssp")
+    with zipfile.ZipFile(ssp) as archive:
+        text = archive.read("SystemStructure.ssd").decode()
+    root = ET.fromstring(text)
+    ns = system.NS
+    (master_element,) = root.findall(
+        "ssd:System/ssd:Annotations/ssc:Annotation[@type='org.openmodelica']/oms:Annotations/"
+        "oms:SimulationInformation/oms:FixedStepMaster", ns)
+    assert master_element.get("description") == "oms-ma"
+    assert float(master_element.get("stepSize")) == described.step_size
+    for name in ("absoluteTolerance", "relativeTolerance"):
+        assert 0.0 < float(master_element.get(name)) < 1.0
+    for tag in ("<ssd:System ", "<ssc:Annotation ", "<oms:Annotations>",
+                "<oms:SimulationInformation>", "<oms:FixedStepMaster ", "<ssv:Parameter "):
+        assert tag in text, tag   # the qualified names OMSimulator looks for
+    experiment = root.find("ssd:DefaultExperiment", ns)
+    assert (float(experiment.get("startTime")), float(experiment.get("stopTime"))) == (
+        0.0, SCENARIO.duration)
+    for component in root.iterfind("ssd:System/ssd:Elements/ssd:Component", ns):
+        variables = {v.name: v for v in read_model_description(
+            described.fmus[described.models[component.get("name")]]).modelVariables}
+        for parameter in component.iterfind(".//ssv:Parameter", ns):
+            (value,) = list(parameter)
+            kind = value.tag.split("}")[1]
+            assert kind in ("Real", "Integer", "Boolean")
+            assert kind == variables[parameter.get("name")].type, parameter.get("name")
 
 
-@pytest.mark.parametrize("variant", [v for v in SCENARIO.variants
-                                     if not SCENARIO.variant(v).joints])
+def test_sequencer_variant_number_selects_the_variant_by_position() -> None:
+    """variant_number k plays the k-th variant of the scenario file, as `variant` naming it
+    does; 0 leaves the choice to `variant`; a number past the last variant fails
+    initialisation with a message naming the range."""
+    from harness.fmi import CoSimFMU, FMICallException
+
+    def played(parameters: dict[str, object], steps: int = 20, step: float = 1.0) -> np.ndarray:
+        with CoSimFMU(fmu_build.fmu_path("ScenarioSequencer")) as fmu:
+            fmu.slave.enterInitializationMode()
+            for name, value in parameters.items():
+                (reference,) = fmu.references([name])
+                if isinstance(value, int):
+                    fmu.slave.setInteger([reference], [value])
+                else:
+                    fmu.slave.setString([reference], [value])
+            fmu.slave.exitInitializationMode()
+            outputs = fmu.names("output")
+            rows = []
+            for k in range(steps):
+                fmu.step(k * step, step)
+                rows.append([float(v) for v in fmu.get(outputs).values()])
+            return np.array(rows)
+
+    names = list(SCENARIO.variants)
+    by_name = {name: played({"variant": name}) for name in names}
+    assert not np.array_equal(by_name["self_regulating"], by_name["unbalanced"])
+    for number, name in enumerate(names, start=1):
+        np.testing.assert_array_equal(played({"variant_number": number}), by_name[name])
+    np.testing.assert_array_equal(played({"variant": "unbalanced", "variant_number": 0}),
+                                  by_name["unbalanced"])
+    with CoSimFMU(fmu_build.fmu_path("ScenarioSequencer")) as fmu:
+        fmu.slave.enterInitializationMode()
+        fmu.slave.setInteger(fmu.references(["variant_number"]), [len(names) + 1])
+        with pytest.raises(FMICallException):
+            fmu.slave.exitInitializationMode()
+        assert any(f"variant_number = {len(names) + 1} is outside [0, {len(names)}]"
+                   in m.message for m in fmu.messages)
+
+
+@pytest.mark.parametrize("variant", list(SCENARIO.variants))
 def test_every_input_is_connected(variant: str) -> None:
     """An unconnected input would take its start value in libcosim but may be wired to another
     signal by FMPy's SSP runner: the systems leave none unconnected."""

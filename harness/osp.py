@@ -1,0 +1,164 @@
+"""OSP interface specification (OSP-IS 1.0.1) of the FMUs: `<Model>_OspModelDescription.xml`.
+
+libcosim (and other OSP tools) read this file from beside an FMU. It declares the FMU's
+variable groups, so that an OspSystemStructure.xml can connect two FMUs port to port with one
+`VariableGroupConnection` instead of one `VariableConnection` per variable:
+
+- `AngularMechanicalPort` (Torque, AngularVelocity): each revolute joint of a mechanism (the
+  drive torque in, the joint speed out) and the drive's shaft (torque out, speed in);
+- `LinearMechanicalPort` (Force, LinearVelocity): the prismatic joint of PrismaticCompensator;
+- `ElectromagneticPort` (Voltage, Current): the drive's armature (voltage in, current out),
+  and a `Voltage` group on the controller's output that feeds it.
+
+The groups' units are the FMU's own (modelDescription.xml), repeated under UnitDefinitions
+with their SI base units. PORTS below is the one list of the groups; a DcMotorDrive set up as
+a lead-screw drive still declares its shaft as angular (its variables are declared in N m and
+rad/s), so it meets the prismatic joint variable by variable.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from fmpy import read_model_description
+from fmpy.model_description import ModelDescription
+
+NAMESPACE = "https://open-simulation-platform.com/OspModelDescription/1.0.1"
+SUFFIX = "_OspModelDescription.xml"
+# port kind -> the kinds of its two single-quantity groups (effort, flow), as the schema orders
+PORT_KINDS = {"AngularMechanicalPort": ("Torque", "AngularVelocity"),
+              "LinearMechanicalPort": ("Force", "LinearVelocity"),
+              "ElectromagneticPort": ("Voltage", "Current")}
+
+
+@dataclass(frozen=True)
+class Group:
+    """A variable group: a single quantity (kind, variables) or a port of two such groups."""
+
+    kind: str
+    name: str
+    variables: tuple[str, ...] = ()
+    members: tuple[Group, ...] = ()
+
+
+def port(kind: str, name: str, effort: str, flow: str) -> Group:
+    """A power port: its effort and flow groups are named <name>_<quantity>, e.g.
+    shaft_angular_velocity."""
+    effort_kind, flow_kind = PORT_KINDS[kind]
+    return Group(kind, name, members=tuple(
+        Group(quantity, name + re.sub("([A-Z])", r"_\1", quantity).lower(), (variable,))
+        for quantity, variable in ((effort_kind, effort), (flow_kind, flow))))
+
+
+PORTS: dict[str, tuple[Group, ...]] = {
+    "SelfRegulatingBalancer": (port("AngularMechanicalPort", "joint", "tau_drive", "omega"),),
+    "CiupituBalancer": (port("AngularMechanicalPort", "joint", "tau_drive", "omega"),),
+    "RockingCounterweightBalancer": (port("AngularMechanicalPort", "joint", "tau_drive",
+                                          "omega"),),
+    # the schema's sequence puts LinearMechanicalPort before AngularMechanicalPort
+    "PrismaticCompensator": (port("LinearMechanicalPort", "q2", "f2", "q2_dot"),
+                             port("AngularMechanicalPort", "q1", "tau1", "q1_dot")),
+    "ActiveSpringBalancer": (port("LinearMechanicalPort", "carriage", "F_adjust", "q_dot"),
+                             port("AngularMechanicalPort", "joint", "tau_drive", "omega")),
+    "DcMotorDrive": (port("AngularMechanicalPort", "shaft", "tau_drive", "omega"),
+                     port("ElectromagneticPort", "armature", "V", "i")),
+    "PositionController": (Group("Voltage", "command", ("V",)),),
+    "ScenarioSequencer": (),
+}
+
+
+def groups(model: str) -> list[Group]:
+    """Every variable group of a model (none for a model PORTS does not list), ports before
+    the groups they hold."""
+    found: list[Group] = []
+    pending = list(PORTS.get(model, ()))
+    while pending:
+        group = pending.pop(0)
+        found.append(group)
+        pending.extend(group.members)
+    return found
+
+
+def _unit(md: ModelDescription, name: str) -> str:
+    variable = next((v for v in md.modelVariables if v.name == name), None)
+    if variable is None:
+        raise ValueError(f"{md.modelName} has no variable {name!r} for its OSP variable group")
+    unit = variable.unit or (variable.declaredType.unit if variable.declaredType else None)
+    if unit is None:
+        raise ValueError(f"{md.modelName}.{name} has no unit for its OSP variable group")
+    return unit
+
+
+def model_description_tree(md: ModelDescription) -> ET.ElementTree:
+    """The OspModelDescription of an FMU from its modelDescription.xml."""
+    ns = f"{{{NAMESPACE}}}"
+    ET.register_namespace("", NAMESPACE)
+    root = ET.Element(f"{ns}OspModelDescription", version="1.0")
+    units = {name: _unit(md, name) for group in groups(md.modelName)
+             for name in group.variables}
+    definitions = ET.SubElement(root, f"{ns}UnitDefinitions")
+    base_units = {u.name: u.baseUnit for u in md.unitDefinitions}
+    for unit in sorted(set(units.values())):
+        base = base_units[unit]
+        ET.SubElement(ET.SubElement(definitions, f"{ns}Unit", name=unit), f"{ns}BaseUnit",
+                      {k: str(getattr(base, k)) for k in
+                       ("kg", "m", "s", "A", "K", "mol", "cd", "rad", "factor", "offset")})
+
+    def add(parent: ET.Element, group: Group) -> None:
+        element = ET.SubElement(parent, f"{ns}{group.kind}", name=group.name)
+        for name in group.variables:
+            ET.SubElement(element, f"{ns}Variable", ref=name, unit=units[name])
+        for member in group.members:
+            add(element, member)
+
+    variable_groups = ET.SubElement(root, f"{ns}VariableGroups")  # libcosim needs it, even empty
+    for group in PORTS.get(md.modelName, ()):
+        add(variable_groups, group)
+    ET.indent(root)
+    return ET.ElementTree(root)
+
+
+def write_model_description(fmu: Path, folder: Path | None = None) -> Path:
+    """Write <Model>_OspModelDescription.xml for the FMU into folder (default: beside the
+    FMU), atomically, and return its path."""
+    from harness.results import write_atomic  # harness.results imports pandas: only here
+
+    md = read_model_description(str(fmu))
+    path = (folder or fmu.parent) / f"{md.modelName}{SUFFIX}"
+    return write_atomic(path, lambda tmp: model_description_tree(md).write(
+        tmp, encoding="utf-8", xml_declaration=True))
+
+
+def group_connections(models: dict[str, str],
+                      connections: tuple[tuple[str, str, str, str], ...]
+                      ) -> list[tuple[str, str, str, str, list[tuple[str, str, str, str]]]]:
+    """Variable groups that connections join whole: (component, group, component, group, the
+    connections that group connection stands for). Two groups of the same kind are joined
+    when each of their variables is connected to its counterpart (either direction); ports
+    are matched first, and a connection belongs to one group connection at most."""
+    wired = set(connections)
+    taken: set[tuple[str, str, str, str]] = set()
+    found = []
+    for (a, model_a), (b, model_b) in itertools.combinations(models.items(), 2):
+        for group_a, group_b in itertools.product(groups(model_a), groups(model_b)):
+            if group_a.kind != group_b.kind:
+                continue
+            pairs = _pairs(a, group_a, b, group_b)
+            covered = [c for p in pairs for c in (p, (p[2], p[3], p[0], p[1])) if c in wired]
+            if len(covered) == len(pairs) and not taken & set(covered):
+                taken.update(covered)
+                found.append((a, group_a.name, b, group_b.name, covered))
+    return found
+
+
+def _pairs(a: str, group_a: Group, b: str, group_b: Group) -> list[tuple[str, str, str, str]]:
+    """The variable pairs a connection of two groups of the same kind makes (libcosim pairs
+    the variables in order, and a port's groups in order)."""
+    pairs = [(a, x, b, y) for x, y in zip(group_a.variables, group_b.variables, strict=True)]
+    for member_a, member_b in zip(group_a.members, group_b.members, strict=True):
+        pairs.extend(_pairs(a, member_a, b, member_b))
+    return pairs
