@@ -27,7 +27,6 @@ hosts that add up their time (t += h) switch at the same step as those that comp
 from __future__ import annotations
 
 import runpy
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,11 +53,11 @@ def embedded_scenario(resources: str | None) -> core.Scenario:
     path = None if resources is None else Path(resources) / "fmu_src" / "sequencer_scenario.py"
     if path is not None and path.is_file():
         module = runpy.run_path(str(path))  # not cached in sys.modules (see the docstring)
-        name, toml = module["NAME"], module["TOML"]
+        name, data = module["NAME"], module["DATA"]
     else:
         from fmu_src import sequencer_scenario
-        name, toml = sequencer_scenario.NAME, sequencer_scenario.TOML
-    return core.parse(tomllib.loads(toml), f"{name}.toml")
+        name, data = sequencer_scenario.NAME, sequencer_scenario.DATA
+    return core.parse(data, f"{name}.toml")
 
 
 def scenario_inputs(scenario: core.Scenario) -> dict[str, bool | float]:
@@ -166,10 +165,11 @@ class ScenarioSequencer(ModelSlave):
         before a phase start counts as that start."""
         played = self.played
         references = dict(zip((j.name for j in played.joints),
-                              played.reference_at(time, tolerance), strict=True))
+                              played.reference_at(time, tolerance)))
         self.__dict__.update({output: references.get(name, 0.0)
                               for name, output in self.reference_names.items()})
-        self.__dict__.update(self.defaults | played.inputs_at(time, self.segments, tolerance))
+        self.__dict__.update({**self.defaults,
+                              **played.inputs_at(time, self.segments, tolerance)})
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.play(self.chosen_variant())

@@ -112,7 +112,7 @@ class Ramp:
 
 def _positions(value: Any) -> tuple[float, ...]:
     """A position per joint; one number stands for a one-joint scenario's position."""
-    return (float(value),) if isinstance(value, int | float) else tuple(map(float, value))
+    return (float(value),) if isinstance(value, (int, float)) else tuple(map(float, value))
 
 
 @dataclass(frozen=True)
@@ -248,14 +248,14 @@ class Scenario:
         variant's own, whose targets follow its phase_targets (a phase it does not name
         holds the previous target). Joints the scenario already has are not added again."""
         names = {j.name for j in self.joints}
-        extra = [(j, x) for j, x in zip(variant.joints, variant.joint_initial, strict=True)
+        extra = [(j, x) for j, x in zip(variant.joints, variant.joint_initial)
                  if j.name not in names]
         if not extra:
             return self
         phases, targets = [], [x for _, x in extra]
         for phase in self.phases:
             changes = variant.phase_targets.get(phase.name, {})
-            targets = [changes.get(j.name, x) for (j, _), x in zip(extra, targets, strict=True)]
+            targets = [changes.get(j.name, x) for (j, _), x in zip(extra, targets)]
             phases.append(replace(phase, target=(*phase.target, *targets)))
         return replace(self, joints=(*self.joints, *(j for j, _ in extra)),
                        initial_angle=(*self.initial_angle, *(x for _, x in extra)),
@@ -277,7 +277,7 @@ class Scenario:
         """(start time, end time [s], start, end position [rad or m]) of one joint per phase."""
         j = self.joint_index(joint)
         out, position = [], self.initial_angle[j]
-        for (_, t0, t1), phase in zip(self.phase_times(), self.phases, strict=True):
+        for (_, t0, t1), phase in zip(self.phase_times(), self.phases):
             out.append((t0, t1, position, phase.target[j]))
             position = phase.target[j]
         return out
@@ -306,7 +306,7 @@ class Scenario:
         The variant's phase inputs replace those of the phases they name, its fixed inputs
         replace the scenario's, and its dropped inputs are left out.
         """
-        changes = [phase.inputs | variant.phase_inputs.get(phase.name, {})
+        changes = [{**phase.inputs, **variant.phase_inputs.get(phase.name, {})}
                    for phase in self.phases]
         names = [n for phase_changes in changes for n in phase_changes]
         names = [n for n in dict.fromkeys(names) if n not in variant.drop_inputs]
@@ -352,7 +352,7 @@ def _input_change(name: str, value: Any) -> Any:
             raise ValueError(f"input {name} must be a value or {{ ramp = value, "
                              f"shape = one of {', '.join(RAMP_SHAPES)} }}")
         return Ramp(float(value["ramp"]), shape)
-    if not isinstance(value, bool | int | float) or not math.isfinite(value):
+    if not isinstance(value, (bool, int, float)) or not math.isfinite(value):
         raise ValueError(f"input {name} = {value!r} is not a finite number or boolean")
     return value if isinstance(value, bool) else float(value)
 
@@ -392,9 +392,9 @@ def _joint(name: str, raw: dict[str, Any]) -> Joint:
 def _initial_positions(joints: tuple[Joint, ...], tables: dict[str, Any]) -> tuple[float, ...]:
     """The `initial` position [rad or m] of each joint's table."""
     initial = []
-    for joint, raw in zip(joints, tables.values(), strict=True):
+    for joint, raw in zip(joints, tables.values()):
         value = raw["initial"]
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
                 value):
             raise ValueError(f"joint {joint.name}: initial = {value!r} is not a finite number "
                              f"[{joint.unit}]")
@@ -411,7 +411,7 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
         names = data.get("joint", {})
         default = {k: v for k, v in DEFAULT_JOINT.items()
                    if not (k == "static_load" and "static_effort" in names)}
-        raw = default | names | {"initial": initial}
+        raw = {**default, **names, "initial": initial}
         return (_joint("theta", raw),), (initial,)
     if "joint" in data or "initial_angle_deg" in data:
         raise ValueError("with [joints.<name>] tables give each joint's names and `initial` "
@@ -436,10 +436,10 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
         raise ValueError(f"targets name no joint {', '.join(unknown)} "
                          f"(joints: {', '.join(names)})")
     for name, value in targets.items():
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
                 value):
             raise ValueError(f"target {name} = {value!r} is not a finite number")
-    return tuple(float(targets.get(n, p)) for n, p in zip(names, previous, strict=True))
+    return tuple(float(targets.get(n, p)) for n, p in zip(names, previous))
 
 
 def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[float, ...]
@@ -481,7 +481,7 @@ def _variant_joints(name: str, raw: dict[str, Any], scenario_joints: tuple[Joint
         except ValueError as error:
             raise ValueError(f"variant {name} phase_targets {phase}: {error} (the variant's "
                              "own joints)") from None
-        resolved[phase] = {j.name: v for j, v in zip(joints, values, strict=True)
+        resolved[phase] = {j.name: v for j, v in zip(joints, values)
                            if j.name in changes}
     return joints, _initial_positions(joints, tables), resolved
 

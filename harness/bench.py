@@ -8,6 +8,11 @@ doStep, getReal theta and omega), next to the same loop over `BenchFloor`, a pyt
 FMU that only copies its input to its output: the floor that FMI and the embedded
 interpreter impose on any pythonfmu FMU.
 
+`native_step`: the same step loop (setReal, doStep, one getReal) of each mechanism FMU run
+by the C host of tests/native_host with an empty environment, as a tool that is not a Python
+process runs it (the FMU's loader brings Python in), against FMPy: CPU time per step of each and
+their ratio.
+
 `cosim`: wall time of every variant of every shipped scenario at 1 ms, as a real-time
 factor (simulated / wall time), next to the cost of the FMU's own steps in it (steps times
 the fmu_step cost): what the master, drive and controller add. The last row is the sum,
@@ -23,12 +28,17 @@ with the step.
 from __future__ import annotations
 
 import argparse
+import re
+import subprocess
+import tempfile
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
+from fmpy import read_model_description
 
 from harness import fmu_build, master, reference, scenarios
 from harness.fmi import CoSimFMU
@@ -39,6 +49,8 @@ BENCH_DIR = RESULTS_DIR / "bench"
 FLOOR_SOURCE_DIR = Path(__file__).resolve().parent / "bench_fmus"
 FLOOR_BUILD_DIR = fmu_build.DEFAULT_DEST.parent / "bench"
 STEP_SIZE = 1e-3  # communication step [s], the harness default
+NATIVE_HOST_SOURCE = FLOOR_SOURCE_DIR.parent.parent / "tests" / "native_host" / "fmi2_host.c"
+NATIVE_HOST_BUILD = fmu_build.DEFAULT_DEST.parent / "native_host" / "fmi2_host"
 
 
 @dataclass(frozen=True)
@@ -57,6 +69,13 @@ STEP_LOOPS = {
     **{model: StepLoop(lambda model=model: fmu_build.fmu_path(model), "tau_drive",
                        ("theta", "omega"))
        for model in ("SelfRegulatingBalancer", "CiupituBalancer", "RockingCounterweightBalancer")},
+}
+# native_step: the mechanism FMUs, with what the master sets and reads (the prismatic
+# compensator's second input f2 stays at its start value)
+MECHANISM_LOOPS = {
+    model: STEP_LOOPS[model] for model in ("SelfRegulatingBalancer", "CiupituBalancer")} | {
+    "PrismaticCompensator": StepLoop(lambda: fmu_build.fmu_path("PrismaticCompensator"), "tau1",
+                                     ("q1", "q1_dot", "q2", "q2_dot")),
 }
 
 
@@ -106,6 +125,48 @@ def fmu_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
         "us_per_step": [1e6 * cost for cost in best.values()],
         "ratio_to_floor": [cost / floor for cost in best.values()],
     })
+
+
+def native_host() -> Path:
+    """The C host of tests/native_host, compiled when its source is newer."""
+    if (not NATIVE_HOST_BUILD.exists()
+            or NATIVE_HOST_BUILD.stat().st_mtime < NATIVE_HOST_SOURCE.stat().st_mtime):
+        fmu_build.zig_cc(NATIVE_HOST_SOURCE, NATIVE_HOST_BUILD)
+    return NATIVE_HOST_BUILD
+
+
+def native_seconds_per_step(host: Path, fmu: Path, loop: StepLoop, steps: int) -> float:
+    """Mean CPU time of one step [s] of the C host's loop over an unzipped copy of the FMU,
+    from t = 0, in an empty environment."""
+    md = read_model_description(fmu)
+    refs = {v.name: v.valueReference for v in md.modelVariables}
+    with tempfile.TemporaryDirectory(prefix="native_") as folder:
+        zipfile.ZipFile(fmu).extractall(folder)
+        done = subprocess.run(
+            [str(host), "-b", str(refs[loop.input]), folder, md.coSimulation.modelIdentifier,
+             md.guid, str(steps * STEP_SIZE), str(STEP_SIZE),
+             *(str(refs[n]) for n in loop.outputs)],
+            env={}, capture_output=True, text=True, check=True)
+    return float(re.search(r"^cpu_seconds_per_step (\S+)$", done.stderr, re.MULTILINE).group(1))
+
+
+def native_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
+    """Best-of-repeats cost of one 1 ms step of each mechanism FMU [us]: in the C host, in
+    FMPy, and their ratio. Both start from the initialised FMU at t = 0, so they run the same
+    trajectory."""
+    host = native_host()
+    rows = []
+    for model, loop in MECHANISM_LOOPS.items():
+        native, python = float("inf"), float("inf")
+        for _ in range(repeats):
+            native = min(native, native_seconds_per_step(host, loop.fmu_path(), loop, steps))
+            with CoSimFMU(loop.fmu_path(), instance_name=f"bench.{model}") as fmu:
+                fmu.initialize()
+                python = min(python, seconds_per_step(fmu, loop, steps))
+        rows.append({"model": model, "step_size": STEP_SIZE, "steps": steps,
+                     "repeats": repeats, "us_per_step_c_host": 1e6 * native,
+                     "us_per_step_fmpy": 1e6 * python, "ratio_c_host_to_fmpy": native / python})
+    return pd.DataFrame(rows)
 
 
 def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
@@ -161,6 +222,7 @@ def convergence(steps: int = 0, repeats: int = 0,
 
 BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "fmu_step": fmu_step,
+    "native_step": native_step,
     # steps and repeats apply to the FMU-only step cost
     "cosim": cosim,
     # steps and repeats do not apply

@@ -45,8 +45,9 @@ COMMANDS = {
     "sweep": Command("harness.sweep", "run a parameter sweep file on Dask and write "
                      "results/sweeps/<name>.parquet/.csv/plots"),
     "bench": Command("harness.bench",
-                     "benchmarks: FMU step cost against a trivial FMU, co-simulation real-time "
-                     "factor, step convergence, sweep scaling (results/bench)"),
+                     "benchmarks: FMU step cost against a trivial FMU and in a C host, "
+                     "co-simulation real-time factor, step convergence, sweep scaling "
+                     "(results/bench)"),
     "cross-check": Command("harness.cross_check",
                            "write every FMU with its reference result in the FMI cross-check "
                            "layout (build/cross-check) and validate it"),

@@ -125,10 +125,12 @@ fixed schemes (RelTol is passed to fmi2SetupExperiment but unused).
 
 ## Requirements
 
-The FMU runs Python code (standard library only) in an embedded interpreter: the host needs
-a Python 3 installation (built with Python {sys.version_info.major}.{sys.version_info.minor}).
-A host that is not a Python process must preload the Python shared library and set
-PYTHONHOME so that the interpreter finds its standard library.
+The FMU runs Python code (standard library only) in an embedded interpreter: the machine
+needs a CPython 3.8 or later shared library (built with Python
+{sys.version_info.major}.{sys.version_info.minor}).
+The linux64 binary loads it by itself in a host that is not a Python process (the one the FMU
+was built with, or the file named by the environment variable BALANCER_FMU_LIBPYTHON) and
+needs glibc 2.32 and the GCC 12 C++ runtime.
 """
 
 

@@ -16,6 +16,11 @@ onto `<model>.fmu` only when the FMU and its documentation are complete, so an i
 failed build never leaves a broken FMU behind (and a concurrent reader sees the old or the
 new FMU, never a partial one).
 
+Every FMU's linux64 binary is our loader (`harness/loader/fmi2_loader.c`, compiled here with
+`python -m ziglang cc` for glibc 2.17 and later): it loads the libpython the FMU was built
+with, recorded in `resources/python.txt`, when the host is not a Python process, then forwards
+every FMI call to pythonfmu's binary, installed beside it as `<model>.pythonfmu.so`.
+
 The ScenarioSequencer plays the scenario embedded in its module `sequencer_scenario`: the
 committed `fmu_src/sequencer_scenario.py` (franchetti2021), or, with `--sequencer-scenario
 FILE` (`build(..., sequencer_scenario=FILE)`), a module generated from that file into the
@@ -27,10 +32,16 @@ from __future__ import annotations
 import argparse
 import ast
 import os
+import platform
 import shutil
+import subprocess
+import sys
+import sysconfig
 import tempfile
+import zipfile
 from pathlib import Path
 
+import fmpy
 from pythonfmu.builder import FmuBuilder
 
 from harness import fmu_docs, osp, scenarios
@@ -42,6 +53,11 @@ MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator", "
           "PositionController", "ScenarioSequencer", "ActiveSpringBalancer",
           "RockingCounterweightBalancer")
 SEQUENCER = "ScenarioSequencer"
+LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "fmi2_loader.c"
+LOADER_BUILD = DEFAULT_DEST.parent / "loader" / "fmi2_loader.so"
+# the oldest glibc the loader runs on (pythonfmu's own binary needs 2.32)
+LOADER_TARGET = "x86_64-linux-gnu.2.17"
+PYTHON_RECORD = "resources/python.txt"  # read by the loader: keep the keys in step
 
 
 def _fmu_src_imports(path: Path) -> set[str]:
@@ -81,6 +97,56 @@ def sequencer_module(scenario: str | Path) -> str:
     return source
 
 
+def zig_cc(source: Path, output: Path, *options: str) -> Path:
+    """Compile a C file with `python -m ziglang cc` (a registry package, no system compiler)
+    for LOADER_TARGET, FMPy's FMI 2.0 headers on the include path; written atomically."""
+    output.parent.mkdir(parents=True, exist_ok=True)
+    fd, partial = tempfile.mkstemp(dir=output.parent, prefix=f".{output.name}.")
+    os.close(fd)
+    try:
+        subprocess.run([sys.executable, "-m", "ziglang", "cc", "-target", LOADER_TARGET,
+                        "-O2", "-Wall", f"-I{Path(fmpy.__file__).parent / 'c-code'}", *options,
+                        str(source), "-o", partial], check=True)
+        os.chmod(partial, 0o755)
+        os.replace(partial, output)
+    except BaseException:
+        Path(partial).unlink(missing_ok=True)
+        raise
+    return output
+
+
+def loader_binary(output: Path = LOADER_BUILD) -> Path:
+    """The compiled loader, rebuilt when its source is newer."""
+    if output.exists() and output.stat().st_mtime >= LOADER_SOURCE.stat().st_mtime:
+        return output
+    return zig_cc(LOADER_SOURCE, output, "-shared", "-fPIC", "-s")
+
+
+def python_record() -> str:
+    """resources/python.txt: the libpython of the interpreter building the FMU (empty when it
+    is not a shared-library build), its version and its installation prefix."""
+    shared = sysconfig.get_config_var("Py_ENABLE_SHARED")
+    library = (Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("INSTSONAME")
+               if shared else "")
+    return (f"libpython={library}\nversion={platform.python_version()}\n"
+            f"prefix={sys.base_prefix}\n")
+
+
+def install_loader(fmu: Path, model: str) -> None:
+    """Make the loader the FMU's linux64 binary, pythonfmu's binary <model>.pythonfmu.so
+    beside it, and record the building interpreter's libpython in resources/python.txt."""
+    binary = f"binaries/linux64/{model}.so"
+    with zipfile.ZipFile(fmu) as archive:
+        entries = [(info, archive.read(info)) for info in archive.infolist()]
+    with zipfile.ZipFile(fmu, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for info, data in entries:
+            if info.filename == binary:
+                info.filename = f"binaries/linux64/{model}.pythonfmu.so"
+            archive.writestr(info, data)
+        archive.write(loader_binary(), binary)
+        archive.writestr(PYTHON_RECORD, python_record())
+
+
 def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
           sequencer_scenario: str | Path | None = None) -> Path:
     """Build the slave script source_dir/<model>.py, with its documentation, into
@@ -113,6 +179,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
                 project_files=[package] if modules else [],
                 canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 canHandleVariableCommunicationStepSize=True)
+            install_loader(Path(partial), model)
             # the documentation reads the staged modules: those the FMU carries
             fmu_docs.add_documentation(Path(partial), script,
                                        [package / module.name for module in modules])
@@ -135,7 +202,7 @@ def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DI
     script, the fmu_src modules it uses and the documentation generator)."""
     fmu = dest / f"{model}.fmu"
     sources = [source_dir / f"{model}.py", *dependencies(model, source_dir),
-               Path(fmu_docs.__file__)]
+               Path(fmu_docs.__file__), LOADER_SOURCE]
     if not fmu.exists() or fmu.stat().st_mtime < max(s.stat().st_mtime for s in sources):
         build(model, dest, source_dir=source_dir)
     return fmu

@@ -9,6 +9,7 @@ a joint and the input signals at an array of times, with the core's shapes and `
 
 from __future__ import annotations
 
+import pprint
 import tomllib
 from pathlib import Path
 
@@ -83,12 +84,15 @@ def available() -> list[str]:
 EMBEDDED_TEMPLATE = '''"""The scenario the ScenarioSequencer plays: {origin}.
 
 {provenance}
+TOML is the file's text; DATA is that text parsed, what the FMU reads: it needs no TOML parser
+(tomllib is Python 3.11+; the FMU runs on 3.8 and later).
 """
 # ruff: noqa: E501
 
 NAME = {name!r}
 TOML = "\\n".join((
 {lines})) + "\\n"
+DATA = {data}
 '''
 # provenance of the committed module (a shipped scenario) and of a build's own copy (a file
 # outside harness/scenarios, see harness.fmu_build.build; never written into the source tree)
@@ -116,8 +120,9 @@ def embedded_source(name_or_path: str | Path = "franchetti2021") -> str:
         provenance = SHIPPED_PROVENANCE.format(name=path.stem)
     else:
         origin, provenance = f"the file {path.resolve()}", FILE_PROVENANCE
+    data = pprint.pformat(tomllib.loads(text), width=100, sort_dicts=False)
     return EMBEDDED_TEMPLATE.format(origin=origin, provenance=provenance, name=path.stem,
-                                    lines=lines)
+                                    lines=lines, data=data)
 
 
 def embed(name: str = "franchetti2021") -> Path:

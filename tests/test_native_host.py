@@ -1,73 +1,270 @@
-"""A pythonfmu FMU in a host that is not a Python process (README, "Importing the FMUs").
+"""The FMUs in a host that is not a Python process (README, "Importing the FMUs").
 
 tests/native_host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
-CLI or OMSimulator is. The FMU's binary does not link libpython: it takes the Python C API
-from the process, so such a host must preload libpython and let the interpreter find its
-standard library (PYTHONHOME). These tests check both statements of the README.
+CLI, fmuCheck or OMSimulator is. It runs here with an empty environment (no LD_PRELOAD,
+PYTHONHOME or PYTHONPATH): the FMU's own loader (harness/loader/fmi2_loader.c) must find
+Python by itself, with the interpreter the FMU was built with or any CPython 3.8 or later
+named by BALANCER_FMU_LIBPYTHON, and give the numbers FMPy gives.
 """
 
 from __future__ import annotations
 
-import os
+import ctypes
+import functools
+import re
 import shutil
 import subprocess
 import sys
-import sysconfig
 import zipfile
 from pathlib import Path
 
 import fmpy
+import numpy as np
+import pandas as pd
 import pytest
-from conftest import open_fmu, run
+from conftest import FMI_FATAL, FMI_OK, open_fmu, run
 from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
+
+from harness import cli, fmu_build
+from harness.fmi import CoSimFMU
 
 HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
-LIBPYTHON = Path(sysconfig.get_config_var("LIBDIR") or "") / (
-    sysconfig.get_config_var("LDLIBRARY") or "")
-# an unbalanced link (k = 0) swinging from 60 deg for 2 s: outputs that depend on every step
-PARAMETERS = {"k": 0.0}
-STOP_TIME, STEP_SIZE = 2.0, 1e-3
+STEP_SIZE = 1e-3
+# per model: parameters and input start values that make every run move, and the stop time
+CASES = {
+    "SelfRegulatingBalancer": ({"k": 0.0}, 2.0),  # unbalanced link swinging from 60 deg
+    "CiupituBalancer": ({"payload": 2.0}, 2.0),
+    "PrismaticCompensator": ({"tau1": 0.5, "f2": 1.0}, 2.0),
+    "DcMotorDrive": ({"V": 12.0, "omega": 1.0}, 2.0),
+    "PositionController": ({"theta_ref": 0.002}, 2.0),  # unsaturated
+    "ScenarioSequencer": ({}, 5.0),  # 1 s into the move of phase II
+    "ActiveSpringBalancer": ({"tau_drive": 0.5, "F_adjust": 30.0, "payload": 0.5}, 2.0),
+    "RockingCounterweightBalancer": ({"payload": 2.0}, 2.0),
+}
+# where shared-library CPythons live: distribution, /usr/local and pyenv installations
+LIBPYTHON_GLOBS = ("/usr/lib/x86_64-linux-gnu/libpython3.*.so.1.0",
+                   "/usr/lib64/libpython3.*.so.1.0", "/usr/local/lib/libpython3.*.so.1.0",
+                   f"{Path.home()}/.pyenv/versions/*/lib/libpython3.*.so.1.0")
 
-pytestmark = pytest.mark.skipif(
-    shutil.which("cc") is None or not LIBPYTHON.is_file() or not sys.platform.startswith("linux"),
-    reason="needs a C compiler and a shared libpython on Linux")
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="the loader and the C host are for Linux")
+
+
+def libpythons() -> list[Path]:
+    """Every shared-library CPython 3.8 or later found on the machine, once each."""
+    found: dict[Path, Path] = {}
+    for pattern in LIBPYTHON_GLOBS:
+        for path in sorted(Path("/").glob(pattern.lstrip("/"))):
+            match = re.fullmatch(r"libpython3\.(\d+)\.so\.1\.0", path.name)
+            if match and int(match.group(1)) >= 8:
+                found.setdefault(path.resolve(), path)
+    return list(found.values())
 
 
 @pytest.fixture(scope="module")
 def host(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    exe = tmp_path_factory.mktemp("host") / "fmi2_host"
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run(["cc", f"-I{include}", str(HOST_SOURCE), "-ldl", "-o", str(exe)], check=True)
-    return exe
+    """The C host, compiled with the compiler the FMU build uses (no system compiler)."""
+    return fmu_build.zig_cc(HOST_SOURCE, tmp_path_factory.mktemp("host") / "fmi2_host")
 
 
-def host_command(host: Path, fmu: Path, unzipped: Path, outputs: list[str]) -> list[str]:
-    md = read_model_description(fmu)
+@pytest.fixture(scope="module")
+def unzipped(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Every FMU, built if stale, unzipped as an importing tool does."""
+    folders = {}
+    for model in CASES:
+        folders[model] = tmp_path_factory.mktemp(model)
+        zipfile.ZipFile(fmu_build.fmu_path(model)).extractall(folders[model])
+    return folders
+
+
+def real_outputs(model: str) -> list[str]:
+    md = read_model_description(fmu_build.fmu_path(model))
+    return [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+
+
+def host_command(host: Path, model: str, folder: Path,
+                 parameters: dict[str, float] | None = None, options: tuple[str, ...] = ()
+                 ) -> list[str]:
+    """The host's command line: run the model's case and print its Real outputs."""
+    md = read_model_description(fmu_build.fmu_path(model))
     refs = {v.name: v.valueReference for v in md.modelVariables}
-    return [str(host), str(unzipped), md.coSimulation.modelIdentifier, md.guid, str(STOP_TIME),
-            str(STEP_SIZE), *(f"{refs[n]}={v}" for n, v in PARAMETERS.items()),
-            *(str(refs[n]) for n in outputs)]
+    case_parameters, stop_time = CASES[model]
+    parameters = case_parameters if parameters is None else parameters
+    return [str(host), *options, str(folder), model, md.guid, str(stop_time), str(STEP_SIZE),
+            *(f"{refs[n]}={v}" for n, v in parameters.items()),
+            *(str(refs[n]) for n in real_outputs(model))]
 
 
-def test_native_host_runs_the_fmu_like_fmpy_with_libpython_preloaded(
-        host: Path, srb_fmu: Path, tmp_path: Path) -> None:
-    unzipped = tmp_path / "fmu"
-    zipfile.ZipFile(srb_fmu).extractall(unzipped)
-    outputs = ["theta", "omega", "E_t"]
-    command = host_command(host, srb_fmu, unzipped, outputs)
-    environment = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONHOME")}
+def run_host(command: list[str], environment: dict[str, str]) -> list[float]:
+    """The final values the host prints; fails with the host's stderr if it fails."""
+    done = subprocess.run(command, env=environment, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    return [float(line) for line in done.stdout.split()]
 
-    without = subprocess.run(command, env=environment, capture_output=True, text=True)
-    assert without.returncode != 0 and "undefined symbol: _Py" in without.stderr
 
-    environment |= {"LD_PRELOAD": str(LIBPYTHON), "PYTHONHOME": sys.base_prefix}
-    native = subprocess.run(command, env=environment, capture_output=True, text=True, check=True)
-    values = [float(line) for line in native.stdout.split()]
-
-    fmu = open_fmu(srb_fmu, PARAMETERS)
+@functools.cache
+def fmpy_final_values(model: str) -> tuple[list[float], list[float]]:
+    """The Real outputs after initialisation and at the stop time, run by FMPy."""
+    parameters, stop_time = CASES[model]
+    outputs = real_outputs(model)
+    fmu = open_fmu(fmu_build.fmu_path(model), parameters)
     try:
-        expected = run(fmu, round(STOP_TIME / STEP_SIZE), STEP_SIZE, outputs)[-1]
+        initial = [fmu.get(outputs)[name] for name in outputs]
+        final = run(fmu, round(stop_time / STEP_SIZE), STEP_SIZE, outputs)[-1]
     finally:
         fmu.close()
-    assert abs(expected[0] - float(fmu.variables["theta0"].start)) > 0.1  # the link swung
-    assert values == pytest.approx(expected.tolist(), rel=1e-12, abs=1e-12)
+    return initial, final.tolist()
+
+
+def test_the_cases_cover_every_fmu_built() -> None:
+    assert set(CASES) == set(fmu_build.MODELS)
+
+
+@pytest.mark.parametrize("model", CASES)
+def test_every_fmu_runs_without_any_environment_like_fmpy(
+        host: Path, unzipped: dict[str, Path], model: str) -> None:
+    values = run_host(host_command(host, model, unzipped[model]), environment={})
+    initial, expected = fmpy_final_values(model)
+    assert not np.allclose(initial, expected, rtol=1e-3, atol=1e-6)  # the run moved
+    assert values == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("libpython", libpythons(), ids=str)
+@pytest.mark.parametrize("model", CASES)
+def test_every_cpython_from_3_8_runs_every_fmu(
+        host: Path, unzipped: dict[str, Path], model: str, libpython: Path) -> None:
+    values = run_host(host_command(host, model, unzipped[model]),
+                      environment={"BALANCER_FMU_LIBPYTHON": str(libpython)})
+    assert values == pytest.approx(fmpy_final_values(model)[1], rel=1e-12, abs=1e-12)
+
+
+def test_a_missing_libpython_gives_null_and_names_what_was_tried(
+        host: Path, unzipped: dict[str, Path], tmp_path: Path) -> None:
+    missing = tmp_path / "no" / "libpython3.99.so.1.0"
+    model = "SelfRegulatingBalancer"
+    done = subprocess.run(host_command(host, model, unzipped[model]),
+                          env={"BALANCER_FMU_LIBPYTHON": str(missing)}, capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 4, done.stderr  # the host's exit status for a NULL instance
+    assert "fmi2Instantiate failed" in done.stderr
+    assert f"BALANCER_FMU_LIBPYTHON={missing}" in done.stderr
+    assert f"{missing}: " in done.stderr  # the path tried, with dlopen's reason
+
+
+def test_a_libpython_older_than_3_8_is_refused_by_name(
+        host: Path, unzipped: dict[str, Path]) -> None:
+    old = sorted(Path("/").glob(f"{Path.home()}/.pyenv/versions/3.[67].*/lib/libpython3.*.so.1.0"
+                                .lstrip("/")))
+    if not old:
+        pytest.skip("no CPython 3.6 or 3.7 shared library on this machine")
+    model = "SelfRegulatingBalancer"
+    done = subprocess.run(host_command(host, model, unzipped[model]),
+                          env={"BALANCER_FMU_LIBPYTHON": str(old[0])}, capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 4, done.stderr
+    assert f"{old[0]}: not a CPython 3.8 or later library (3." in done.stderr
+
+
+def test_without_the_recorded_libpython_the_linker_search_is_tried(
+        host: Path, unzipped: dict[str, Path], tmp_path: Path) -> None:
+    """The FMU moved to a machine without its build's interpreter: the loader falls back on
+    the libpython3.X.so.1.0 the dynamic linker finds, and names each one when none loads."""
+    model = "SelfRegulatingBalancer"
+    folder = tmp_path / model
+    shutil.copytree(unzipped[model], folder)
+    missing = tmp_path / "gone" / "libpython3.11.so.1.0"
+    (folder / "resources" / "python.txt").write_text(f"libpython={missing}\nprefix=/gone\n")
+    ldconfig = shutil.which("ldconfig") or "/sbin/ldconfig"
+    if not Path(ldconfig).exists():
+        pytest.skip("no ldconfig to tell what the dynamic linker finds")
+    cache = subprocess.run([ldconfig, "-p"], capture_output=True, text=True).stdout
+    system_libpython = any(f"libpython3.{m}.so.1.0 " in cache for m in range(8, 15))
+    done = subprocess.run(host_command(host, model, folder), env={}, capture_output=True,
+                          text=True, timeout=60)
+    if system_libpython:
+        assert done.returncode == 0, done.stderr
+        values = [float(line) for line in done.stdout.split()]
+        assert values == pytest.approx(fmpy_final_values(model)[1], rel=1e-12, abs=1e-12)
+    else:
+        assert done.returncode == 4, done.stderr
+        assert f"{missing}: " in done.stderr
+        assert all(f"libpython3.{m}.so.1.0: " in done.stderr for m in range(8, 15))
+
+
+def test_the_loader_exports_every_fmi2_function_of_pythonfmus_binary(
+        unzipped: dict[str, Path]) -> None:
+    header = (Path(fmpy.__file__).parent / "c-code" / "fmi2Functions.h").read_text()
+    names = re.findall(r"#define (fmi2\w+) +fmi2FullName", header)
+    binaries = unzipped["SelfRegulatingBalancer"] / "binaries" / "linux64"
+    loader = ctypes.CDLL(str(binaries / "SelfRegulatingBalancer.so"))
+    pythonfmu = ctypes.CDLL(str(binaries / "SelfRegulatingBalancer.pythonfmu.so"))
+    exported = [name for name in names if hasattr(pythonfmu, name)]
+    assert "fmi2DoStep" in exported and len(exported) > 30
+    assert [name for name in exported if not hasattr(loader, name)] == []
+
+
+def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
+    """In FMPy the loader uses the running interpreter: one libpython mapped, ours."""
+    fmu = open_fmu(srb_fmu)
+    try:
+        maps = Path("/proc/self/maps").read_text()
+    finally:
+        fmu.close()
+    mapped = {line.split()[-1] for line in maps.splitlines() if "/libpython3" in line}
+    assert len(mapped) <= 1, mapped  # none when this interpreter is statically linked
+
+
+def test_every_call_after_fatal_returns_fatal_without_crashing(
+        host: Path, unzipped: dict[str, Path]) -> None:
+    """J_link = -1 fails with Fatal (at the latest in initialisation); the step and the reads
+    that follow return Fatal from the loader, where pythonfmu alone crashed the host (exit
+    139)."""
+    model = "SelfRegulatingBalancer"
+    done = subprocess.run(host_command(host, model, unzipped[model], {"J_link": -1.0}, ("-k",)),
+                          env={}, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 8, done.stderr  # the host's exit status after failed calls
+    statuses = re.findall(r"^(fmi2\w+) returned status (\d)$", done.stderr, re.MULTILINE)
+    outputs = len(real_outputs(model))
+    assert statuses[-1 - outputs:] == [("fmi2DoStep", "4"), *[("fmi2GetReal", "4")] * outputs]
+    assert {status for _, status in statuses} == {"4"}
+    # every call after the first Fatal is refused by the loader, with a message
+    assert done.stderr.count("returned fmi2Fatal") == len(statuses) - 1
+    assert "J_link" in done.stderr  # the FMU's own message names the parameter
+
+
+def test_in_fmpy_every_call_after_fatal_returns_fatal(srb_fmu: Path) -> None:
+    """The same guard in a Python host, through FMPy's raw calls, down to fmi2FreeInstance."""
+    fmu = CoSimFMU(srb_fmu, instance_name="fatal")
+    slave, theta = fmu.slave, fmu.references(["theta"])
+    calls = [lambda: slave.setupExperiment(startTime=0.0),
+             lambda: slave.setReal(fmu.references(["J_link"]), [-1.0]),
+             slave.enterInitializationMode, slave.exitInitializationMode,
+             lambda: slave.doStep(0.0, 1e-3), lambda: slave.getReal(theta), slave.terminate]
+    statuses = []
+    for call in calls:
+        try:
+            call()
+            statuses.append(FMI_OK)
+        except FMICallException as error:
+            statuses.append(error.status)
+    first = statuses.index(FMI_FATAL)
+    assert first <= calls.index(slave.exitInitializationMode)
+    assert statuses[first:] == [FMI_FATAL] * (len(calls) - first)
+    refused = [m.message for m in fmu.messages if "returned fmi2Fatal" in m.message]
+    assert len(refused) == len(calls) - first - 1
+    slave.freeInstance()  # the loader frees only its own part: no crash
+    shutil.rmtree(fmu.slave.unzipDirectory, ignore_errors=True)
+
+
+def test_bench_times_each_mechanism_in_the_c_host_and_in_fmpy(tmp_path: Path) -> None:
+    """`python -m harness bench --only native_step` (shortened): a row per mechanism FMU with
+    both costs and their ratio."""
+    assert cli.main(["bench", "--steps", "200", "--repeats", "1", "--only", "native_step",
+                     "--out", str(tmp_path)]) == 0
+    table = pd.read_csv(tmp_path / "native_step.csv")
+    assert list(table["model"]) == ["SelfRegulatingBalancer", "CiupituBalancer",
+                                    "PrismaticCompensator"]
+    assert (table[["us_per_step_c_host", "us_per_step_fmpy"]] > 0).all().all()
+    assert np.allclose(table["ratio_c_host_to_fmpy"],
+                       table["us_per_step_c_host"] / table["us_per_step_fmpy"])
