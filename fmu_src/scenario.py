@@ -182,9 +182,11 @@ class Variant:
     drop_inputs: tuple[str, ...] = ()
     phase_inputs: dict[str, dict[str, Any]] = field(default_factory=dict)  # by phase name
     baseline: str | None = None     # variant against which eps is computed, if not the default
-    joints: tuple[Joint, ...] = ()  # driven besides the scenario's joints
-    joint_initial: tuple[float, ...] = ()   # their positions at t = 0 [rad or m]
-    phase_targets: dict[str, dict[str, float]] = field(default_factory=dict)  # their targets
+    # joints driven besides the scenario's, their positions at t = 0 [rad or m] and targets
+    # by phase; left out of repr (which sweep run ids hash), for_variant's scenario shows them
+    joints: tuple[Joint, ...] = field(default=(), repr=False)
+    joint_initial: tuple[float, ...] = field(default=(), repr=False)
+    phase_targets: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)

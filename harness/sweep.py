@@ -349,10 +349,12 @@ def _digest(data: Any) -> str:
 def plan(sweep: Sweep) -> list[Run]:
     """Every run of the sweep, point by point and variant by variant, with stable ids.
 
-    A run_id covers the scenario with only the run's variant, so adding or editing another
-    variant of the scenario leaves stored runs valid."""
+    A run_id covers the scenario with only the run's variant (and the joints it drives,
+    `Scenario.for_variant`), so adding or editing another variant of the scenario leaves
+    stored runs valid."""
     scenario = sweep.scenario
-    definitions = {v: repr(replace(scenario, variants={v: scenario.variant(v)}))
+    definitions = {v: repr(replace(scenario.for_variant(scenario.variant(v)),
+                                   variants={v: scenario.variant(v)}))
                    for v in sweep.variants}
     runs = []
     for values in points(sweep):
