@@ -20,7 +20,7 @@ class CiupituBalancer(MechanismSlave):
     pivot above the arm's pivot (Ciupitu 2018, Figure 4a), plus a fixed counterweight."""
 
     parameters_type = physics.Parameters
-    hidden_state = ("state",)
+    hidden_state = ("state", "previous_inputs")
     # 1 ms is the harness's communication step (as for SelfRegulatingBalancer); 20 s spans
     # several strokes of a rocking cycle and many periods of the default arm's free swing.
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
@@ -36,6 +36,7 @@ class CiupituBalancer(MechanismSlave):
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.state = None
+        self.previous_inputs = None
 
     def validate(self, params: physics.Parameters) -> None:
         physics.validate(params)
@@ -45,10 +46,14 @@ class CiupituBalancer(MechanismSlave):
 
     def initialise(self, params: physics.Parameters) -> None:
         self.state = physics.initial_state(params)
-        self.set_outputs(physics.outputs(params, self.inputs(), self.state))
+        self.previous_inputs = self.inputs()
+        self.set_outputs(physics.outputs(params, self.previous_inputs, self.state))
 
     def step(self, dt: float) -> None:
         u = self.inputs()
+        if u.payload != self.previous_inputs.payload:
+            self.state = physics.switch_inputs(self.params, self.previous_inputs, u, self.state)
+        self.previous_inputs = u
         self.state = physics.advance(self.params, u, self.state, dt)
         self.set_outputs(physics.outputs(self.params, u, self.state))
 
@@ -57,6 +62,7 @@ class CiupituBalancer(MechanismSlave):
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])
+        self.previous_inputs = physics.Inputs(*hidden["previous_inputs"])
 
 
 OUTPUTS = (
@@ -73,6 +79,11 @@ OUTPUTS = (
     ("M_u", "N.m", "Unbalanced moment M_b + M_g (eq. 16)"),
     ("M_bar", "N.m", "Static moment about O of the bar AB's force on the counterweight, "
                      "m2 g (dOB/dphi) sin(phi) (omitted by the paper)"),
+    ("W_drive", "J", "Cumulative work of tau_drive on the arm"),
+    ("E_loss", "J", "Cumulative energy dissipated: pivot friction, payload picked up while "
+                    "moving"),
+    ("E_added", "J", "Cumulative energy brought in (+) or taken out (-) by payload joining or "
+                     "leaving; E_p + E_kin + E_loss - W_drive - E_added is constant"),
 )
 # The inputs each output depends on directly (`physics.outputs`), its ModelStructure
 # dependencies; an output not listed is a function of the state alone.

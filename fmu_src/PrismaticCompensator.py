@@ -91,4 +91,8 @@ OUTPUTS = (
     ("W_drive", "J", "Cumulative work of tau1 and f2 on the arm"),
     ("W_worm", "J", "Cumulative work of the worms on the arm (integral of f2_worm q2_dot)"),
     ("E_friction", "J", "Cumulative energy dissipated by d1 and d2"),
+    ("E_loss", "J", "Cumulative energy dissipated: E_friction plus the end-stop impacts of q2"),
+    ("E_added", "J", "Energy brought in by masses joining or leaving: always 0 here (the "
+                     "mechanisms' common ledger E_grav + E_springs + E_kin + E_loss - W_drive - "
+                     "W_worm - E_added is constant)"),
 )

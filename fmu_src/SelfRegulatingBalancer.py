@@ -16,6 +16,9 @@ from fmu_src.fmi_base import MechanismSlave
 
 # How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
 REGULATION_ANGLE_TOLERANCE = 0.5 * physics.DEG
+# RMS residual torque over a full turn, as a fraction of the link's gravity moment
+# (m c + payload w) g, above which a finished regulation warns that the design cannot balance.
+BALANCE_TOLERANCE = 0.01
 
 
 class SelfRegulatingBalancer(MechanismSlave):
@@ -31,10 +34,15 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.description = ("Self-regulating gravity balancer (Franchetti, Boschetti, Lenzo "
                             "2021): 1-DOF link, zero-free-length spring on a lockable slider, "
                             "pulley-counterweight regulation")
-        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at b0 "
-                                      "at theta = pi, k (a + b0) r / (g R) (eq. 10)")
-        self.add_calculated_parameter("payload_max", "kg", "Payload capacity with the slider "
-                                      "travel limited to w, k a (w - b0) / (w g) (eq. 16)")
+        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at "
+                                      "b_design at theta = pi: eq. 10 for an ideal spring, a "
+                                      "massless slider and a balancing b0")
+        self.add_calculated_parameter("b_design", "m", "Slider position M0 holds at theta = "
+                                      "pi: least mean-square residual torque over a full turn "
+                                      "and the payload range once regulated (b0 for Table 1)")
+        self.add_calculated_parameter("payload_max", "kg", "Payload capacity: regulation at "
+                                      "theta = pi keeps the slider within b_max (eq. 16 for "
+                                      "Table 1)")
         self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
         self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's delta m)",
                        min=0.0)
@@ -60,6 +68,7 @@ class SelfRegulatingBalancer(MechanismSlave):
 
     def initialise(self, params: physics.Parameters) -> None:
         self.M0 = params.M0
+        self.b_design = params.b_design
         self.payload_max = params.payload_max
         self.state = physics.initial_state(params)
         self.previous_inputs = self.inputs()
@@ -72,7 +81,9 @@ class SelfRegulatingBalancer(MechanismSlave):
             raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
         if u != self.previous_inputs:
-            self.report_misuse(p, u)
+            if u[1:] != self.previous_inputs[1:]:  # more than tau_drive: an event
+                self.report_misuse(p, u)
+                self.state = physics.switch_inputs(p, self.previous_inputs, u, self.state)
             self.previous_inputs = u
         self.state = physics.advance(p, u, self.state, dt)
         out = physics.outputs(p, u, self.state)
@@ -108,9 +119,31 @@ class SelfRegulatingBalancer(MechanismSlave):
         if regulating and u.payload > p.payload_max >= before.payload:
             self.warn(f"payload = {u.payload} kg exceeds payload_max = {p.payload_max:.4f} kg: "
                       "the slider will stop at b_max")
+        if not before.slider_locked and u.slider_locked and not before.pulley_locked:
+            self.check_balance(p, u.payload)
         if u.counterweight_added != before.counterweight_added and u.pulley_locked:
             self.warn("counterweight_added changed with the pulley locked: it acts only once "
                       "the pulley is released")
+
+    def check_balance(self, p: physics.Parameters, payload: float) -> None:
+        """Warn when the slider, just locked after a regulation, leaves the link unbalanced
+        beyond BALANCE_TOLERANCE, naming the best position (and whether even that leaves
+        more) and the counterweight that reaches it."""
+        b = self.state.b
+        residual = physics.residual_torque_rms(p, payload, b)
+        moment = (p.m * p.c + payload * p.w) * p.g
+        if residual <= BALANCE_TOLERANCE * moment:
+            return
+        best = physics.balancing_slider_position(p, payload)
+        least = physics.residual_torque_rms(p, payload, best)
+        where = (f"the design cannot balance it: the least, {least:.3g} N m RMS, is at "
+                 f"b = {best:.4f} m" if least > BALANCE_TOLERANCE * moment
+                 else f"it balances at b = {best:.4f} m")
+        self.warn(f"regulation left the link unbalanced with payload = {payload} kg: the "
+                  f"slider was locked at b = {b:.4f} m, where the residual torque is "
+                  f"{residual:.3g} N m RMS over a full turn ({100 * residual / moment:.1f} % "
+                  f"of the gravity moment); {where} (regulation at 180 deg reaches it with "
+                  f"counterweight_added = {physics.counterweight_for(p, best):.4f} kg)")
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.state = physics.State(*hidden["state"])
@@ -135,6 +168,12 @@ OUTPUTS = (
     ("E_cw", "J", "Potential energy of the counterweight relative to its start"),
     ("E_kin", "J", "Kinetic energy of link, payload, drive rotor, slider and counterweight"),
     ("slider_at_stop", None, "Free slider resting on an end stop (b_min or b_max)"),
+    ("W_drive", "J", "Cumulative work of tau_drive on the link"),
+    ("E_loss", "J", "Cumulative energy dissipated: dampers, end-stop impacts, lock events, "
+                    "masses picked up while moving"),
+    ("E_added", "J", "Cumulative energy brought in (+) or taken out (-) by payload and "
+                     "counterweight mass joining or leaving; E_t + E_cw + E_kin + E_loss - "
+                     "W_drive - E_added is constant"),
 )
 # The inputs each output depends on directly (`physics.outputs`), its ModelStructure
 # dependencies; an output not listed is a function of the state alone.

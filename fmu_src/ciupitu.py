@@ -52,7 +52,7 @@ same opposite side. With OB' = dOB/dphi (dphi = -dtheta):
     E_p = g cos(theta) (m c + payload w - m_fixed_cw c_fixed_cw - m2 OB)
     J(theta) = J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive + m2 (OB^2 + OB'^2)
     E_kin = 1/2 J omega^2
-    J omega' = tau_drive + tau_gravity - d_link omega - 1/2 (dJ/dtheta) omega^2
+    J omega' = tau_drive + tau_gravity - (d_link + d_cw OB'^2) omega - 1/2 (dJ/dtheta) omega^2
 
 from the Lagrangian L = E_kin - E_p, with tau_gravity = -dE_p/dtheta. In terms of the
 paper's moments (all static):
@@ -70,7 +70,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from fmu_src.integration import integrate_second_order
+from fmu_src.integration import integrate
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -243,6 +243,8 @@ class Parameters:
                                   min=0.0)
     c_fixed_cw: float = parameter(0.1, "m", "Distance from O to the fixed counterweight", min=0.0)
     d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    d_cw: float = parameter(0.0, "N.s/m", "Viscous friction of the counterweight sliding along "
+                            "the arm (it slides at dOB/dt = -OB' omega)", min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
     theta0: float = parameter(60.0 * DEG, "rad", "Initial arm angle from the upward vertical")
     omega0: float = parameter(0.0, "rad/s", "Initial arm angular velocity")
@@ -285,10 +287,14 @@ class Inputs(NamedTuple):
 
 
 class State(NamedTuple):
-    """Continuous state: arm angle from the upward vertical [rad] and its rate [rad/s]."""
+    """Continuous state: arm angle from the upward vertical [rad] and its rate [rad/s], and the
+    energy ledger [J] (E_p + E_kin + E_loss - W_drive - E_added is constant)."""
 
     theta: float
     omega: float
+    W_drive: float = 0.0    # work of tau_drive on the arm
+    E_loss: float = 0.0     # dissipated: pivot friction, payload picked up while moving
+    E_added: float = 0.0    # brought in (+) or taken out (-) by payload joining or leaving
 
 
 def initial_state(params: Parameters) -> State:
@@ -315,6 +321,11 @@ def _gravity(p: Parameters, payload: float, theta: float, OB: float, dOB: float)
                   - math.cos(theta) * p.m2 * dOB)
 
 
+def _damping(p: Parameters, dOB: float) -> float:
+    """d(theta) = d_link + d_cw OB'^2: pivot and counterweight slide friction [N m s/rad]."""
+    return p.d_link + p.d_cw * dOB * dOB
+
+
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
     return _inertia(p, payload, *geometry(p.OA, p.AB, HALF_PI - theta))
@@ -329,17 +340,32 @@ def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
 def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
-    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d_link omega,
+    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega,
     with one geometry() evaluation (this runs four times per RK4 sub-step)."""
     OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
     J, dJ = _inertia(p, payload, OB, dOB, d2OB)
-    return (tau_drive + _gravity(p, payload, theta, OB, dOB) - p.d_link * omega
+    return (tau_drive + _gravity(p, payload, theta, OB, dOB) - _damping(p, dOB) * omega
             - 0.5 * dJ * omega * omega) / J
 
 
-def derivatives(p: Parameters, u: Inputs, s: State) -> State:
-    """Time derivative of the state for constant inputs (Lagrange equation)."""
-    return State(s.omega, acceleration(p, u.payload, u.tau_drive, s.theta, s.omega))
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state (Lagrange equation) for inputs u that are constant or, for
+    a continuous-time model such as the harness's reference, change at `rates` (d/dt of the
+    inputs): the continuous limit of switch_inputs, a payload joining from rest brakes the
+    arm, J omega' gains -payload_rate w^2 omega and E_loss 1/2 payload_rate w^2 omega^2; a
+    payload leaving takes its kinetic energy (E_added)."""
+    theta, omega = s[0], s[1]
+    omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
+    loss = p.d_link * omega * omega
+    if p.d_cw:
+        loss = _damping(p, geometry(p.OA, p.AB, HALF_PI - theta).dOB) * omega * omega
+    if rates is None:
+        return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
+    gain, drop = max(rates.payload, 0.0), min(rates.payload, 0.0)
+    kinetic = 0.5 * (p.w * omega) ** 2
+    return State(omega, omega_dot - gain * p.w * p.w * omega / inertia(p, u.payload, theta)[0],
+                 u.tau_drive * omega, loss + gain * kinetic,
+                 rates.payload * p.g * p.w * math.cos(theta) + drop * kinetic)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -348,15 +374,41 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     J, dJ = _inertia(p, u.payload, OB, dOB, d2OB)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
-    return max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega) * (1.0 + abs(dJ) / J))
+    return max(math.sqrt(stiffness / J), _damping(p, dOB) / J,
+               abs(s.omega) * (1.0 + abs(dJ) / J))
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    payload, tau_drive = u.payload, u.tau_drive
-    return State(*integrate_second_order(
-        lambda theta, omega: acceleration(p, payload, tau_drive, theta, omega),
-        s.theta, s.omega, dt, characteristic_rate(p, u, s)))
+    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
+
+
+def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
+    """E_p + E_kin [J] (as `outputs` reports them)."""
+    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - s.theta)
+    return (p.g * math.cos(s.theta) * _net_moment_arm(p, payload, OB)
+            + 0.5 * _inertia(p, payload, OB, dOB, d2OB)[0] * s.omega ** 2)
+
+
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state just after the payload changes from before.payload to after.payload at a
+    communication point (docs/energy_ledger.md): a payload added is picked up from rest, so
+    the arm's angular momentum J omega is conserved and the kinetic energy lost goes to
+    E_loss; a payload removed leaves with its own velocity (omega unchanged) and takes its
+    kinetic energy away. Its potential energy joins or leaves through E_added."""
+    d_payload = after.payload - before.payload
+    if d_payload == 0.0:
+        return s
+    omega = s.omega
+    added = d_payload * p.g * p.w * math.cos(s.theta)
+    if d_payload > 0.0:
+        omega *= inertia(p, before.payload, s.theta)[0] / inertia(p, after.payload, s.theta)[0]
+    else:
+        added += 0.5 * d_payload * (p.w * omega) ** 2
+    new = s._replace(omega=omega, E_added=s.E_added + added)
+    loss = (mechanical_energy(p, before.payload, s) + added
+            - mechanical_energy(p, after.payload, new))
+    return new._replace(E_loss=s.E_loss + loss)
 
 
 class Outputs(NamedTuple):
@@ -372,6 +424,9 @@ class Outputs(NamedTuple):
     M_b: float
     M_u: float
     M_bar: float
+    W_drive: float
+    E_loss: float
+    E_added: float
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
@@ -386,4 +441,5 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
         E_kin=0.5 * _inertia(p, u.payload, OB, dOB, d2OB)[0] * s.omega ** 2,
         M_g=M.M_g, M_b=M.M_b, M_u=M.M_u,
         M_bar=p.m2 * p.g * dOB * math.sin(phi),
+        W_drive=s.W_drive, E_loss=s.E_loss, E_added=s.E_added,
     )

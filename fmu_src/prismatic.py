@@ -28,7 +28,7 @@ Force paths (the worms are ideal: rigid, frictionless, not back-drivable):
   acts on q2.
 The worms' force on q2 beyond the spring energies is f2_worm = 2T + [self_locking] dE_k3/dq2,
 and W_worm = integral of f2_worm q2' dt is the work they do on the arm, so that
-E_grav + E_springs + E_kin - W_drive - W_worm + E_friction is constant.
+E_grav + E_springs + E_kin - W_drive - W_worm + E_loss is constant (see below).
 
 Static residuals, the efforts a drive must supply to hold the arm at rest (positive along
 +q1 and +q2; gravity effort minus spring compensation):
@@ -46,8 +46,14 @@ each rotor spins with its own joint only, so it adds to that joint's inertia and
 energy 1/2 J_drive1 q1'^2 + 1/2 m_drive2 q2'^2 is part of E_kin (the rotors' gyroscopic
 coupling with the arm's rotation is neglected, as in a reflected-inertia model).
 
-There are no end stops: q2 is unbounded (lc2 < 0 puts the slider beyond the pivot); a drive
-keeps it within the link.
+The prismatic joint's stroke is limited by end stops q2_min <= q2 <= q2_max (default: m2
+between the pivot and the end of the 1 m link). The stops are inelastic: a slider that hits
+one stops there (the stop's impulse acts along the link, so q1_dot does not change) and its
+kinetic energy goes to E_loss; it stays until the net force pulls it away.
+
+Energy ledger (docs/energy_ledger.md): E_grav + E_springs + E_kin + E_loss - W_drive - W_worm
+- E_added is constant, with E_loss = E_friction + end-stop impacts and E_added = 0 (no mass
+joins or leaves this arm).
 """
 
 from __future__ import annotations
@@ -115,6 +121,10 @@ class Parameters:
                                 "(J_rotor N^2)", min=0.0)
     m_drive2: float = parameter(0.0, "kg", "Drive inertia reflected to the prismatic joint "
                                 "(J_rotor N^2 of a lead screw, N = 2 pi / lead)", min=0.0)
+    q2_min: float = parameter(-0.25, "m", "Inner end stop of the prismatic joint (default: m2 "
+                              "at the pivot, -ls0)")
+    q2_max: float = parameter(0.75, "m", "Outer end stop of the prismatic joint (default: m2 "
+                              "at the end of the 1 m link, 1 m - ls0)")
 
     @property
     def J1(self) -> float:
@@ -158,6 +168,11 @@ def validate(params: Parameters) -> None:
     if not params.J1 > 0.0:
         raise ValueError(f"I1 = {params.I1} kg.m2 with m1 lc1^2 = {params.m1 * params.lc1 ** 2} "
                          "kg.m2 gives J1 = I1 + m1 lc1^2 outside (0, inf)")
+    if not params.q2_min < params.q2_max:
+        raise ValueError(f"q2_min = {params.q2_min} m must be below q2_max = {params.q2_max} m")
+    if not params.q2_min <= params.q2_0 <= params.q2_max:
+        raise ValueError(f"q2_0 = {params.q2_0} m is outside [q2_min, q2_max] = "
+                         f"[{params.q2_min}, {params.q2_max}] m")
 
 
 class Inputs(NamedTuple):
@@ -177,6 +192,7 @@ class State(NamedTuple):
     W_drive: float = 0.0     # work of tau1 and f2 on the arm
     W_worm: float = 0.0      # work of the worms' forces on the arm
     E_friction: float = 0.0  # energy dissipated by d1 and d2
+    E_impact: float = 0.0    # energy dissipated by the end stops of q2
 
 
 def initial_state(p: Parameters) -> State:
@@ -212,15 +228,30 @@ def efforts(p: Parameters, q1: float, q2: float) -> Efforts:
     return Efforts(tau1_gravity, f2_gravity, dV_dq1, f2_gravity + dE3_dq2 - f2_worm, T, f2_worm)
 
 
-def derivatives(p: Parameters, u: Inputs, s: State) -> State:
-    """Time derivative of the state for constant inputs."""
+def _held_by_stop(p: Parameters, q2: float, q2_dot: float, force: float) -> bool:
+    """True when q2 rests exactly on an end stop and the net force drives it into that stop.
+
+    A state beyond a stop (inside an RK4 sub-step) is integrated freely and clamped after
+    the sub-step: holding it there would mix two right-hand sides in one RK4 step and spoil
+    the energy balance."""
+    return q2_dot == 0.0 and ((q2 == p.q2_min and force <= 0.0)
+                              or (q2 == p.q2_max and force >= 0.0))
+
+
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
+    other mechanisms take it: no mass changes here, so it is not used)."""
     q1, w1, q2, w2 = s[:4]
     lc2 = p.ls0 + q2
     eff = efforts(p, q1, q2)
     tau1 = u.tau1 - p.d1 * w1 - 2.0 * p.m2 * lc2 * w1 * w2 - eff.tau1_gravity_residual
     f2 = u.f2 - p.d2 * w2 + p.m2 * lc2 * w1 * w1 - eff.f2_gravity_residual
-    return State(w1, tau1 / p.inertia_1(q2), w2, f2 / p.mass_2,
-                 u.tau1 * w1 + u.f2 * w2, eff.f2_worm * w2, p.d1 * w1 * w1 + p.d2 * w2 * w2)
+    q2_dot, w2_dot = w2, f2 / p.mass_2
+    if _held_by_stop(p, q2, w2, f2):
+        q2_dot = w2_dot = 0.0
+    return State(w1, tau1 / p.inertia_1(q2), q2_dot, w2_dot,
+                 u.tau1 * w1 + u.f2 * q2_dot, eff.f2_worm * q2_dot,
+                 p.d1 * w1 * w1 + p.d2 * q2_dot * q2_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, s: State) -> float:
@@ -238,9 +269,29 @@ def characteristic_rate(p: Parameters, s: State) -> float:
                p.d2 / mass, 2.0 * abs(s.q1_dot), abs(s.q2_dot) / max(abs(lc2), p.ls0))
 
 
+def mechanical_energy(p: Parameters, s: State) -> float:
+    """E_grav + E_springs + E_kin [J] (as `outputs` reports them)."""
+    q1, w1, q2, w2 = s[:4]
+    return ((p.m1 * p.lc1 + p.m2 * (p.ls0 + q2)) * p.g * math.sin(q1) + spring_energy(p, q1, q2)
+            + 0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2)
+
+
+def _apply_stops(p: Parameters, s: State) -> State:
+    """Clamp q2 to its end stops (inelastic: the energy the clamp removes goes to E_impact)."""
+    if p.q2_min <= s.q2 <= p.q2_max:
+        return s
+    if s.q2 < p.q2_min:
+        clamped = s._replace(q2=p.q2_min, q2_dot=max(s.q2_dot, 0.0))
+    else:
+        clamped = s._replace(q2=p.q2_max, q2_dot=min(s.q2_dot, 0.0))
+    loss = mechanical_energy(p, s) - mechanical_energy(p, clamped)
+    return clamped._replace(E_impact=s.E_impact + loss)
+
+
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, s))
+    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, s),
+                     lambda state: _apply_stops(p, state))
 
 
 class Outputs(NamedTuple):
@@ -262,6 +313,8 @@ class Outputs(NamedTuple):
     W_drive: float
     W_worm: float
     E_friction: float
+    E_loss: float
+    E_added: float
 
 
 def spring_energy(p: Parameters, q1: float, q2: float) -> float:
@@ -278,11 +331,12 @@ def spring_energy(p: Parameters, q1: float, q2: float) -> float:
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s (the signature of the other mechanisms' `outputs`; none
     depends on the inputs u here)."""
-    q1, w1, q2, w2, W_drive, W_worm, E_friction = s
+    q1, w1, q2, w2, W_drive, W_worm, E_friction, E_impact = s
     lc2 = p.ls0 + q2
     return Outputs(
         q1, w1, q2, w2, *efforts(p, q1, q2),
         E_grav=(p.m1 * p.lc1 + p.m2 * lc2) * p.g * math.sin(q1),
         E_springs=spring_energy(p, q1, q2),
         E_kin=0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2,
-        W_drive=W_drive, W_worm=W_worm, E_friction=E_friction)
+        W_drive=W_drive, W_worm=W_worm, E_friction=E_friction, E_loss=E_friction + E_impact,
+        E_added=0.0)

@@ -19,19 +19,31 @@ Lagrangian, with J0 = J_link + payload w^2 + J_drive and M_cw = M0 + counterweig
 
 with T_wire = M_cw g R / r while the pulley turns (0 when it is locked). A massless slider
 with the pulley locked (m_eff = 0) has first-order dynamics d_slider v = F_net.
+
+Energy ledger (docs/energy_ledger.md): W_drive (work of tau_drive) and E_loss (dampers, end
+stops, lock events, masses picked up while moving) are states, E_added (energy that masses
+bring in or take out as they join or leave) changes at input events only, so that
+E_t + E_cw + E_kin + E_loss - W_drive - E_added is constant. Inputs change only at
+communication points; `switch_inputs` maps the state across such a change (momentum
+conserved where the bodies couple or decouple), `advance` integrates between them.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import integrate, integrate_second_order
+from fmu_src.integration import integrate
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
+# A free slider starts every lock event with a jump in its acceleration, which RK4 at the
+# shared step-rate product resolves to ~1e-9 J of the energy ledger per event; sub-steps four
+# times finer on the slider's rates keep it near 1e-11 J (the link's own rate is unchanged).
+SLIDER_RATE_FACTOR = 4.0
 
 
 @dataclass(frozen=True)
@@ -65,21 +77,53 @@ class Parameters:
     d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
     d_slider: float = parameter(500.0, "N.s/m", "Viscous damping of the slider on the link",
                                 min=0.0)
+    mu_slider: float = parameter(0.0, "1", "Coulomb friction coefficient of the slider on the "
+                                 "link (normal force from the spring's F_n and the slider's "
+                                 "weight)", min=0.0)
+    J_pulley: float = parameter(0.0, "kg.m2", "Moment of inertia of the compound pulley",
+                                min=0.0)
+    d_pulley: float = parameter(0.0, "N.m.s/rad", "Viscous friction of the pulley's bearing",
+                                min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
     theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
     omega0: float = parameter(0.0, "rad/s", "Initial link angular velocity")
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link (J_rotor N^2)",
                                min=0.0)
+    paper_design: bool = parameter(
+        False, None, "M0 and payload_max from eqs. 10 and 16 as printed (ideal spring, massless "
+        "slider), whatever L0 and m_slider: the paper's design, for comparison")
+
+    @cached_property
+    def b_design(self) -> float:
+        """Slider position M0 holds at theta = pi: design_slider_position (b0 for Table 1,
+        eq. 2), or where eq. 10's M0 holds it with paper_design [m]."""
+        if self.paper_design:
+            return self.M0 * self.g * self.R / (self.r * self.k) - self.a + self.L0 + (
+                self.m_slider * self.g / self.k) if self.k > 0.0 else self.b0
+        return design_slider_position(self)
 
     @cached_property
     def M0(self) -> float:
-        """Counterweight mass that holds the slider at b0 with theta = pi, eq. 10 [kg]."""
-        return self.k * (self.a + self.b0) * self.r / (self.g * self.R) if self.g > 0 else 0.0
+        """Counterweight mass that holds the slider at b_design with theta = pi [kg]:
+        (k (a + b_design - L0) - m_slider g) r / (g R), eq. 10 when L0 = m_slider = 0 and
+        b0 balances the link (0 if the spring cannot hold the slider's weight there)."""
+        if self.g <= 0:
+            return 0.0
+        if self.paper_design:
+            return self.k * (self.a + self.b0) * self.r / (self.g * self.R)
+        return max(_wire_pull(self, self.b_design), 0.0) * self.r / (self.g * self.R)
 
     @cached_property
     def payload_max(self) -> float:
-        """Largest payload the slider travel up to w can balance, eq. 16 [kg]."""
-        return self.k * self.a * (self.w - self.b0) / (self.w * self.g) if self.g > 0 else math.inf
+        """Largest payload whose regulation at theta = pi (the same mass added to the
+        counterweight) keeps the slider within b_max: k r (b_max - b_design) / (g R) [kg].
+        Eq. 16 when R/r = w/a, b_max = w and b_design = b0 (at theta = pi the spring force
+        grows by k per metre of slider travel, whatever L0)."""
+        if self.g <= 0:
+            return math.inf
+        if self.paper_design:
+            return self.k * self.a * (self.w - self.b0) / (self.w * self.g)
+        return self.k * (self.b_max - self.b_design) * self.r / (self.g * self.R)
 
     @cached_property
     def pulley_ratio(self) -> float:
@@ -108,18 +152,22 @@ class Inputs(NamedTuple):
 
 
 class State(NamedTuple):
-    """Continuous state: link angle and speed, slider position and speed, counterweight descent."""
+    """Continuous state: link angle and speed, slider position and speed, counterweight descent,
+    and the energy ledger [J]."""
 
     theta: float
     omega: float
     b: float
     v: float
     s_cw: float = 0.0
+    W_drive: float = 0.0    # work of tau_drive on the link
+    E_loss: float = 0.0     # dissipated: dampers, end-stop impacts, lock events, pick-ups
+    E_added: float = 0.0    # brought in (+) or taken out (-) by masses joining or leaving
 
 
 def initial_state(params: Parameters) -> State:
-    """State at t = 0: link at theta0, omega0, slider at rest at b0."""
-    return State(params.theta0, params.omega0, params.b0, 0.0, 0.0)
+    """State at t = 0: link at theta0, omega0, slider at rest at b0, empty ledger."""
+    return State(params.theta0, params.omega0, params.b0, 0.0)
 
 
 def spring_length(p: Parameters, theta: float, b: float) -> float:
@@ -148,10 +196,27 @@ def wire_tension(p: Parameters, u: Inputs) -> float:
 
 
 def slider_mass(p: Parameters, u: Inputs) -> float:
-    """Effective mass of the slider, with the counterweight reflected through the pulley [kg]."""
+    """Effective mass of the slider, with the counterweight and the pulley reflected through
+    the pulley (it turns at v / r) [kg]."""
     if u.pulley_locked:
         return p.m_slider
-    return p.m_slider + (p.M0 + u.counterweight_added) * p.pulley_ratio ** 2
+    return (p.m_slider + (p.M0 + u.counterweight_added) * p.pulley_ratio ** 2
+            + p.J_pulley / (p.r * p.r))
+
+
+def slider_damping(p: Parameters, u: Inputs) -> float:
+    """Viscous damping of the slider, with the pulley's bearing reflected while it turns
+    [N s/m]."""
+    return p.d_slider if u.pulley_locked else p.d_slider + p.d_pulley / (p.r * p.r)
+
+
+def slider_friction(p: Parameters, theta: float, factor: float) -> float:
+    """Coulomb friction force limit mu_slider |F_n - m_slider g sin(theta)| on the slider [N]
+    (the spring's and the weight's components normal to the link); factor is
+    _free_length_factor(p, theta, b)."""
+    if p.mu_slider == 0.0:
+        return 0.0
+    return p.mu_slider * abs((p.k * p.a * factor - p.m_slider * p.g) * math.sin(theta))
 
 
 def link_inertia(p: Parameters, payload: float, b: float) -> float:
@@ -167,12 +232,16 @@ def _slider_force(p: Parameters, u: Inputs, theta: float, omega: float, b: float
     """
     spring = p.k * (b - p.a * math.cos(theta)) * factor
     return (p.m_slider * (b * omega * omega - p.g * math.cos(theta)) - spring
-            + wire_tension(p, u) - p.d_slider * v)
+            + wire_tension(p, u) - slider_damping(p, u) * v)
 
 
 def _at_stop(p: Parameters, b: float, push: float) -> bool:
-    """True when the slider rests on an end stop and the load pushes it into that stop."""
-    return (b <= p.b_min and push <= 0.0) or (b >= p.b_max and push >= 0.0)
+    """True when the slider rests exactly on an end stop and the load pushes it into that stop.
+
+    A state beyond a stop (inside an RK4 sub-step) is integrated freely and clamped after the
+    sub-step: holding it there would mix two right-hand sides in one RK4 step and spoil the
+    energy balance."""
+    return (b == p.b_min and push <= 0.0) or (b == p.b_max and push >= 0.0)
 
 
 def _link_acceleration(p: Parameters, u: Inputs, theta: float, omega: float, b: float,
@@ -185,29 +254,90 @@ def _link_acceleration(p: Parameters, u: Inputs, theta: float, omega: float, b: 
             - p.d_link * omega - coriolis) / link_inertia(p, u.payload, b)
 
 
-def derivatives(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
-    """Time derivative of the state for constant inputs, in State's field order.
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                slip: float | None = None) -> tuple[float, ...]:
+    """Time derivative of the state, in State's field order, for inputs u that are constant
+    or, for a continuous-time model such as the harness's reference, change at `rates`
+    (d/dt of the Real inputs; masses then join and leave continuously, see _mass_flow).
+    `slip` fixes the slider's friction state for a whole RK4 sub-step (0: stuck, +1 or -1:
+    sliding out or in; see advance); None decides it from s.
 
     A plain tuple, not a State: this runs four times per RK4 step and a NamedTuple costs more.
     """
-    theta, omega, b, v, _ = s
+    theta, omega, b, v = s[:4]
     omega_dot = _link_acceleration(p, u, theta, omega, b, v)
+    drive_power = u.tau_drive * omega
+    link_loss = p.d_link * omega * omega
     if u.slider_locked:
-        return (omega, omega_dot, 0.0, 0.0, 0.0)
+        d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+        return d if rates is None else _mass_flow(p, u, rates, s, d)
     m_eff = slider_mass(p, u)
-    force = _slider_force(p, u, theta, omega, b, v, _free_length_factor(p, theta, b))
+    factor = _free_length_factor(p, theta, b)
+    force = _slider_force(p, u, theta, omega, b, v, factor)
+    friction = slider_friction(p, theta, factor)
+    damping = slider_damping(p, u)
     if m_eff > 0.0:
-        if _at_stop(p, b, force if v == 0.0 else v):
-            return (omega, omega_dot, 0.0, 0.0, 0.0)
-        b_dot, v_dot = v, force / m_eff
+        if slip is None:
+            slip = _slip(p, b, v, force, friction)
+        if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
+            d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+            return d if rates is None else _mass_flow(p, u, rates, s, d)
+        b_dot = v
+        v_dot = (force - slip * friction) / m_eff
+        rubbing = slip * friction * v  # power of the friction force -slip friction
     else:
-        # Massless slider: d_slider v = F_spring + T (v eliminated, kept as an output).
-        b_dot = (force + p.d_slider * v) / p.d_slider
+        # Massless slider: damping v = F_spring + T - friction (v eliminated, an output).
+        b_dot = _creep_speed(force + damping * v, friction, damping)
         if _at_stop(p, b, b_dot):
             b_dot = 0.0
         v_dot = 0.0
+        rubbing = friction * abs(b_dot)
     s_cw_dot = 0.0 if u.pulley_locked else p.pulley_ratio * b_dot
-    return (omega, omega_dot, b_dot, v_dot, s_cw_dot)
+    d = (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
+         link_loss + damping * b_dot * b_dot + rubbing, 0.0)
+    return d if rates is None else _mass_flow(p, u, rates, s, d)
+
+
+def _slip(p: Parameters, b: float, v: float, force: float, friction: float) -> float:
+    """Friction state of a slider with mass at speed v under the net force [N]: 0 when it
+    sticks (at rest, the force within the friction limit or into a stop), else the direction
+    it slides in."""
+    if v != 0.0:
+        return math.copysign(1.0, v)
+    if abs(force) <= friction or _at_stop(p, b, force):
+        return 0.0
+    return math.copysign(1.0, force)
+
+
+def _creep_speed(pull: float, friction: float, damping: float) -> float:
+    """Speed of a massless slider under the net pull [N] (damper excluded) against Coulomb
+    friction up to `friction` [N] and viscous damping [N s/m]: 0 while it sticks."""
+    if abs(pull) <= friction:
+        return 0.0
+    return (pull - math.copysign(friction, pull)) / damping
+
+
+def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float, ...]
+               ) -> tuple[float, ...]:
+    """d with the continuous-time limit of switch_inputs for masses changing at `rates`:
+    payload joining from rest brakes the link, J omega' gains -payload_rate w^2 omega, and
+    costs 1/2 payload_rate w^2 omega^2 of E_loss; leaving, it takes its kinetic energy
+    (E_added); likewise counterweight mass joining or leaving the moving counterweight."""
+    theta, omega, b, v, s_cw = s[:5]
+    gain, drop = max(rates.payload, 0.0), min(rates.payload, 0.0)
+    omega_dot = d[1] - gain * p.w * p.w * omega / link_inertia(p, u.payload, b)
+    loss = 0.5 * gain * (p.w * omega) ** 2
+    added = rates.payload * p.g * p.w * math.cos(theta) + 0.5 * drop * (p.w * omega) ** 2
+    added -= rates.counterweight_added * p.g * s_cw
+    v_dot = d[3]
+    m_eff = slider_mass(p, u)
+    if not (u.slider_locked or u.pulley_locked) and m_eff > 0.0 and d[2] != 0.0:
+        reflected = p.pulley_ratio ** 2 * v * v
+        gain_cw = max(rates.counterweight_added, 0.0)
+        v_dot -= gain_cw * p.pulley_ratio ** 2 * v / m_eff
+        loss += 0.5 * gain_cw * reflected
+        added += 0.5 * min(rates.counterweight_added, 0.0) * reflected
+    return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -218,28 +348,58 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
+        damping = slider_damping(p, u)
         if m_eff > 0.0:
-            rate = max(rate, math.sqrt(k_b / m_eff), p.d_slider / m_eff)
+            slider_rate = max(math.sqrt(k_b / m_eff), damping / m_eff)
         else:
-            rate = max(rate, k_b / p.d_slider)
+            slider_rate = k_b / damping
+        rate = max(rate, SLIDER_RATE_FACTOR * slider_rate)
     return rate
 
 
+def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
+    """E_t + E_cw + E_kin [J] (as `outputs` reports them)."""
+    theta, omega, b, v, s_cw = s[:5]
+    E_p = gravity_moment(p, u.payload, b) * math.cos(theta)
+    E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
+    E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
+    mass = p.m_slider if u.slider_locked else slider_mass(p, u)
+    return E_p + E_e + E_cw + 0.5 * link_inertia(p, u.payload, b) * omega ** 2 + 0.5 * mass * v * v
+
+
+def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
+    """Speed of a free massless slider with the pulley locked, set by the forces [m/s]."""
+    factor = _free_length_factor(p, s.theta, s.b)
+    v = _creep_speed(_slider_force(p, u, s.theta, s.omega, s.b, 0.0, factor),
+                     slider_friction(p, s.theta, factor), slider_damping(p, u))
+    return 0.0 if _at_stop(p, s.b, v) else v
+
+
 def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
-    """Clamp the slider to its end stops (inelastic) and hold it still when locked."""
-    theta, omega, b, v, s_cw = s
-    if u.slider_locked:
-        return State(theta, omega, b, 0.0, s_cw)
-    if b < p.b_min:
-        return State(theta, omega, p.b_min, max(v, 0.0), s_cw)
-    if b > p.b_max:
-        return State(theta, omega, p.b_max, min(v, 0.0), s_cw)
+    """Clamp the free slider to its end stops (inelastic: the energy the clamp removes goes to
+    E_loss), moving the counterweight with it while the pulley turns."""
+    b, v = s.b, s.v
+    if p.b_min <= b <= p.b_max:
+        if slider_mass(p, u) == 0.0:
+            return s._replace(v=_damper_speed(p, u, s))
+        return s
+    stop = p.b_min if b < p.b_min else p.b_max
+    v = max(v, 0.0) if b < p.b_min else min(v, 0.0)
+    s_cw = s.s_cw if u.pulley_locked else s.s_cw + p.pulley_ratio * (stop - b)
+    clamped = s._replace(b=stop, v=v, s_cw=s_cw)
     if slider_mass(p, u) == 0.0:
-        # Massless slider: its speed is the damper speed set by the forces.
-        v = _slider_force(p, u, theta, omega, b, 0.0, _free_length_factor(p, theta, b)) / p.d_slider
-        if _at_stop(p, b, v):
-            v = 0.0
-    return State(theta, omega, b, v, s_cw)
+        clamped = clamped._replace(v=_damper_speed(p, u, clamped))
+    loss = mechanical_energy(p, u, s) - mechanical_energy(p, u, clamped)
+    return clamped._replace(E_loss=s.E_loss + loss)
+
+
+class _LinkState(NamedTuple):
+    """State of the link alone while the slider is clamped: angle, speed, W_drive, E_loss."""
+
+    theta: float
+    omega: float
+    W_drive: float
+    E_loss: float
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -247,15 +407,91 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     rate = characteristic_rate(p, u, s)
     if u.slider_locked:
         # A clamped slider leaves a 1-DOF link: b and s_cw stay put and v = 0. RK4 over the
-        # link alone gives the same numbers as over the full state (whose other derivatives
-        # are zero) at less than half the cost of a step.
-        b = s.b
-        theta, omega = integrate_second_order(
-            lambda theta, omega: _link_acceleration(p, u, theta, omega, b, 0.0),
-            s.theta, s.omega, dt, rate)
-        return State(theta, omega, b, 0.0, s.s_cw)
-    return integrate(lambda state: derivatives(p, u, state), s, dt, rate,
-                     lambda state: _apply_constraints(p, u, state))
+        # link (and its ledger) alone gives the same numbers as over the full state, whose
+        # other derivatives are zero, at less cost.
+        b, tau = s.b, u.tau_drive
+
+        def link(x: _LinkState) -> tuple[float, ...]:
+            return (x.omega, _link_acceleration(p, u, x.theta, x.omega, b, 0.0),
+                    tau * x.omega, p.d_link * x.omega * x.omega)
+
+        end = integrate(link, _LinkState(s.theta, s.omega, s.W_drive, s.E_loss), dt, rate)
+        return s._replace(theta=end.theta, omega=end.omega, v=0.0, W_drive=end.W_drive,
+                          E_loss=end.E_loss)
+    if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
+        return integrate(lambda state: derivatives(p, u, state), s, dt, rate,
+                         lambda state: _apply_constraints(p, u, state))
+    # Coulomb friction: the friction state is decided at the start of each sub-step and held
+    # through it, so that RK4 sees one smooth right-hand side (and the ledger stays exact).
+    slip = [_friction_state(p, u, s)]
+
+    def stick(state: State) -> State:
+        """_apply_constraints, then: a slider whose speed changed sign within a sub-step has
+        stopped in it, and sticks (v = 0, its kinetic energy to E_loss) until the pull
+        exceeds the friction limit."""
+        state = _apply_constraints(p, u, state)
+        if state.v * slip[0] < 0.0:
+            stuck = state._replace(v=0.0)
+            state = stuck._replace(E_loss=state.E_loss + mechanical_energy(p, u, state)
+                                   - mechanical_energy(p, u, stuck))
+        slip[0] = _friction_state(p, u, state)
+        return state
+
+    return integrate(lambda state: derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
+
+
+def _friction_state(p: Parameters, u: Inputs, s: State) -> float:
+    """_slip of the free slider in state s."""
+    factor = _free_length_factor(p, s.theta, s.b)
+    return _slip(p, s.b, s.v, _slider_force(p, u, s.theta, s.omega, s.b, s.v, factor),
+                 slider_friction(p, s.theta, factor))
+
+
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state just after the inputs change from `before` to `after` at a communication point.
+
+    Event physics (docs/energy_ledger.md), in this order:
+    - payload added: picked up from rest, the link's angular momentum J omega is conserved;
+      payload removed: it leaves with its own velocity, omega unchanged, and takes its
+      kinetic energy with it;
+    - counterweight mass, while it moves with the slider (both free): added from rest, the
+      momentum m_eff v of slider and counterweight is conserved; removed, v unchanged;
+    - slider locked: the clamp stops it (v = 0) and the counterweight with it; the clamp acts
+      along the link, so omega does not change;
+    - pulley released with the slider free: the slider's momentum m_slider v is shared with
+      the counterweight at rest (a massless slider carries none: v = 0); pulley locked: the
+      counterweight stops, the slider keeps v.
+    Masses joining or leaving book their potential energy (and the kinetic energy they take
+    away) to E_added; the kinetic energy the events destroy goes to E_loss.
+    """
+    theta, omega, b, v, s_cw = s[:5]
+    added = 0.0
+    d_payload = after.payload - before.payload
+    if d_payload != 0.0:
+        added += d_payload * p.g * p.w * math.cos(theta)
+        if d_payload > 0.0:
+            omega *= link_inertia(p, before.payload, b) / link_inertia(p, after.payload, b)
+        else:
+            added += 0.5 * d_payload * (p.w * omega) ** 2
+    moving_cw = not (before.slider_locked or before.pulley_locked)
+    d_cw = after.counterweight_added - before.counterweight_added
+    if d_cw != 0.0:
+        added -= d_cw * p.g * s_cw
+        if moving_cw and d_cw > 0.0:
+            heavier = before._replace(counterweight_added=after.counterweight_added)
+            v *= slider_mass(p, before) / slider_mass(p, heavier)
+        elif moving_cw:
+            added += 0.5 * d_cw * (p.pulley_ratio * v) ** 2
+    if after.slider_locked:
+        v = 0.0
+    elif not before.slider_locked and not after.pulley_locked and before.pulley_locked:
+        coupled = slider_mass(p, after)
+        v = v * p.m_slider / coupled if coupled > 0.0 else 0.0
+    new = State(theta, omega, b, v, s_cw, s.W_drive, s.E_loss, s.E_added + added)
+    if not after.slider_locked and slider_mass(p, after) == 0.0:
+        new = new._replace(v=_damper_speed(p, after, new))
+    loss = mechanical_energy(p, before, s) + added - mechanical_energy(p, after, new)
+    return new._replace(E_loss=s.E_loss + loss)
 
 
 def slider_at_stop(p: Parameters, u: Inputs, s: State) -> bool:
@@ -288,6 +524,96 @@ def regulated_slider_position(p: Parameters, u: Inputs, theta: float) -> float:
     return 0.5 * (lo + hi)
 
 
+# ---- design for a real spring and slider (docs/energy_ledger.md, "Design rule") -----------
+_TURN_SAMPLES = 72    # trapezoid rule over a full turn: exact for the low harmonics here
+
+
+def residual_torque_rms(p: Parameters, payload: float, b: float) -> float:
+    """RMS over a full turn of the link of tau_gravity with the slider locked at b [N m]."""
+    total = 0.0
+    for i in range(_TURN_SAMPLES):
+        theta = 2.0 * math.pi * (i + 0.5) / _TURN_SAMPLES
+        spring = p.k * p.a * b * _free_length_factor(p, theta, b)
+        total += ((gravity_moment(p, payload, b) - spring) * math.sin(theta)) ** 2
+    return math.sqrt(total / _TURN_SAMPLES)
+
+
+def balancing_slider_position(p: Parameters, payload: float) -> float:
+    """The slider position in [b_min, b_max] that minimises residual_torque_rms [m].
+
+    With L0 = 0 the link balances exactly at b = (m c + payload w) g / (k a - m_slider g)
+    (clipped to the stops); a real spring (L0 > 0) balances nowhere exactly, and this is the
+    position of least RMS residual torque over the full turn.
+    """
+    if p.L0 == 0.0:
+        stiffness = p.k * p.a - p.m_slider * p.g
+        if stiffness <= 0.0:
+            return p.b_max
+        return min(max((p.m * p.c + payload * p.w) * p.g / stiffness, p.b_min), p.b_max)
+    return _minimise(lambda b: residual_torque_rms(p, payload, b), p.b_min, p.b_max)
+
+
+_DESIGN_PAYLOADS = 8  # intervals of the payload range the design rule averages over
+
+
+def design_slider_position(p: Parameters) -> float:
+    """Where M0 holds the slider at theta = pi, so that regulation (counterweight_added equal
+    to the payload) leaves the least residual torque over the working range [m]: the mean of
+    residual_torque_rms^2 over a full turn and over nine payloads evenly spaced from 0 to
+    k r (b_max - b0) / (g R) (eq. 16's capacity), each at its regulated position
+    b + payload g R / (r k).
+
+    With an ideal spring (L0 = 0) the residual is (e0 + e1 payload) sin(theta), e0 = m c g
+    - K b, e1 = w g - K g R / (r k), K = k a - m_slider g, and the mean square is least where
+    its mean vanishes: b = (m c g + e1 capacity / 2) / K. With R/r = w/a and a massless
+    slider e1 = 0: every payload balances exactly from b = m c g / (k a) (eq. 2: b0 for
+    Table 1)."""
+    if p.g <= 0.0:
+        return p.b0  # nothing to balance
+    stiffness = p.k * p.a - p.m_slider * p.g
+    if p.k <= 0.0 or stiffness <= 0.0:
+        return p.b_max  # the spring cannot carry the link
+    travel = p.g * p.R / (p.r * p.k)      # slider travel per kg of payload regulated
+    capacity = max(p.b_max - p.b0, 0.0) / travel
+    if p.L0 == 0.0:
+        slope = p.w * p.g - stiffness * travel
+        return (p.m * p.c * p.g + 0.5 * capacity * slope) / stiffness
+    payloads = [capacity * i / _DESIGN_PAYLOADS for i in range(_DESIGN_PAYLOADS + 1)]
+
+    def mean_square(b: float) -> float:
+        return sum(residual_torque_rms(p, m, b + m * travel) ** 2 for m in payloads) / len(
+            payloads)
+    return _minimise(mean_square, p.b_min, p.b_max)
+
+
+def _minimise(f: Callable[[float], float], lo: float, hi: float) -> float:
+    """Abscissa of the smallest f on [lo, hi] to 1e-9: a 40-interval grid, then golden
+    section around its best point."""
+    samples = 40
+    grid = [lo + (hi - lo) * i / samples for i in range(samples + 1)]
+    best = min(range(samples + 1), key=lambda i: f(grid[i]))
+    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, samples)]
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    while hi - lo > 1e-9:
+        x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+        if f(x1) <= f(x2):
+            hi = x2
+        else:
+            lo = x1
+    return 0.5 * (lo + hi)
+
+
+def _wire_pull(p: Parameters, b: float) -> float:
+    """Wire tension that holds the slider at b with theta = pi, k (a + b - L0) - m_slider g [N]
+    (the spring's pull, minus the slider's weight, which hangs outward there)."""
+    return p.k * max(p.a + b - p.L0, 0.0) - p.m_slider * p.g
+
+
+def counterweight_for(p: Parameters, b: float) -> float:
+    """counterweight_added that makes regulation at theta = pi settle at b [kg]."""
+    return _wire_pull(p, b) * p.r / (p.g * p.R) - p.M0
+
+
 class Outputs(NamedTuple):
     """Observable quantities (docs/mechanisms.md; SI units)."""
 
@@ -306,11 +632,14 @@ class Outputs(NamedTuple):
     E_cw: float
     E_kin: float
     slider_at_stop: bool
+    W_drive: float
+    E_loss: float
+    E_added: float
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    theta, omega, b, v, s_cw = s
+    theta, omega, b, v, s_cw = s[:5]
     sin_t, cos_t = math.sin(theta), math.cos(theta)
     x = spring_length(p, theta, b)
     factor = _free_length_factor(p, theta, b)
@@ -326,5 +655,6 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     balance_error = moment - p.k * p.a * b
     # Positional, in field order: keyword arguments would add a microsecond to every step.
     return Outputs(theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, balance_error,
-                   E_p, E_e, E_p + E_e, E_cw, E_kin, slider_at_stop(p, u, s))
+                   E_p, E_e, E_p + E_e, E_cw, E_kin, slider_at_stop(p, u, s), s.W_drive,
+                   s.E_loss, s.E_added)
 

@@ -126,8 +126,9 @@ def simulate(scenario: Scenario, variant: Variant,
                 d_energy += [power, max(power, 0.0), m.R_a * current ** 2,
                              abs(effort * speed), effort * speed]
             u = _inputs(physics, joints, segment, s, efforts)
-            return np.array([*physics.derivatives(p, u, physics.State(*mech)), *d_drive,
-                             *d_energy])
+            rates = _input_rates(physics, segment, s, t1 - t0)
+            return np.array([*physics.derivatives(p, u, physics.State(*mech), rates),
+                             *d_drive, *d_energy])
 
         solution = solve_ivp(rhs, (t0, t1), x, method="Radau", rtol=rtol,
                              atol=1e-10, dense_output=False)
@@ -141,6 +142,20 @@ def simulate(scenario: Scenario, variant: Variant,
     per_joint = {joint.name: dict(zip(ENERGIES, row.tolist(), strict=True))
                  for joint, row in zip(joints, energies, strict=True)}
     return ReferenceResult(run_metrics(per_joint), np.array(times), np.array(positions).T)
+
+
+def _input_rates(physics: ModuleType, segment: dict[str, tuple], s: float,
+                 duration: float) -> tuple:
+    """d/dt of the mechanism's ramped Real inputs at fraction s of a phase lasting duration
+    [s] (central difference of the ramp), as its Inputs (0 for the others): masses that
+    change while the mechanism moves join from rest or leave with their speed."""
+    h = 1e-6
+    rates = {name: (ramp(start, end, shape, s + h) - ramp(start, end, shape, s - h))
+             / (2.0 * h * duration)
+             for name, (start, end, shape) in segment.items()
+             if name in physics.Inputs._fields and not isinstance(start, bool)}
+    return physics.Inputs(**{name: rates.get(name, 0.0) for name in physics.Inputs._fields
+                             if not isinstance(getattr(physics.Inputs(), name), bool)})
 
 
 def _inputs(physics: ModuleType, joints: tuple, segment: dict[str, tuple], s: float,

@@ -216,3 +216,25 @@ def test_fmu_rejects_bad_parameters(fmu_file: Path) -> None:
             fmu.initialize({"OA": 0.3, "AB": 0.3})
         assert any(m.status == "Error" and "AB = 0.3" in m.message and "OA" in m.message
                    for m in fmu.messages)
+
+
+def test_counterweight_slide_friction_dissipates_d_cw_times_its_speed_squared() -> None:
+    """d_cw acts on the counterweight's sliding speed dOB/dt (here by central difference of
+    eq. 13 along the motion): the dissipated power is d_cw (dOB/dt)^2 and it brakes the arm by
+    that power over omega; with the arm at rest nothing is lost."""
+    p = ciupitu.Parameters(d_link=0.0, d_cw=3.0)
+    free = ciupitu.Parameters(d_link=0.0)
+    theta, omega, h = 1.1, 0.7, 1e-6
+
+    def OB(angle: float) -> float:
+        phi = math.pi / 2 - angle
+        return math.sqrt(p.AB ** 2 - (p.OA * math.cos(phi)) ** 2) - p.OA * math.sin(phi)
+
+    slide_speed = (OB(theta + omega * h) - OB(theta - omega * h)) / (2 * h)
+    s = ciupitu.State(theta, omega)
+    rates = ciupitu.derivatives(p, ciupitu.Inputs(), s)
+    J = ciupitu.inertia(p, 0.0, theta)[0]
+    assert rates.E_loss == pytest.approx(3.0 * slide_speed ** 2, rel=1e-8)
+    braking = (ciupitu.derivatives(free, ciupitu.Inputs(), s).omega - rates.omega) * J * omega
+    assert braking == pytest.approx(3.0 * slide_speed ** 2, rel=1e-8)
+    assert ciupitu.derivatives(p, ciupitu.Inputs(), ciupitu.State(theta, 0.0)).E_loss == 0.0

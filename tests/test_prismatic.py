@@ -2,11 +2,11 @@
 
 Static efforts are checked against eqs. 3.1 and 3.3 and the residuals docs/mechanisms.md states,
 computed here independently of `fmu_src.prismatic`. Energy: E_grav + E_springs + E_kin
-- W_drive - W_worm + E_friction must stay constant.
+- W_drive - W_worm + E_loss - E_added must stay constant.
 
-With the drives off the arm leaves the paper's workspace (no end stops; below the horizontal
-the k1 wire is slack and the balanced revolute joint is neutral), e.g. q2 reaches about 120 m
-in 10 s with the self-locking worm: these runs check the energy bookkeeping, not the workspace.
+With the drives off the arm leaves the paper's workspace (below the horizontal the k1 wire is
+slack and the balanced revolute joint is neutral) and the slider runs into its end stops:
+these runs check the energy bookkeeping, not the workspace.
 The runs with constant drive efforts stay within q1 in [0, 0.7] rad and q2 in [0, 0.3] m.
 """
 
@@ -19,6 +19,7 @@ from collections.abc import Iterator, Mapping
 
 import pytest
 
+from fmu_src import prismatic
 from harness.fmi import CoSimFMU
 from harness.fmu_build import fmu_path
 
@@ -28,7 +29,8 @@ A, B, C, D, R = 0.4, 0.125, 0.4, 0.5, 0.15
 RHO = B / LS0
 Q1_GRID = [0.1 * i for i in range(8)]      # 0 .. 0.7 rad
 Q2_GRID = [0.05 * j for j in range(7)]     # 0 .. 0.3 m
-ENERGY_TERMS = ("E_grav", "E_springs", "E_kin", "W_drive", "W_worm", "E_friction")
+ENERGY_TERMS = ("E_grav", "E_springs", "E_kin", "W_drive", "W_worm", "E_friction", "E_loss",
+                "E_added")
 MODES = {
     "uncompensated": {"compensated": False},
     "self_locking": {"compensated": True, "self_locking": True},
@@ -55,9 +57,9 @@ def static_efforts(fmu: CoSimFMU, mode: str, q1: float, q2: float) -> tuple[floa
 
 
 def balance(out: Mapping[str, float]) -> float:
-    """E_grav + E_springs + E_kin - W_drive - W_worm + E_friction [J]."""
+    """E_grav + E_springs + E_kin - W_drive - W_worm + E_loss - E_added [J]."""
     return (out["E_grav"] + out["E_springs"] + out["E_kin"] - out["W_drive"] - out["W_worm"]
-            + out["E_friction"])
+            + out["E_loss"] - out["E_added"])
 
 
 def simulate(fmu: CoSimFMU, parameters: Mapping[str, float | bool],
@@ -134,6 +136,31 @@ def test_energy_balance_drives_off(fmu: CoSimFMU, mode: str,
     assert ranges["q1"][1] - ranges["q1"][0] > 0.5 and ranges["q2"][1] - ranges["q2"][0] > 0.3
     if mode == "uncompensated":
         assert out["W_worm"] == 0.0 and out["E_springs"] == 0.0
+    assert out["E_added"] == 0.0
+
+
+def test_slider_falls_onto_its_end_stop(fmu: CoSimFMU) -> None:
+    """Uncompensated arm held vertical (q1 = pi/2: gravity has no moment about O), drives off:
+    m2 falls along the link with acceleration g from q2 = 0.3 m onto q2_min = -ls0 and stays
+    there. The inelastic stop dissipates its kinetic energy, m2 g (0.3 m + ls0) = 2.698 J,
+    and q1 does not move (the stop's impulse acts along the link)."""
+    drift, ranges, out = simulate(fmu, {**MODES["uncompensated"], "q1_0": math.pi / 2,
+                                        "q2_0": 0.3}, {"tau1": 0.0, "f2": 0.0}, stop=1.0)
+    fall = 0.3 + LS0
+    assert math.sqrt(2 * fall / G) < 0.4  # it lands within the first 0.4 s
+    assert ranges["q2"] == (-LS0, 0.3) and out["q2"] == -LS0
+    assert out["E_loss"] == pytest.approx(M2 * G * fall, rel=1e-9)
+    assert out["E_friction"] == 0.0
+    assert out["q1"] == pytest.approx(math.pi / 2, abs=1e-12)
+    assert drift < 1e-9
+
+
+def test_stroke_limits_are_checked() -> None:
+    """q2_0 outside [q2_min, q2_max] is refused at initialisation, naming the variables."""
+    with pytest.raises(ValueError, match=r"q2_0 = 0.8 m is outside \[q2_min, q2_max\]"):
+        prismatic.validate(prismatic.Parameters(q2_0=0.8))
+    with pytest.raises(ValueError, match="q2_min = 0.5 m must be below q2_max = 0.4 m"):
+        prismatic.validate(prismatic.Parameters(q2_min=0.5, q2_max=0.4))
 
 
 @pytest.mark.parametrize("mode, initial, inputs", [

@@ -229,6 +229,98 @@ def test_payload_above_capacity_ends_at_b_max(srb_fmu: Path) -> None:
     assert any("end stop b_max" in m for m in logged)
 
 
+# ---- real spring and slider mass: the design rule
+
+def with_counterweight(mass: float, added: float) -> Callable[[float], dict[str, float | bool]]:
+    """regulation(mass) with `added` [kg] ramped onto the counterweight instead of mass."""
+    def inputs(t: float) -> dict[str, float | bool]:
+        values = regulation(mass)(t)
+        return {**values, "counterweight_added": added * min(max((t - 0.2) / 3.0, 0.0), 1.0)}
+    return inputs
+
+
+def test_real_spring_design_warns_and_names_the_counterweight(srb_fmu: Path) -> None:
+    """L0 = 40 mm, m_slider = 0.4 kg: no slider position balances the link, and the counterweight
+    added equal to the payload misses the best one; the FMU says so when the slider is locked,
+    with the counterweight that reaches the best position. Regulating with that counterweight
+    puts the slider there (it still warns: the best residual is above 1 %)."""
+    params = {"theta0": math.pi, "L0": 0.04, "m_slider": 0.4}
+    with open_fmu(srb_fmu, params) as fmu:
+        drive(fmu, 0.0, 6.4, hold(math.pi), regulation(1.0), ("b",))
+        logged = [m for m in warnings(fmu) if "cannot balance" in m]
+    assert len(logged) == 1
+    named = float(logged[0].split("counterweight_added = ")[1].split(" kg")[0])
+    best_b = float(logged[0].split("is at b = ")[1].split(" m")[0])
+    with open_fmu(srb_fmu, params) as fmu:
+        rows = drive(fmu, 0.0, 6.4, hold(math.pi), with_counterweight(1.0, named), ("b",))
+        assert [m for m in warnings(fmu) if "cannot balance" in m]
+    assert rows[-1, 1] == pytest.approx(best_b, abs=1e-4)
+
+
+def test_slider_mass_is_balanced_with_the_named_counterweight(srb_fmu: Path) -> None:
+    """Ideal spring, m_slider = 0.4 kg: the link balances where (m c + payload w + m_slider b) g
+    = k a b, b = (m c + w) g / (k a - m_slider g) = 98.96 mm for 1 kg. M0 holds the slider at
+    b_design (the least mean-square residual over the payload range,
+    b = (m c g + P/2 (w g - K s)) / K with K = k a - m_slider g, s = g R / (r k), P =
+    (b_max - b0) / s: 68.54 mm), so regulating 1 kg with the same mass on the counterweight
+    misses the balance, and the FMU warns; it names counterweight_added = k (b - b_design)
+    r / (g R) = 0.8690 kg, with which the slider settles at the balance and nothing is
+    reported."""
+    m_s = 0.4
+    b_1kg = (M * C + W) * G / (K * A - m_s * G)
+    stiffness, travel = K * A - m_s * G, G * R_CW / (R_WIRE * K)
+    b_design = (M * C * G + (W - B0) / travel / 2 * (W * G - stiffness * travel)) / stiffness
+    added = K * (b_1kg - b_design) * R_WIRE / (G * R_CW)
+    assert b_1kg == pytest.approx(0.09896, abs=1e-5) and added == pytest.approx(0.8690, abs=1e-4)
+    with open_fmu(srb_fmu, {"theta0": math.pi, "m_slider": m_s}) as fmu:
+        assert fmu.get(["b_design"])["b_design"] == pytest.approx(b_design, abs=1e-9)
+        drive(fmu, 0.0, 6.4, hold(math.pi), regulation(1.0), ())
+        logged = [m for m in warnings(fmu) if "left the link unbalanced" in m]
+    assert len(logged) == 1 and f"counterweight_added = {added:.4f} kg" in logged[0]
+    assert "cannot balance" not in logged[0]
+    with open_fmu(srb_fmu, {"theta0": math.pi, "m_slider": m_s}) as fmu:
+        rows = drive(fmu, 0.0, 6.4, hold(math.pi), with_counterweight(1.0, added),
+                     ("b", "balance_error"))
+        assert warnings(fmu) == []
+    assert rows[-1, 1] == pytest.approx(b_1kg, abs=1e-5)
+    assert abs(rows[-1, 2]) < 1e-3
+
+
+# ---- Coulomb friction on the slider
+
+def test_slider_friction_leaves_a_dead_band_off_180_deg(srb_fmu: Path) -> None:
+    """mu_slider = 0.1. At 150 deg the spring presses the slider on the link with
+    F_n = k a sin(theta) = 49 N, so friction holds it up to 4.9 N: moving outwards under the
+    counterweight, it stops where the net pull falls to that, mu a sin(theta) = 5.0 mm short
+    of the frictionless position, and never moves back (no chattering). At 180 deg F_n = 0 and
+    regulation is as exact as without friction."""
+    M0 = K * (A + B0) * R_WIRE / (G * R_CW)
+    theta = 150 * DEG
+    frictionless = A * math.cos(theta) + (M0 + 1.0) * G * R_CW / (R_WIRE * K)
+    dead_band = 0.1 * A * math.sin(theta)
+    assert dead_band == pytest.approx(5.0e-3, abs=1e-6)
+    with open_fmu(srb_fmu, {"theta0": theta, "mu_slider": 0.1}) as fmu:
+        rows = drive(fmu, 0.0, 6.4, hold(theta), regulation(1.0), ("b", "F_n"))
+    assert rows[-1, 2] == pytest.approx(K * A * math.sin(theta), rel=1e-3)
+    assert rows[-1, 1] == pytest.approx(frictionless - dead_band, abs=2e-5)
+    assert np.diff(rows[:, 1]).min() >= 0.0
+    with open_fmu(srb_fmu, {"theta0": math.pi, "mu_slider": 0.1}) as fmu:
+        rows = drive(fmu, 0.0, 6.4, hold(math.pi), regulation(1.0), ("b",))
+    assert abs(rows[-1, 1] - 0.095) < 1e-4
+
+
+def test_stuck_slider_does_not_creep(srb_fmu: Path) -> None:
+    """At 170 deg with no payload the released slider feels k a (1 + cos theta) = 1.49 N out
+    of balance, less than the friction limit mu k a sin(theta) = 1.70 N for mu = 0.1: it
+    sticks, exactly, with slider and pulley free for a second."""
+    theta = 170 * DEG
+    assert K * A * (1 + math.cos(theta)) < 0.1 * K * A * math.sin(theta)
+    with open_fmu(srb_fmu, {"theta0": theta, "mu_slider": 0.1}) as fmu:
+        rows = drive(fmu, 0.0, 1.0, hold(theta),
+                     lambda _t: {"slider_locked": False, "pulley_locked": False}, ("b",))
+    assert np.all(rows[:, 1] == B0)
+
+
 # ---- bad input
 
 @pytest.mark.parametrize(("parameters", "name", "allowed"), [

@@ -72,9 +72,11 @@ def test_regulation_away_from_pi_has_the_closed_form_position() -> None:
 
 def test_real_spring_free_slider_conserves_energy() -> None:
     """L0 > 0, slider mass, pulley free, no damping: E_t + E_kin + E_cw constant over 5 s
-    (RK4 with rate * h <= 0.05: measured ~1e-12 J; 1e-8 J leaves margin)."""
+    (RK4 with rate * h <= 0.05: measured ~1e-12 J; 1e-8 J leaves margin). The 1 kg payload
+    without counterweight makes the link a pendulum; the slider starts 4.5 mm off its
+    equilibrium."""
     p = dataclasses.replace(TABLE_1, L0=0.02, m_slider=0.3, d_link=0.0, d_slider=0.0,
-                            theta0=math.pi, omega0=1.0)
+                            theta0=math.pi, omega0=1.0, b0=0.09)
     u = physics.Inputs(payload=1.0, slider_locked=False, pulley_locked=False)
     s = physics.initial_state(p)
 
@@ -120,3 +122,105 @@ def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
         full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
                          physics.characteristic_rate(p, u, full))
         assert fast == full
+
+
+# ---- events at communication points (switch_inputs), against momentum balances by hand
+
+P_EVENTS = dataclasses.replace(TABLE_1, m_slider=0.2)
+FREE = physics.Inputs(slider_locked=False, pulley_locked=False)
+MOVING = physics.State(2.0, 1.5, 0.09, 0.3, 0.02, 0.4, 0.1, 0.05)
+
+
+def cw_mass(u: physics.Inputs) -> float:
+    """Counterweight reflected to the slider, (M0 + counterweight_added) (R/r)^2 [kg]."""
+    return (P_EVENTS.M0 + u.counterweight_added) * (P_EVENTS.R / P_EVENTS.r) ** 2
+
+
+def inertia(payload: float, b: float) -> float:
+    p = P_EVENTS
+    return p.J_link + payload * p.w ** 2 + p.m_slider * b ** 2 + p.J_drive
+
+
+def test_locking_a_moving_slider_stops_it_and_keeps_the_link_speed() -> None:
+    """The clamp acts along the link: omega unchanged, v = 0, 1/2 (m_slider + counterweight)
+    v^2 dissipated."""
+    after = physics.switch_inputs(P_EVENTS, FREE, FREE._replace(slider_locked=True), MOVING)
+    assert (after.omega, after.v, after.b) == (MOVING.omega, 0.0, MOVING.b)
+    lost = 0.5 * (P_EVENTS.m_slider + cw_mass(FREE)) * MOVING.v ** 2
+    assert after.E_loss - MOVING.E_loss == pytest.approx(lost, rel=1e-12)
+    assert after.E_added == MOVING.E_added
+
+
+def test_pulley_events_share_and_split_the_slider_momentum() -> None:
+    """Releasing the pulley couples the counterweight at rest: m_slider v = m_eff v+.
+    Locking it stops the counterweight and leaves the slider its own speed."""
+    slider_only = FREE._replace(pulley_locked=True)
+    m_s, m_eff = P_EVENTS.m_slider, P_EVENTS.m_slider + cw_mass(FREE)
+    shared = physics.switch_inputs(P_EVENTS, slider_only, FREE, MOVING)
+    assert shared.v == pytest.approx(m_s * MOVING.v / m_eff, rel=1e-12)
+    assert shared.E_loss - MOVING.E_loss == pytest.approx(
+        0.5 * m_s * MOVING.v ** 2 * (1 - m_s / m_eff), rel=1e-12)
+    split = physics.switch_inputs(P_EVENTS, FREE, slider_only, MOVING)
+    assert split.v == MOVING.v and split.omega == MOVING.omega
+    assert split.E_loss - MOVING.E_loss == pytest.approx(0.5 * cw_mass(FREE) * MOVING.v ** 2,
+                                                         rel=1e-12)
+
+
+def test_payload_picked_up_conserves_angular_momentum() -> None:
+    """A payload picked up from rest: J omega conserved, 1/2 J omega^2 dm w^2 / J' lost, its
+    potential energy dm g w cos(theta) added. Put down: omega unchanged, it takes its kinetic
+    energy 1/2 dm w^2 omega^2 with it, nothing lost."""
+    p, dm = P_EVENTS, 0.8
+    loaded = FREE._replace(payload=dm)
+    J0, J1 = inertia(0.0, MOVING.b), inertia(dm, MOVING.b)
+    up = physics.switch_inputs(p, FREE, loaded, MOVING)
+    assert up.omega == pytest.approx(J0 * MOVING.omega / J1, rel=1e-12)
+    assert up.E_loss - MOVING.E_loss == pytest.approx(
+        0.5 * J0 * MOVING.omega ** 2 * dm * p.w ** 2 / J1, rel=1e-12)
+    assert up.E_added - MOVING.E_added == pytest.approx(dm * p.g * p.w * math.cos(MOVING.theta),
+                                                        rel=1e-12)
+    down = physics.switch_inputs(p, loaded, FREE, MOVING)
+    assert down.omega == MOVING.omega
+    assert down.E_loss - MOVING.E_loss == pytest.approx(0.0, abs=1e-14)
+    assert down.E_added - MOVING.E_added == pytest.approx(
+        -dm * p.g * p.w * math.cos(MOVING.theta) - 0.5 * dm * (p.w * MOVING.omega) ** 2,
+        rel=1e-12)
+
+
+def test_counterweight_mass_added_while_moving_conserves_momentum() -> None:
+    """Mass joining the moving counterweight from rest: m_eff v conserved; its potential
+    energy at the counterweight's descent s_cw, -dm g s_cw, is added."""
+    heavier = FREE._replace(counterweight_added=0.5)
+    m_before, m_after = P_EVENTS.m_slider + cw_mass(FREE), P_EVENTS.m_slider + cw_mass(heavier)
+    after = physics.switch_inputs(P_EVENTS, FREE, heavier, MOVING)
+    assert after.v == pytest.approx(m_before * MOVING.v / m_after, rel=1e-12)
+    assert after.E_added - MOVING.E_added == pytest.approx(-0.5 * P_EVENTS.g * MOVING.s_cw,
+                                                           rel=1e-12)
+    assert after.E_loss - MOVING.E_loss == pytest.approx(
+        0.5 * m_before * MOVING.v ** 2 * (1 - m_before / m_after), rel=1e-12)
+
+
+def test_pulley_inertia_joins_the_counterweight() -> None:
+    """A pulley of inertia J_p turns at v / r: J_p / r^2 adds to the mass the slider's momentum
+    is shared with when the pulley is released, and its bearing's d_p / r^2 to the damping."""
+    p = dataclasses.replace(P_EVENTS, J_pulley=2e-4, d_pulley=0.01)
+    m_eff = p.m_slider + cw_mass(FREE) + 2e-4 / p.r ** 2
+    assert physics.slider_mass(p, FREE) == pytest.approx(m_eff, rel=1e-12)
+    assert physics.slider_damping(p, FREE) == pytest.approx(p.d_slider + 0.01 / p.r ** 2)
+    assert physics.slider_damping(p, FREE._replace(pulley_locked=True)) == p.d_slider
+    shared = physics.switch_inputs(p, FREE._replace(pulley_locked=True), FREE, MOVING)
+    assert shared.v == pytest.approx(p.m_slider * MOVING.v / m_eff, rel=1e-12)
+
+
+def test_paper_design_keeps_eqs_10_and_16() -> None:
+    """paper_design: M0 = k (a + b0) r / (g R) and payload_max = k a (w - b0) / (w g) whatever
+    L0 and m_slider; the slider then settles at theta = pi where the wire's pull M0 g R / r
+    balances spring and weight, b = M0 g R / (r k) - a + L0 + m_slider g / k (139 mm for the
+    real spring regulated with 1 kg: 35 mm further)."""
+    p = dataclasses.replace(TABLE_1, L0=0.04, m_slider=0.4, paper_design=True)
+    assert p.M0 == pytest.approx(p.k * (p.a + p.b0) * p.r / (p.g * p.R), rel=1e-15)
+    assert p.payload_max == pytest.approx(p.k * p.a * (p.w - p.b0) / (p.w * p.g), rel=1e-15)
+    assert p.b_design == pytest.approx(p.b0 + p.L0 + p.m_slider * p.g / p.k, rel=1e-12)
+    u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
+                       pulley_locked=False)
+    assert physics.regulated_slider_position(p, u, math.pi) == pytest.approx(0.139, abs=1e-12)
