@@ -105,12 +105,15 @@ def design_report(motor: MotorParameters, inertia: float, d_link: float,
 
 
 def discretise(gains: PIDGains, dt: float) -> PIDCoefficients:
-    """Tustin difference-equation coefficients at dt [s] from control.c2d (the derivative
-    filter s / (T_f s + 1) is discretised alone and scaled by Kd, which may be 0)."""
-    derivative = ct.c2d(ct.tf([1.0, 0.0], [gains.T_f, 1.0]), dt, method="tustin")
+    """Tustin difference-equation coefficients at dt [s] from control.c2d (with Kd = 0 the
+    filter s / (T_f s + 1) is discretised alone, c2d dropping a zero numerator, and its
+    numerator coefficients are 0)."""
+    used = 1.0 if gains.Kd == 0.0 else 0.0
+    derivative = ct.c2d(ct.tf([gains.Kd + used, 0.0], [gains.T_f, 1.0]), dt, method="tustin")
     integral = ct.c2d(ct.tf([gains.Ki], [1.0, 0.0]), dt, method="tustin")
     (b0, b1), (_, a1) = np.ravel(derivative.num[0][0]), np.ravel(derivative.den[0][0])
-    return PIDCoefficients(float(gains.Kd * b0), float(gains.Kd * b1), float(a1),
+    keep = 1.0 - used
+    return PIDCoefficients(float(keep * b0), float(keep * b1), float(a1),
                            float(np.ravel(integral.num[0][0])[0]))
 
 
