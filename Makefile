@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 # exact versions of every dependency, so a fresh clone reproduces the committed results
 LOCK := constraints.txt
 
-.PHONY: venv fmu test cosim bench lint xc sweep clean lock docs
+.PHONY: venv fmu test test-all fuzz cosim bench lint xc sweep clean lock docs
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -19,8 +19,17 @@ venv: $(STAMP)
 fmu: $(STAMP)
 	$(PY) -m harness build-fmus
 
+# the suite less the tests marked slow (under 3 min on 2 cores); test-all runs every test
 test: fmu
+	$(PY) -m pytest -q -m "not slow"
+
+test-all: fmu
 	$(PY) -m pytest -q
+
+# property tests with random seeds and many examples (about 10 min); `make test` runs the
+# same suite with a fixed seed and a small budget
+fuzz: fmu
+	HYPOTHESIS_PROFILE=deep $(PY) -m pytest -q tests/fuzz
 
 cosim: fmu
 	$(PY) -m harness cosim --scenario all --variants all

@@ -19,8 +19,8 @@ class CiupituBalancer(MechanismSlave):
     """1-DOF arm balanced by a counterweight sliding along it, guided by a bar to a ground
     pivot above the arm's pivot (Ciupitu 2018, Figure 4a), plus a fixed counterweight."""
 
+    physics = physics
     parameters_type = physics.Parameters
-    hidden_state = ("state", "previous_inputs")
     # 1 ms is the harness's communication step (as for SelfRegulatingBalancer); 20 s spans
     # several strokes of a rocking cycle and many periods of the default arm's free swing.
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
@@ -35,34 +35,9 @@ class CiupituBalancer(MechanismSlave):
                        min=0.0)
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
-        self.state = None
-        self.previous_inputs = None
-
-    def validate(self, params: physics.Parameters) -> None:
-        physics.validate(params)
 
     def inputs(self) -> physics.Inputs:
         return physics.Inputs(float(self.tau_drive), float(self.payload))
-
-    def initialise(self, params: physics.Parameters) -> None:
-        self.state = physics.initial_state(params)
-        self.previous_inputs = self.inputs()
-        self.set_outputs(physics.outputs(params, self.previous_inputs, self.state))
-
-    def step(self, dt: float) -> None:
-        u = self.inputs()
-        if u.payload != self.previous_inputs.payload:
-            self.state = physics.switch_inputs(self.params, self.previous_inputs, u, self.state)
-        self.previous_inputs = u
-        self.state = physics.advance(self.params, u, self.state, dt)
-        self.set_outputs(physics.outputs(self.params, u, self.state))
-
-    def refresh_outputs(self) -> None:
-        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
-
-    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.state = physics.State(*hidden["state"])
-        self.previous_inputs = physics.Inputs(*hidden["previous_inputs"])
 
 
 OUTPUTS = (

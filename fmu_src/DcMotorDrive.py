@@ -87,7 +87,7 @@ class DcMotorDrive(ModelSlave):
         self.P_elec = voltage * self.i
         self.E_in += self.P_elec * dt
         self.E_drawn += max(self.P_elec, 0.0) * dt
-        self.E_copper += copper_energy(p, dt, voltage, omega, i_start, motor.current, self.i)
+        self.E_copper += copper_energy(p, dt, voltage, omega, i_start)
 
     @property
     def armature(self) -> tuple[float, float]:

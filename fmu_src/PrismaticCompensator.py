@@ -17,8 +17,8 @@ from fmu_src.fmi_base import MechanismSlave
 class PrismaticCompensator(MechanismSlave):
     """2-DoF RP arm with the spring gravity compensator of Demian and Klimchik (2022)."""
 
+    physics = physics
     parameters_type = physics.Parameters
-    hidden_state = ("state",)
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=8.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:
@@ -32,30 +32,14 @@ class PrismaticCompensator(MechanismSlave):
         self.add_input("f2", 0.0, "N", "Drive force on the prismatic joint, outward positive")
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description)
-        self.state = None
-
-    def validate(self, params: physics.Parameters) -> None:
-        physics.validate(params)
 
     def initialise(self, params: physics.Parameters) -> None:
         for name, _, _ in CALCULATED_PARAMETERS:
             setattr(self, name, getattr(params, name))
-        self.state = physics.initial_state(params)
-        self.set_outputs(physics.outputs(params, self.inputs(), self.state))
+        super().initialise(params)
 
     def inputs(self) -> physics.Inputs:
         return physics.Inputs(float(self.tau1), float(self.f2))
-
-    def step(self, dt: float) -> None:
-        u = self.inputs()
-        self.state = physics.advance(self.params, u, self.state, dt)
-        self.set_outputs(physics.outputs(self.params, u, self.state))
-
-    def refresh_outputs(self) -> None:
-        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
-
-    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.state = physics.State(*hidden["state"])
 
 
 CALCULATED_PARAMETERS = (

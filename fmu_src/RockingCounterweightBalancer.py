@@ -20,8 +20,8 @@ class RockingCounterweightBalancer(MechanismSlave):
     """1-DOF arm balanced by a counterweight on a bar pivoted on the arm and tied to the
     ground by a second bar (Ciupitu 2018, Figure 4b), plus a fixed counterweight."""
 
+    physics = physics
     parameters_type = physics.Parameters
-    hidden_state = ("state", "previous_inputs")
     # as CiupituBalancer: the harness's 1 ms step, 20 s for several strokes of a cycle
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
 
@@ -35,33 +35,9 @@ class RockingCounterweightBalancer(MechanismSlave):
                        min=0.0)
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
-        self.state = None
-        self.previous_inputs = None
-
-    def validate(self, params: physics.Parameters) -> None:
-        physics.validate(params)
 
     def inputs(self) -> physics.Inputs:
         return physics.Inputs(float(self.tau_drive), float(self.payload))
-
-    def initialise(self, params: physics.Parameters) -> None:
-        self.state = physics.initial_state(params)
-        self.previous_inputs = self.inputs()
-        self.set_outputs(physics.outputs(params, self.previous_inputs, self.state))
-
-    def step(self, dt: float) -> None:
-        u = self.inputs()
-        self.state = physics.switch_inputs(self.params, self.previous_inputs, u, self.state)
-        self.previous_inputs = u
-        self.state = physics.advance(self.params, u, self.state, dt)
-        self.set_outputs(physics.outputs(self.params, u, self.state))
-
-    def refresh_outputs(self) -> None:
-        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
-
-    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.state = physics.State(*hidden["state"])
-        self.previous_inputs = physics.Inputs(*hidden["previous_inputs"])
 
 
 OUTPUTS = (

@@ -72,6 +72,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from fmu_src import ledger
 from fmu_src.integration import rk4, substeps
 from fmu_src.parameters import check_ranges, parameter
 
@@ -293,23 +294,10 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
 
 
 def change_payload(p: Parameters, s: State, before: float, after: float) -> State:
-    """State just after the payload changes from before to after [kg] at the link's angle.
-
-    Joining mass arrives at rest: angular momentum is conserved, the kinetic energy lost goes
-    to E_loss, its potential energy to E_added. Leaving mass takes its potential and kinetic
-    energy (E_added decreases), omega unchanged.
-    """
-    added = after - before
-    if added == 0.0:
-        return s
-    potential = added * p.g * p.w * math.cos(s.theta)
-    if added > 0.0:
-        J_before, J_after = link_inertia(p, before), link_inertia(p, after)
-        omega = s.omega * J_before / J_after
-        lost = 0.5 * (J_before * s.omega ** 2 - J_after * omega ** 2)
-        return s._replace(omega=omega, E_loss=s.E_loss + lost, E_added=s.E_added + potential)
-    kinetic = 0.5 * added * (p.w * s.omega) ** 2
-    return s._replace(E_added=s.E_added + potential + kinetic)
+    """State just after the payload changes from before to after [kg] at the link's angle
+    (`ledger.change_payload`: caught from rest, or released with its speed)."""
+    return ledger.change_payload(s, before, after, p.w, p.g,
+                                 lambda payload: link_inertia(p, payload))
 
 
 class Outputs(NamedTuple):

@@ -70,6 +70,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from fmu_src import ledger
 from fmu_src.integration import integrate
 from fmu_src.parameters import check_ranges, parameter
 
@@ -383,32 +384,11 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
 
 
-def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
-    """E_p + E_kin [J] (as `outputs` reports them)."""
-    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - s.theta)
-    return (p.g * math.cos(s.theta) * _net_moment_arm(p, payload, OB)
-            + 0.5 * _inertia(p, payload, OB, dOB, d2OB)[0] * s.omega ** 2)
-
-
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
-    """The state just after the payload changes from before.payload to after.payload at a
-    communication point (docs/energy_ledger.md): a payload added is picked up from rest, so
-    the arm's angular momentum J omega is conserved and the kinetic energy lost goes to
-    E_loss; a payload removed leaves with its own velocity (omega unchanged) and takes its
-    kinetic energy away. Its potential energy joins or leaves through E_added."""
-    d_payload = after.payload - before.payload
-    if d_payload == 0.0:
-        return s
-    omega = s.omega
-    added = d_payload * p.g * p.w * math.cos(s.theta)
-    if d_payload > 0.0:
-        omega *= inertia(p, before.payload, s.theta)[0] / inertia(p, after.payload, s.theta)[0]
-    else:
-        added += 0.5 * d_payload * (p.w * omega) ** 2
-    new = s._replace(omega=omega, E_added=s.E_added + added)
-    loss = (mechanical_energy(p, before.payload, s) + added
-            - mechanical_energy(p, after.payload, new))
-    return new._replace(E_loss=s.E_loss + loss)
+    """The state just after the inputs change at a communication point: a payload caught
+    from rest or released (`ledger.change_payload`, docs/energy_ledger.md)."""
+    return ledger.change_payload(s, before.payload, after.payload, p.w, p.g,
+                                 lambda payload: inertia(p, payload, s.theta)[0])
 
 
 class Outputs(NamedTuple):

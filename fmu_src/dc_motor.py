@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import NamedTuple
 
 from fmu_src.parameters import check_ranges, parameter
@@ -89,14 +90,40 @@ class StepCoefficients(NamedTuple):
 
 
 def zoh_coefficients(p: MotorParameters, dt: float) -> StepCoefficients:
-    """Exact zero-order-hold discretisation of the armature over dt [s], in closed form."""
-    decay = math.exp(-p.R_a / p.L_a * dt)
-    settle = (1.0 - decay) / p.R_a                          # current per volt after dt
-    mean = p.L_a * (1.0 - decay) / (p.R_a * dt)             # average of exp over the step
-    average_settle = (1.0 - mean) / p.R_a
+    """Exact zero-order-hold discretisation of the armature over dt [s], in closed form.
+
+    Written with expm1 and the series of `relaxation_integrals`, so that it keeps full
+    precision down to steps far shorter than L_a/R_a (1e-16 s and below).
+    """
+    x = p.R_a / p.L_a * dt
+    rise, _ = relaxation_integrals(x)        # step-average of 1 - exp(-t R_a/L_a)
+    settle = -math.expm1(-x) / p.R_a          # current per volt after dt
+    average_settle = rise / p.R_a
     emf = p.back_emf_per_link_speed
-    return StepCoefficients(decay, settle, -emf * settle, mean, average_settle,
+    return StepCoefficients(math.exp(-x), settle, -emf * settle, 1.0 - rise, average_settle,
                             -emf * average_settle)
+
+
+@lru_cache(maxsize=8)  # one step size at a time, in practice
+def relaxation_integrals(x: float) -> tuple[float, float]:
+    """Step averages of psi = 1 - exp(-t/tau) and of psi^2 over a step of x = dt/tau.
+
+    g = 1 - (1 - e^-x)/x and q = 1 - 2 (1 - e^-x)/x + (1 - e^-2x)/(2x). Both vanish like x
+    (g ~ x/2, q ~ x^2/3) and their closed forms cancel catastrophically for small x, so
+    below x = 1 they are summed from their Taylor series, g = sum (-1)^(n+1) x^n/(n+1)! and
+    q = sum_(n>=2) (-1)^n (2^n - 2) x^n/(n+1)! (30 terms: below 1e-19 relative at x = 1).
+    """
+    if x >= 1.0:
+        mean, mean_double = -math.expm1(-x) / x, -math.expm1(-2.0 * x) / (2.0 * x)
+        return 1.0 - mean, 1.0 - 2.0 * mean + mean_double
+    g = q = 0.0
+    power, factorial = 1.0, 1.0
+    for n in range(1, 31):
+        power *= -x                    # (-x)^n
+        factorial *= n + 1             # (n+1)!
+        g -= power / factorial
+        q += power * (2.0 ** n - 2.0) / factorial
+    return g, q
 
 
 class SampledMotor:
@@ -123,15 +150,19 @@ class SampledMotor:
 
 
 def copper_energy(p: MotorParameters, dt: float, voltage: float, omega: float,
-                  i_start: float, i_end: float, i_average: float) -> float:
+                  i_start: float) -> float:
     """Armature copper loss R_a * integral of i^2 dt [J] over one zero-order-hold step of dt [s].
 
-    Exact for the exact step solution (currents [A] from `SampledMotor.step`), by the
-    armature's energy balance over the step with V [V] and omega [rad/s] held:
-    V i_avg dt = E_copper + K_e N omega i_avg dt + L_a/2 (i_end^2 - i_start^2).
+    Exact for the step's solution i(t) = i_start + (i_end_of_settling - i_start) psi(t), with
+    psi = 1 - exp(-t R_a/L_a), V [V] and omega [rad/s] held: the integral of i^2 is
+    dt (i0^2 + 2 i0 delta g + delta^2 q) with g, q the step averages of psi and psi^2
+    (`relaxation_integrals`), a sum of non-negative terms where the energy balance over the
+    step would cancel catastrophically for steps far below L_a/R_a.
     """
-    return ((voltage - p.back_emf_per_link_speed * omega) * i_average * dt
-            - 0.5 * p.L_a * (i_end ** 2 - i_start ** 2))
+    delta = (voltage - p.back_emf_per_link_speed * omega) / p.R_a - i_start
+    g, q = relaxation_integrals(p.R_a / p.L_a * dt)
+    return p.R_a * dt * max(i_start * i_start + 2.0 * i_start * delta * g + delta * delta * q,
+                            0.0)
 
 
 # The drive of a prismatic joint: the default motor (same RE 30 data, one motor type for both

@@ -1,8 +1,8 @@
 """Shared pythonfmu base class for the FMUs of this project (standard library only).
 
 `ModelSlave` is a thin FMI layer over a pure model module: the mechanisms, the DC motor
-drive and the position controller all use it (`MechanismSlave` is its name in the mechanism
-slaves).
+drive and the position controller all use it. `MechanismSlave` adds the step, event and
+state plumbing every mechanism shares, from the physics module's common functions.
 
 PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns
 (its issue #33). `ModelSlave.to_xml` adds them, in the way DNV's component-model does,
@@ -19,14 +19,25 @@ of do_step into fmi2Discard; it has no route to fmi2Error. So a bad parameter fa
 fmi2ExitInitializationMode with fmi2Fatal (the instance cannot be used, as the standard
 requires after Error as well), and a bad input or step size fails fmi2DoStep with
 fmi2Discard. In both cases an Error-status log message names the variable and its range.
+
+A refused step leaves the instance as it was before the call: `do_step` refuses a step
+whose work would exceed the integrator's bound (`fmu_src.integration.MAX_SUBSTEPS`), whose
+arithmetic fails, or whose outputs would not be finite, and restores the state. Fixed and
+calculated parameters cannot be set after initialisation (their setters raise, which
+pythonfmu reports as fmi2Fatal); a restored FMU state is validated like a fresh
+initialisation.
 """
 
 from __future__ import annotations
 
+import builtins
 import math
+import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
+from functools import cached_property
+from operator import attrgetter, itemgetter
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
@@ -34,7 +45,12 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import ScalarVariable
 
-from fmu_src.parameters import check_ranges
+from fmu_src.parameters import MAGNITUDE_LIMIT, check_ranges, magnitude_problem
+
+SMALLEST = 1.0 / MAGNITUDE_LIMIT  # the smallest non-zero magnitude of an input
+
+# ValueError texts of the math module: a failed computation, not a message of ours.
+MATH_ERRORS = ("math domain error", "math range error")
 
 # unit -> (quantity used as the declared type name, SI base-unit exponents)
 UNITS: dict[str, tuple[str, dict[str, int]]] = {
@@ -93,17 +109,28 @@ class ModelSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        # pythonfmu's runtime puts the resources folder (where it reads slavemodule.txt)
+        # first on sys.path at every instantiation, to import the slave module, and never
+        # takes it out: one entry per instance, pointing at folders hosts delete. The module
+        # is imported by now. (pythonfmu's builder removes its own entry itself.)
+        if self.resources in sys.path and os.path.exists(
+                os.path.join(self.resources, "slavemodule.txt")):
+            sys.path.remove(self.resources)
         self.author = "Gravity balancer co-simulation project"
         self.license = "MIT"
         self.info: dict[str, VariableInfo] = {}
-        # (name, lowest, highest) per Real input; +-float max stand in for a missing bound,
-        # so one chained comparison per input also rejects NaN and +-inf.
+        # (name, lowest, highest) per Real input within +-MAGNITUDE_LIMIT, so one chained
+        # comparison per input also rejects NaN, +-inf and huge values.
         self.real_input_bounds: list[tuple[str, float, float]] = []
         # per output, the inputs it depends on at communication points and in initialisation
         self.dependencies: dict[str, tuple[str, ...]] = {}
         self.initial_dependencies: dict[str, tuple[str, ...]] = {}
         self.outputs_stale = False  # an input was set since the outputs were computed
         self.params = None
+        self.start_time = 0.0
+        self.real_outputs: list[str] = []  # names of the Real outputs, checked finite per step
+        self.calculated: list[str] = []    # names of the calculated parameters
+        self.output_names: list[str] = []  # names of all outputs, restored by a refused step
         for f in fields(self.parameters_type):
             meta = f.metadata
             setattr(self, f.name, f.default)
@@ -123,10 +150,29 @@ class ModelSlave(Fmi2Slave):
     def _add(self, var: Real | Boolean, info: VariableInfo) -> None:
         self.info[var.name] = info
         self.register_variable(var)
+        if var.causality in (Fmi2Causality.parameter, Fmi2Causality.calculatedParameter):
+            var.setter = self._parameter_setter(var.name, var.causality)
+
+    def _parameter_setter(self, name: str, causality: Fmi2Causality) -> Any:
+        """Setter of a fixed or calculated parameter: refused once initialised (the model
+        would not use the new value) and always for a calculated one."""
+        def set_parameter(value: Any) -> None:
+            if causality == Fmi2Causality.calculatedParameter:
+                problem = f"{name} is a calculated parameter: it cannot be set"
+            elif self.params is not None:
+                problem = (f"{name} is a fixed parameter: it cannot be set after "
+                           "initialisation (set it before fmi2ExitInitializationMode)")
+            else:
+                setattr(self, name, value)
+                return
+            self.fail(problem)
+            raise ValueError(problem)
+        return set_parameter
 
     def add_calculated_parameter(self, name: str, unit: str, description: str) -> None:
         """A parameter derived from the others at initialisation."""
         setattr(self, name, 0.0)
+        self.calculated.append(name)
         self._add(Real(name, causality=Fmi2Causality.calculatedParameter,
                        variability=Fmi2Variability.fixed, initial=Fmi2Initial.calculated,
                        description=description), VariableInfo(unit, description))
@@ -142,8 +188,8 @@ class ModelSlave(Fmi2Slave):
             var = Real(name, causality=Fmi2Causality.input,
                        variability=Fmi2Variability.continuous, description=description)
             self.real_input_bounds.append((
-                name, -sys.float_info.max if min is None else min,
-                sys.float_info.max if max is None else max))
+                name, -MAGNITUDE_LIMIT if min is None else builtins.max(min, -MAGNITUDE_LIMIT),
+                MAGNITUDE_LIMIT if max is None else builtins.min(max, MAGNITUDE_LIMIT)))
         self._add(var, VariableInfo(unit, description, min, max))
 
     def add_output(self, name: str, unit: str | None, description: str,
@@ -169,6 +215,7 @@ class ModelSlave(Fmi2Slave):
         self.initial_dependencies[name] = tuple(
             depends_on if initial_depends_on is None else initial_depends_on)
         setattr(self, name, False if unit is None else 0.0)
+        self.output_names.append(name)
         if unit is None:
             var = Boolean(name, causality=Fmi2Causality.output,
                           variability=Fmi2Variability.discrete, initial=Fmi2Initial.calculated,
@@ -177,6 +224,7 @@ class ModelSlave(Fmi2Slave):
             var = Real(name, causality=Fmi2Causality.output,
                        variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
                        description=description)
+            self.real_outputs.append(name)
         self._add(var, VariableInfo(unit, description))
 
     @property
@@ -240,6 +288,10 @@ class ModelSlave(Fmi2Slave):
     def warn(self, message: str) -> None:
         self.log(message, Fmi2Status.warning)
 
+    def setup_experiment(self, start_time: float, stop_time: float | None,
+                         tolerance: float | None) -> None:
+        self.start_time = start_time
+
     def exit_initialization_mode(self) -> None:
         try:  # a parameters type may check its ranges when it is built
             params = self.read_parameters()
@@ -247,33 +299,105 @@ class ModelSlave(Fmi2Slave):
         except ValueError as error:
             self.fail(f"invalid parameter: {error}")
             raise
-        self.params = params
-        self.initialise(params)
+        problem = self._input_problem()  # the initial outputs use the inputs' start values
+        if problem is not None:
+            self.fail(f"initialisation failed: {problem}")
+            raise ValueError(problem)
+        try:
+            self.params = params
+            self.initialise(params)
+            problem = self._non_finite_output(self.calculated + self.real_outputs)
+        except (ArithmeticError, ValueError) as error:
+            problem = _arithmetic_problem(error)
+        if problem is not None:
+            self.params = None
+            self.fail(f"initialisation failed: {problem}")
+            raise ValueError(problem)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        if self.params is None:
+            self.fail("fmi2DoStep called before initialisation (fmi2ExitInitializationMode) "
+                      "succeeded")
+            return False
+        if not current_time >= self.start_time or current_time == math.inf:
+            self.fail(f"communication point = {current_time} s is outside "
+                      f"[{self.start_time}, inf) (start time of fmi2SetupExperiment)")
+            return False
         if not (step_size > 0.0 and math.isfinite(step_size)):
             self.fail(f"communication step size = {step_size} s is outside (0, inf)")
             return False
-        for name, lowest, highest in self.real_input_bounds:
-            value = getattr(self, name)
-            if not lowest <= value <= highest:
-                self.fail(self._input_problem(name, value))
-                return False
+        problem = self._input_problem()
+        if problem is not None:
+            self.fail(problem)
+            return False
+        # What a step changes: the outputs and the hidden state (C-level getters: cheap).
+        outputs, hidden = self._outputs_of(self.__dict__), self._hidden_of(self)
         try:
             self.step(step_size)
-        except ValueError as error:
-            self.fail(str(error))
-            return False
-        return True
+            if not math.isfinite(sum(self._outputs_of(self.__dict__))):
+                problem = self._non_finite_output()
+            else:
+                return True
+        except (ArithmeticError, ValueError) as error:
+            problem = _arithmetic_problem(error)
+        if problem is None:
+            return True
+        self.__dict__.update(zip(self.output_names, outputs))
+        self.restore_hidden_state(dict(zip(self.hidden_state, hidden)))
+        self.fail(f"step at t = {current_time} s of {step_size} s refused, state unchanged: "
+                  f"{problem}{self._describe_state()}")
+        return False
 
-    def _input_problem(self, name: str, value: float) -> str:
-        """Error message for a Real input that is not finite or outside its range."""
-        info = self.info[name]
-        if not math.isfinite(value):
-            return f"input {name} = {value} is not a finite number"
-        low = -math.inf if info.min is None else info.min
-        high = math.inf if info.max is None else info.max
-        return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
+    @cached_property
+    def _outputs_of(self) -> Callable[[dict[str, Any]], tuple]:
+        """Tuple of the output values in a namespace dict, in output_names order."""
+        return _tuple_getter(itemgetter, self.output_names)
+
+    @cached_property
+    def _hidden_of(self) -> Callable[[Any], tuple]:
+        """Tuple of the hidden-state values of an instance, in hidden_state order."""
+        return _tuple_getter(attrgetter, self.hidden_state)
+
+    def _non_finite_output(self, names: list[str] | None = None) -> str | None:
+        """A message naming the first of the Real variables names (default: the outputs)
+        that is NaN or infinite, else None."""
+        names = self.real_outputs if names is None else names
+        values = self.__dict__
+        if math.isfinite(sum(values[name] for name in names)):
+            return None
+        for name in names:
+            if not math.isfinite(values[name]):
+                kind = "output" if name in self.output_names else "calculated parameter"
+                return f"{kind} {name} would be {values[name]}, not a finite number"
+        return None  # the finite values only overflowed in their sum
+
+    def _describe_state(self) -> str:
+        """' (inputs ...; state ...)': what set the step's dynamics, for error messages."""
+        inputs = ", ".join(f"{name} = {getattr(self, name):.6g}"
+                           for name, _, _ in self.real_input_bounds)
+        state = getattr(self, "state", None)
+        if isinstance(state, tuple) and hasattr(state, "_fields"):
+            inputs += "; state " + ", ".join(f"{name} = {value:.6g}"
+                                             for name, value in zip(state._fields, state))
+        return f" (inputs {inputs})" if inputs else ""
+
+    def _input_problem(self) -> str | None:
+        """Error message naming the first Real input that is not finite, outside its range or
+        its magnitudes, else None."""
+        for name, lowest, highest in self.real_input_bounds:
+            value = getattr(self, name)
+            if lowest <= value <= highest and not 0.0 < abs(value) < SMALLEST:
+                continue
+            info = self.info[name]
+            if not math.isfinite(value):
+                return f"input {name} = {value} is not a finite number"
+            magnitude = magnitude_problem(value)
+            if magnitude:
+                return f"input {name} = {value} {info.unit} {magnitude}"
+            low = -math.inf if info.min is None else info.min
+            high = math.inf if info.max is None else info.max
+            return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
+        return None
 
     def validate(self, params: Any) -> None:
         """Raise ValueError naming the first parameter outside its range."""
@@ -292,11 +416,31 @@ class ModelSlave(Fmi2Slave):
         return state
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        """Restore a state, after checking it as a fresh initialisation would: its parameters
+        in range and every number in it finite (a ValueError names the variable)."""
         state = dict(state)
         hidden = state.pop("__hidden__")
-        super()._set_fmu_state(state)
-        self.params = self.read_parameters()
+        for name, value in state.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                raise self._state_problem(f"{name} = {value} is not a finite number")
+        for name, value in hidden.items():
+            if not all(math.isfinite(v) for v in _numbers(value)):
+                raise self._state_problem(f"hidden state {name} = {value} is not finite")
+        names = {var.name: var for var in self.vars.values()}
+        for name, value in state.items():  # direct: the parameter setters refuse after init
+            if name in names:
+                setattr(self, names[name].local_name, value)
+        try:
+            params = self.read_parameters()
+            self.validate(params)
+        except ValueError as error:
+            raise self._state_problem(f"invalid parameter: {error}") from None
+        self.params = params
         self.restore_hidden_state(hidden)
+
+    def _state_problem(self, problem: str) -> ValueError:
+        self.fail(f"FMU state refused: {problem}")
+        return ValueError(problem)
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         for name, value in hidden.items():
@@ -345,8 +489,56 @@ class ModelSlave(Fmi2Slave):
         return root
 
 
-# The mechanism slaves' name for the base.
-MechanismSlave = ModelSlave
+class MechanismSlave(ModelSlave):
+    """Base of the mechanism slaves: a thin layer over a pure physics module.
+
+    `physics` is the module. It provides Parameters, Inputs, State, validate(p),
+    initial_state(p), advance(p, u, s, dt) (one communication step with the inputs held),
+    outputs(p, u, s) (a NamedTuple named like the output variables) and, where inputs change
+    the state at a communication point (a payload caught or released, a lock engaged),
+    switch_inputs(p, before, after, s). Subclasses register the variables and map them to
+    physics.Inputs in `inputs()`.
+    """
+
+    physics: Any
+    hidden_state = ("state", "previous_inputs")
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.state = None
+        self.previous_inputs = None
+
+    def validate(self, params: Any) -> None:
+        self.physics.validate(params)
+
+    def inputs(self) -> Any:
+        raise NotImplementedError
+
+    def initialise(self, params: Any) -> None:
+        self.state = self.physics.initial_state(params)
+        self.previous_inputs = self.inputs()
+        self.set_outputs(self.physics.outputs(params, self.previous_inputs, self.state))
+
+    def step(self, dt: float) -> None:
+        u = self.inputs()
+        if u != self.previous_inputs:
+            self.switch_inputs(u)
+        self.state = self.physics.advance(self.params, u, self.state, dt)
+        self.set_outputs(self.physics.outputs(self.params, u, self.state))
+
+    def switch_inputs(self, u: Any) -> None:
+        """Book the change from previous_inputs to u at this communication point."""
+        switch = getattr(self.physics, "switch_inputs", None)
+        if switch is not None:
+            self.state = switch(self.params, self.previous_inputs, u, self.state)
+        self.previous_inputs = u
+
+    def refresh_outputs(self) -> None:
+        self.set_outputs(self.physics.outputs(self.params, self.inputs(), self.state))
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        self.state = self.physics.State(*hidden["state"])
+        self.previous_inputs = self.physics.Inputs(*hidden["previous_inputs"])
 
 
 def _indices(indices: Any) -> str:
@@ -372,6 +564,36 @@ def _type_definitions(units: list[str]) -> Element:
         simple = SubElement(node, "SimpleType", attrib={"name": quantity})
         SubElement(simple, "Real", attrib={"quantity": quantity, "unit": unit})
     return node
+
+
+def _arithmetic_problem(error: ArithmeticError | ValueError) -> str:
+    """The message of a failed step: ours as it is, the math module's and Python's
+    arithmetic errors translated into what happened."""
+    text = str(error)
+    if isinstance(error, ValueError) and text not in MATH_ERRORS:
+        return text
+    return (f"the model's arithmetic failed ({text}): the parameters, inputs or state are "
+            "beyond what double precision can represent")
+
+
+def _tuple_getter(getter: Callable[..., Callable], names: Sequence[str]) -> Callable:
+    """getter(*names) returning a tuple also for one name or none (itemgetter/attrgetter
+    return the bare value for one name)."""
+    if len(names) == 1:
+        single = getter(names[0])
+        return lambda source: (single(source),)
+    if not names:
+        return lambda source: ()
+    return getter(*names)
+
+
+def _numbers(value: Any) -> list[float]:
+    """The floats in a (nested) hidden-state value."""
+    if isinstance(value, (list, tuple)):
+        return [x for v in value for x in _numbers(v)]
+    if isinstance(value, dict):
+        return [x for v in value.values() for x in _numbers(v)]
+    return [value] if isinstance(value, float) else []
 
 
 def _to_json(value: Any) -> Any:

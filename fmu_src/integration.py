@@ -3,6 +3,11 @@
 Classical RK4 with the number of sub-steps chosen from the fastest local rate of the
 dynamics: rate * h <= STEP_RATE_PRODUCT keeps RK4 far inside its stability region
 (|lambda h| < 2.8) and its local error below ~1e-9 of the motion per sub-step.
+
+The work per communication step is bounded: a step whose dynamics would need more than
+MAX_SUBSTEPS sub-steps (a very stiff spring, a tiny inertia, a huge speed, or simply a very
+long step) raises `SubstepBoundError` before any work is done, so the caller can refuse the step
+and keep its state.
 """
 
 from __future__ import annotations
@@ -14,6 +19,14 @@ from typing import TypeVar
 S = TypeVar("S", bound=tuple)
 
 STEP_RATE_PRODUCT = 0.05
+# At most this many RK4 sub-steps per communication step: about 0.2 s of work for the
+# costliest model (a free slider), and 10 s steps of the default mechanisms (rates near
+# 10 1/s need 2,000).
+MAX_SUBSTEPS = 20_000
+
+
+class SubstepBoundError(ValueError):
+    """The dynamics need more sub-steps over the communication step than MAX_SUBSTEPS."""
 
 
 def rk4(f: Callable[[S], S], s: S, h: float) -> S:
@@ -52,8 +65,17 @@ def rk4_second_order(acceleration: Callable[[float, float], float], x: float, v:
 
 
 def substeps(dt: float, rate: float) -> int:
-    """Number of RK4 sub-steps for a step dt [s] of dynamics whose fastest rate is rate [1/s]."""
-    return max(1, math.ceil(dt * rate / STEP_RATE_PRODUCT))
+    """Number of RK4 sub-steps for a step dt [s] of dynamics whose fastest rate is rate [1/s].
+
+    Raises SubstepBoundError when that exceeds MAX_SUBSTEPS (or the rate is not a number).
+    """
+    needed = dt * rate / STEP_RATE_PRODUCT
+    if not needed <= MAX_SUBSTEPS:  # also NaN and inf
+        raise SubstepBoundError(
+            f"the dynamics' fastest rate {rate:.4g} 1/s needs {needed:.4g} RK4 sub-steps over "
+            f"the step of {dt:.4g} s, more than the bound of {MAX_SUBSTEPS}: take shorter "
+            "communication steps, or check the stiffness, damping, inertia and speed")
+    return max(1, math.ceil(needed))
 
 
 def integrate(f: Callable[[S], S], s: S, dt: float, rate: float,

@@ -11,6 +11,22 @@ import math
 from dataclasses import field, fields
 from typing import Any
 
+# No parameter or input of these models may exceed this magnitude, nor be non-zero and below
+# its inverse (SI units): products and quotients of a few of them (k a b, J omega^2,
+# k r / (g R)) must stay inside double precision, and no physical quantity of a bench-top
+# mechanism comes near either bound.
+MAGNITUDE_LIMIT = 1e50
+
+
+def magnitude_problem(value: float) -> str | None:
+    """Why a finite value is outside the magnitudes these models accept, or None."""
+    if abs(value) > MAGNITUDE_LIMIT:
+        return f"is beyond the magnitude limit {MAGNITUDE_LIMIT:g} of these models"
+    if 0.0 < abs(value) < 1.0 / MAGNITUDE_LIMIT:
+        return (f"is non-zero and below the smallest magnitude {1.0 / MAGNITUDE_LIMIT:g} of "
+                "these models")
+    return None
+
 
 def parameter(default: float | bool, unit: str | None, description: str, *,
               min: float | None = None, max: float | None = None,
@@ -24,6 +40,7 @@ def check_ranges(data: Any) -> None:
     """Raise ValueError naming the first numeric field that is NaN or outside its bounds.
 
     Messages start with the field name (the command line relies on it to name its option).
+    Magnitudes beyond MAGNITUDE_LIMIT, or non-zero below its inverse, are refused too.
     """
     for f in fields(data):
         value = getattr(data, f.name)
@@ -38,3 +55,6 @@ def check_ranges(data: Any) -> None:
         if (lo is not None and (value <= lo if open_lo else value < lo)) or (
                 hi is not None and value > hi):
             raise ValueError(f"{f.name} = {value} {unit} is outside {allowed}")
+        problem = magnitude_problem(value)
+        if problem:
+            raise ValueError(f"{f.name} = {value} {unit} {problem} (allowed {allowed})")

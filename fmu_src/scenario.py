@@ -43,6 +43,7 @@ start, for hosts that add up their time (STEP_TIME_TOLERANCE).
 from __future__ import annotations
 
 import math
+import re
 from bisect import bisect_right
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -66,6 +67,40 @@ PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs")
 # after 3.5 million steps of 10 us), so a time less than 1e-3 of a step before a phase start
 # counts as that start: the phase switches at the same step as at the exact time i h.
 STEP_TIME_TOLERANCE = 1e-3
+
+
+# scenario and variant names become file and folder names: no path separators, no "..",
+# not empty, not hidden
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_+-]*(\.[A-Za-z0-9_+-]+)*")
+
+
+def check_name(name: Any, what: str) -> str:
+    """name if it is a usable file name (NAME_PATTERN), else ValueError naming `what`."""
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise ValueError(f"{what} = {name!r} must be letters, digits, '_', '-', '+' and inner "
+                         "dots, starting with a letter or digit (it names result files)")
+    return name
+
+
+def table(value: Any, what: str) -> dict[str, Any]:
+    """value if it is a table (dict), else ValueError naming `what`."""
+    if not isinstance(value, dict):
+        raise ValueError(f"{what} = {value!r} must be a table")
+    return value
+
+
+def table_list(value: Any, what: str) -> list[dict[str, Any]]:
+    """value if it is a non-empty list of tables ([[what]]), else ValueError naming it."""
+    if not isinstance(value, list) or not value or not all(isinstance(v, dict) for v in value):
+        raise ValueError(f"{what} = {value!r} must be a list of [[{what}]] tables")
+    return value
+
+
+def finite_number(value: Any, what: str, allowed: str = "a finite number") -> float:
+    """value as a float if it is a finite number (not a boolean), else ValueError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{what} = {value!r} is not {allowed}")
+    return float(value)
 
 
 def quintic(s: Any) -> Any:
@@ -130,7 +165,7 @@ class Phase:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "target", _positions(self.target))
-        if not self.duration > 0.0:
+        if not 0.0 < self.duration < math.inf:
             raise ValueError(f"phase {self.name}: duration = {self.duration} s is outside "
                              "(0, inf)")
 
@@ -220,6 +255,19 @@ class Scenario:
                                  f"{len(names)} joint(s) {', '.join(names)}")
         if not self.phases:
             raise ValueError(f"scenario {self.name} has no phases")
+        phase_names = [p.name for p in self.phases]
+        repeated = sorted({n for n in phase_names if phase_names.count(n) > 1})
+        if repeated:
+            raise ValueError(f"scenario {self.name}: phase names repeat: {', '.join(repeated)} "
+                             "(each phase needs its own name)")
+        if not self.variants:
+            raise ValueError(f"scenario {self.name} has no variants: [variants] needs at least "
+                             "one table")
+        for name, t0, t1 in self.phase_times():  # a duration lost in rounding, or a sum
+            if not t0 < t1 < math.inf:             # of durations overflowing
+                raise ValueError(f"scenario {self.name}: phase {name} spans [{t0}, {t1}] s: "
+                                 "its duration must be positive against its start time, and "
+                                 "the scenario's duration finite")
 
     @property
     def duration(self) -> float:
@@ -353,21 +401,26 @@ def _input_change(name: str, value: Any) -> Any:
         if "ramp" not in value or set(value) - {"ramp", "shape"} or shape not in RAMP_SHAPES:
             raise ValueError(f"input {name} must be a value or {{ ramp = value, "
                              f"shape = one of {', '.join(RAMP_SHAPES)} }}")
-        return Ramp(float(value["ramp"]), shape)
-    if not isinstance(value, (bool, int, float)) or not math.isfinite(value):
-        raise ValueError(f"input {name} = {value!r} is not a finite number or boolean")
-    return value if isinstance(value, bool) else float(value)
+        return Ramp(finite_number(value["ramp"], f"input {name} ramp"), shape)
+    if isinstance(value, bool):
+        return value
+    return finite_number(value, f"input {name}", "a finite number or boolean")
 
 
-def _input_changes(raw: dict[str, Any], where: str) -> dict[str, Any]:
+def _input_changes(raw: Any, where: str) -> dict[str, Any]:
     try:
-        return {name: _input_change(name, value) for name, value in raw.items()}
+        return {name: _input_change(name, value)
+                for name, value in table(raw, "inputs").items()}
     except ValueError as error:
         raise ValueError(f"{where}: {error}") from None
 
 
-def _parameter_values(raw: dict[str, Any]) -> dict[str, float | bool]:
-    return {k: v if isinstance(v, bool) else float(v) for k, v in raw.items()}
+def _parameter_values(raw: Any, where: str) -> dict[str, float | bool]:
+    if not isinstance(raw, dict):
+        raise ValueError(f"{where} = {raw!r} must be a table of name = number or boolean")
+    return {k: v if isinstance(v, bool) else finite_number(v, f"{where} {k}", "a finite "
+                                                           "number or boolean")
+            for k, v in raw.items()}
 
 
 def _unknown_keys(raw: dict[str, Any], allowed: tuple[str, ...], where: str) -> None:
@@ -409,8 +462,8 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
     if "joints" not in data:
         if "initial_angle_deg" not in data:
             raise ValueError("initial_angle_deg is missing (or declare [joints.<name>] tables)")
-        initial = math.radians(float(data["initial_angle_deg"]))
-        names = data.get("joint", {})
+        initial = math.radians(finite_number(data["initial_angle_deg"], "initial_angle_deg"))
+        names = table(data.get("joint", {}), "joint")
         default = {k: v for k, v in DEFAULT_JOINT.items()
                    if not (k == "static_load" and "static_effort" in names)}
         raw = {**default, **names, "initial": initial}
@@ -418,7 +471,8 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
     if "joint" in data or "initial_angle_deg" in data:
         raise ValueError("with [joints.<name>] tables give each joint's names and `initial` "
                          "there, not [joint] or initial_angle_deg")
-    joints = tuple(_joint(name, raw) for name, raw in data["joints"].items())
+    joints = tuple(_joint(name, table(raw, f"joints.{name}"))
+                   for name, raw in table(data["joints"], "joints").items())
     return joints, _initial_positions(joints, data["joints"])
 
 
@@ -431,8 +485,8 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
             raise ValueError("target_deg is for a scenario with one revolute joint; give "
                              f"targets = {{ {', '.join(f'{n} = ...' for n in names)} }} in rad "
                              "(revolute) or m (prismatic)")
-        return (math.radians(float(raw["target_deg"])),)
-    targets = raw.get("targets", {})
+        return (math.radians(finite_number(raw["target_deg"], "target_deg")),)
+    targets = table(raw.get("targets", {}), "targets")
     unknown = sorted(set(targets) - set(names))
     if unknown:
         raise ValueError(f"targets name no joint {', '.join(unknown)} "
@@ -447,7 +501,7 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
 def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[float, ...]
             ) -> tuple[Phase, ...]:
     phases, target = [], initial
-    for i, raw in enumerate(data["phases"]):
+    for i, raw in enumerate(table_list(data["phases"], "phases")):
         name = str(raw.get("name", i + 1))
         where = f"phase {name}"
         _unknown_keys(raw, PHASE_KEYS, where)
@@ -457,7 +511,9 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
             target = _targets(raw, joints, target)
         except ValueError as error:
             raise ValueError(f"{where}: {error}") from None
-        phases.append(Phase(name, float(raw["duration"]), target,
+        duration = finite_number(raw["duration"], f"{where}: duration", "a number of seconds "
+                                 "in (0, inf)")
+        phases.append(Phase(name, duration, target,
                             _input_changes(raw.get("inputs", {}), where)))
     return tuple(phases)
 
@@ -466,13 +522,14 @@ def _variant_joints(name: str, raw: dict[str, Any], scenario_joints: tuple[Joint
                     phase_names: set[str]
                     ) -> tuple[tuple[Joint, ...], tuple[float, ...], dict[str, dict[str, float]]]:
     """A variant's own joints, their initial positions and their targets by phase."""
-    tables = raw.get("joints", {})
-    joints = tuple(_joint(joint, table) for joint, table in tables.items())
+    tables = table(raw.get("joints", {}), f"variant {name} joints")
+    joints = tuple(_joint(joint, table(raw_joint, f"variant {name} joints.{joint}"))
+                   for joint, raw_joint in tables.items())
     taken = sorted({j.name for j in joints} & {j.name for j in scenario_joints})
     if taken:
         raise ValueError(f"variant {name} joints {', '.join(taken)}: the scenario has "
                          "joints of these names")
-    targets = raw.get("phase_targets", {})
+    targets = table(raw.get("phase_targets", {}), f"variant {name} phase_targets")
     unknown = sorted(set(targets) - phase_names)
     if unknown:
         raise ValueError(f"variant {name} phase_targets names no phase {', '.join(unknown)}")
@@ -491,16 +548,26 @@ def _variant_joints(name: str, raw: dict[str, Any], scenario_joints: tuple[Joint
 def _variants(data: dict[str, Any], phase_names: set[str], joints: tuple[Joint, ...]
               ) -> dict[str, Variant]:
     variants = {}
-    for name, raw in data["variants"].items():
-        phase_inputs = raw.get("phase_inputs", {})
+    for name, raw in table(data["variants"], "variants").items():
+        check_name(name, "variant name")
+        raw = table(raw, f"variant {name}")
+        phase_inputs = table(raw.get("phase_inputs", {}), f"variant {name} phase_inputs")
+        drop = raw.get("drop_inputs", [])
+        if not isinstance(drop, list) or not all(isinstance(n, str) for n in drop):
+            raise ValueError(f"variant {name} drop_inputs = {drop!r} must be a list of input "
+                             "names")
+        for key in ("description", "model", "baseline"):
+            if not isinstance(raw.get(key, ""), str):
+                raise ValueError(f"variant {name} {key} = {raw[key]!r} must be a string")
         unknown = set(phase_inputs) - phase_names
         if unknown:
             raise ValueError(f"variant {name} phase_inputs names no phase "
                              f"{', '.join(sorted(unknown))}")
         variants[name] = Variant(
             name, raw.get("description", ""), raw.get("model"),
-            _parameter_values(raw.get("parameters", {})),
-            dict(raw.get("inputs", {})), tuple(raw.get("drop_inputs", ())),
+            _parameter_values(raw.get("parameters", {}), f"variant {name} parameters"),
+            _parameter_values(raw.get("inputs", {}), f"variant {name} inputs"),
+            tuple(drop),
             {phase: _input_changes(changes, f"variant {name} phase {phase}")
              for phase, changes in phase_inputs.items()},
             raw.get("baseline"), *_variant_joints(name, raw, joints, phase_names))
@@ -511,14 +578,18 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
           ) -> Scenario:
     """A scenario from the data of its TOML file (where: the file's name, for messages)."""
     try:
+        for key in ("name", "description", "model", "baseline"):
+            if not isinstance(data.get(key, ""), str):
+                raise ValueError(f"{key} = {data[key]!r} must be a string")
         joints, initial = _joints(data)
         phases = _phases(data, joints, initial)
         variants = _variants(data, {phase.name for phase in phases}, joints)
         scenario = scenario_type(
-            name=data["name"], description=data.get("description", ""), model=data["model"],
-            parameters=_parameter_values(data.get("parameters", {})), initial_angle=initial,
-            phases=phases, variants=variants,
-            baseline=data.get("baseline", next(iter(variants))), joints=joints)
+            name=check_name(data["name"], "name"), description=data.get("description", ""),
+            model=data["model"],
+            parameters=_parameter_values(data.get("parameters", {}), "parameters"),
+            initial_angle=initial, phases=phases, variants=variants,
+            baseline=data.get("baseline", next(iter(variants), "")), joints=joints)
         unknown = sorted(set(scenario.baselines.values()) - set(variants))
         if unknown:
             raise ValueError(f"baseline {', '.join(unknown)} names no variant; choose from "
@@ -528,3 +599,6 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
         raise ValueError(f"{where}: {error}") from None
     except KeyError as error:
         raise ValueError(f"{where}: {error.args[0]} is missing") from None
+    except (TypeError, AttributeError) as error:  # a list or value where a table belongs
+        raise ValueError(f"{where}: a value has the wrong type ({error}); see the scenario "
+                         "file format") from None

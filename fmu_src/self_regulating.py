@@ -59,7 +59,7 @@ class Parameters:
     m: float = parameter(3.0, "kg", "Link mass", min=0.0)
     c: float = parameter(0.2, "m", "Distance from pivot O to the link centre of mass C", min=0.0)
     J_link: float = parameter(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, L = 0.4 m)",
-                              min=0.0)
+                              min=0.0, min_exclusive=True)
     a: float = parameter(0.1, "m", "Distance from O to the frame spring anchor A", min=0.0,
                          min_exclusive=True)
     b0: float = parameter(0.06, "m", "Initial slider position along the link (O to B)", min=0.0)
@@ -84,7 +84,8 @@ class Parameters:
                                 min=0.0)
     d_pulley: float = parameter(0.0, "N.m.s/rad", "Viscous friction of the pulley's bearing",
                                 min=0.0)
-    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
+    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0,
+                         min_exclusive=True)
     theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
     omega0: float = parameter(0.0, "rad/s", "Initial link angular velocity")
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link (J_rotor N^2)",

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from scipy.optimize import brentq
 
 from fmu_src import active_spring
+from harness.errors import UserError
 
 # option -> (field of active_spring.Parameters, sign from the paper's frame to the project's,
 # help); the defaults are the model's
@@ -100,7 +101,7 @@ def _brackets(f: Callable[[float], float], start: float, scale: float,
 
 def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
     """The Y_B nearest to p.Y_B0 that balances payload [kg] at theta [rad] (project
-    conventions); ValueError if none within SEARCH_RANGE times the geometry's scale."""
+    conventions); UserError if none within SEARCH_RANGE times the geometry's scale."""
     name, f = balance_equation(p, payload, theta)
     scale = _scale(p)
     tolerance = ROOT_TOLERANCE * (active_spring.gravity_moment(p, payload) + p.k * p.x1A * scale)
@@ -113,7 +114,7 @@ def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
             roots.append(root)
             found_at = number
     if not roots:
-        raise ValueError(
+        raise UserError(
             f"no Y_B balances the link: eq. {name} keeps one sign within "
             f"{SEARCH_RANGE * scale:g} m of --YB {p.Y_B0:g} for --phi "
             f"{math.degrees(math.pi / 2 - theta):g} deg, --mp + --dmp = {payload:g} kg at --w "
@@ -142,7 +143,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parameters(args: argparse.Namespace) -> active_spring.Parameters:
-    """The model parameters from the options; ValueError naming the option when invalid."""
+    """The model parameters from the options; UserError naming the option when invalid."""
     values = {field: sign * getattr(args, option)
               for option, (field, sign, _) in GEOMETRY_OPTIONS.items()}
     option_of = {field: option for option, (field, _, _) in GEOMETRY_OPTIONS.items()}
@@ -151,14 +152,14 @@ def parameters(args: argparse.Namespace) -> active_spring.Parameters:
         active_spring.validate(p)
     except ValueError as error:  # messages start with the field's name
         field = str(error).split(" ", 1)[0]
-        raise ValueError(f"option --{option_of.get(field, field)}: {error}") from None
+        raise UserError(f"option --{option_of.get(field, field)}: {error}") from None
     for option in ("mp", "dmp", "phi"):
         if not math.isfinite(getattr(args, option)):
-            raise ValueError(f"option --{option} = {getattr(args, option)} is not a finite number")
+            raise UserError(f"option --{option} = {getattr(args, option)} is not a finite number")
     if not args.mp >= 0.0:
-        raise ValueError(f"option --mp = {args.mp} kg is outside [0, inf)")
+        raise UserError(f"option --mp = {args.mp} kg is outside [0, inf)")
     if not args.mp + args.dmp >= 0.0:
-        raise ValueError(f"option --dmp = {args.dmp} kg is outside [-mp, inf) = [{-args.mp}, inf)")
+        raise UserError(f"option --dmp = {args.dmp} kg is outside [-mp, inf) = [{-args.mp}, inf)")
     return p
 
 

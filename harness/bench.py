@@ -41,6 +41,7 @@ import pandas as pd
 from fmpy import read_model_description
 
 from harness import fmu_build, master, reference, scenarios
+from harness.errors import UserError
 from harness.fmi import CoSimFMU
 from harness.results import RESULTS_DIR, write_csv
 from harness.sweep import sweep_benchmark
@@ -246,11 +247,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.steps < 1 or args.repeats < 1:
-        raise ValueError("--step-count and --repeats must be at least 1")
+        raise UserError("--step-count and --repeats must be at least 1")
     names = list(BENCHMARKS) if args.only == "all" else [n.strip() for n in args.only.split(",")]
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
-        raise ValueError(f"--only: unknown benchmark(s) {unknown}; choose from {list(BENCHMARKS)}")
+        raise UserError(f"--only: unknown benchmark(s) {unknown}; choose from {list(BENCHMARKS)}")
     for name in names:
         table = BENCHMARKS[name](steps=args.steps, repeats=args.repeats)
         print(write_csv(table, args.out / f"{name}.csv"))

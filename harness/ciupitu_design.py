@@ -38,6 +38,7 @@ from scipy.optimize import minimize, minimize_scalar
 from fmu_src import ciupitu
 from harness import reference, scenarios
 from harness.drive import MotorParameters
+from harness.errors import UserError
 
 SCENARIO = "franchetti2021"
 VARIANT = "ciupitu"
@@ -66,7 +67,7 @@ class TaskEnergy:
     def __init__(self, scenario: scenarios.Scenario, variant: scenarios.Variant,
                  motor: MotorParameters = MotorParameters(), sample: float = SAMPLE) -> None:
         if (variant.model or scenario.model) != MODEL:
-            raise ValueError(f"variant {variant.name} of {scenario.name} is not a {MODEL}")
+            raise UserError(f"variant {variant.name} of {scenario.name} is not a {MODEL}")
         self.params = reference.parameters(ciupitu, scenario, variant, motor)
         self.motor = motor
         self.sample = sample

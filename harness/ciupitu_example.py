@@ -13,11 +13,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from dataclasses import fields
 
 from fmu_src import ciupitu
 from fmu_src import rocking_counterweight as rocking
 from harness import rocking_design
+from harness.errors import UserError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,12 +43,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         ciupitu.validate_example(data)
     except ValueError as error:  # messages start with the datum's name, i.e. the option's
-        raise ValueError(f"option --{error}") from None
+        raise UserError(f"option --{error}") from None
     strokes = {law: ciupitu.stroke(data, law) for law in ciupitu.PAYLOAD_LAWS}
     strokes |= {f"{law}_rocking": rocking.stroke(data, rocking_design.stored_linkage(law), law)
                 for law in ciupitu.PAYLOAD_LAWS}
     if args.json:
-        print(json.dumps(results(strokes)))
+        values = results(strokes)
+        undefined = [key for key, value in values.items() if not math.isfinite(value)]
+        if undefined:  # e.g. eps with no unbalanced work (E_u = 0): JSON has no NaN or inf
+            print(f"note: {', '.join(undefined)} undefined for these data: written as null",
+                  file=sys.stderr)
+        print(json.dumps({key: value if key not in undefined else None
+                          for key, value in values.items()}, allow_nan=False))
         return 0
     print("Ciupitu 2018, Figure 4a (and 4b: *_rocking): one stroke, phi = +pi/2 -> -pi/2")
     print(f"G_pv,max = {data.Gmax:g} N at OP = {data.OP:g} m, G2 = {data.G2:g} N, "

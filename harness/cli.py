@@ -15,6 +15,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
+from harness.errors import UserError
+
 
 class Command(NamedTuple):
     module: str
@@ -100,6 +102,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser(command).parse_args(argv)
     try:
         return args.run(args)
-    except ValueError as error:  # bad input data: one clear line, non-zero exit
+    except UserError as error:  # bad input: one clear line, non-zero exit; else a traceback
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130

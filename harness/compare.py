@@ -1,5 +1,9 @@
 """`python -m harness compare REFERENCE.csv RESULT.csv`: signal-by-signal comparison.
 
+The result must cover the reference's time range (to within half a sample of each end),
+share at least one signal with it and hold no NaN in the compared signals; otherwise the
+comparison is refused with a message saying what is missing.
+
 Two checks per signal, both on the result interpolated to the reference's time points:
 - tolerance: |result - reference| <= atol + rtol * max |reference| at every point;
 - band: the FMI cross-check band of `fmpy.util.validate_signal` (a band around the
@@ -16,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from fmpy.util import validate_signal
+
+from harness.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -38,16 +44,16 @@ def read_result(path: Path) -> pd.DataFrame:
     try:
         frame = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as error:
-        raise ValueError(f"{path}: cannot read as CSV ({error})") from None
+        raise UserError(f"{path}: cannot read as CSV ({error})") from None
     if frame.columns.empty or frame.columns[0] != "time":
-        raise ValueError(f"{path}: the first column must be 'time'")
+        raise UserError(f"{path}: the first column must be 'time'")
     if len(frame) < 2:
-        raise ValueError(f"{path}: needs at least two rows")
+        raise UserError(f"{path}: needs at least two rows")
     bad = [c for c in frame.columns if not pd.api.types.is_numeric_dtype(frame[c])]
     if bad:
-        raise ValueError(f"{path}: non-numeric column(s) {', '.join(bad)}")
+        raise UserError(f"{path}: non-numeric column(s) {', '.join(bad)}")
     if not np.all(np.diff(frame.time.to_numpy()) > 0):
-        raise ValueError(f"{path}: time is not strictly increasing")
+        raise UserError(f"{path}: time is not strictly increasing")
     return frame
 
 
@@ -55,15 +61,23 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
             rtol: float = 1e-3, atol: float = 1e-9) -> list[SignalComparison]:
     """Compare the named signals (default: every signal the two tables share)."""
     if not (rtol >= 0 and atol >= 0):
-        raise ValueError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
+        raise UserError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
     shared = [c for c in reference.columns[1:] if c in result.columns]
+    if not shared:
+        raise UserError(f"no signal in common: the reference has {', '.join(reference.columns[1:])}"
+                        f"; the result has {', '.join(result.columns[1:])}")
     if signals is None:
         signals = shared
     unknown = [s for s in signals if s not in shared]
     if unknown:
-        raise ValueError(f"unknown signal(s) {', '.join(unknown)}; shared signals: "
-                         f"{', '.join(shared)}")
+        raise UserError(f"unknown signal(s) {', '.join(unknown)}; shared signals: "
+                        f"{', '.join(shared)}")
     t_ref, t_res = reference.time.to_numpy(float), result.time.to_numpy(float)
+    _check_coverage(t_ref, t_res)
+    for name, table in (("reference", reference), ("result", result)):
+        holes = [s for s in signals if table[s].isna().any()]
+        if holes:
+            raise UserError(f"the {name} has NaN in signal(s) {', '.join(holes)}")
     inside = (t_ref >= t_res[0]) & (t_ref <= t_res[-1])
     out = []
     for name in signals:
@@ -76,6 +90,15 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
         out.append(SignalComparison(name, float(np.max(error, initial=0.0)), allowed,
                                     int(np.sum(error > allowed)), int(np.sum(band_out))))
     return out
+
+
+def _check_coverage(t_ref: np.ndarray, t_res: np.ndarray) -> None:
+    """UserError unless the result spans the reference's time range, to within half of the
+    reference's sample interval at each end (its own sampling may differ)."""
+    slack = 0.5 * float(np.min(np.diff(t_ref)))
+    if t_res[0] > t_ref[0] + slack or t_res[-1] < t_ref[-1] - slack:
+        raise UserError(f"the result covers time [{t_res[0]:g}, {t_res[-1]:g}] s, not the "
+                        f"reference's [{t_ref[0]:g}, {t_ref[-1]:g}] s")
 
 
 def report(comparisons: list[SignalComparison]) -> str:

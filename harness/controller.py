@@ -37,6 +37,7 @@ import numpy as np
 
 from fmu_src.pid import DiscretePID, PIDCoefficients, PIDGains
 from harness.drive import MotorParameters, motor_system
+from harness.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -66,8 +67,8 @@ def design_pid(motor: MotorParameters, inertia: float, d_link: float,
     own damping alpha exceeds 3 omega_c, Kd = 0 and the third pole goes to -(alpha - 2 omega_c).
     """
     if not (inertia > 0.0 and d_link >= 0.0):
-        raise ValueError(f"joint inertia = {inertia} must be in (0, inf) and friction = "
-                         f"{d_link} in [0, inf)")
+        raise UserError(f"joint inertia = {inertia} must be in (0, inf) and friction = "
+                        f"{d_link} in [0, inf)")
     alpha, beta = reduced_plant(motor, inertia, d_link)
     w = design.omega_c
     T_f = 1.0 / (design.derivative_filter_ratio * w)

@@ -21,6 +21,7 @@ from fmu_src.dc_motor import (
     StepCoefficients,
     armature_matrices,
 )
+from harness.errors import UserError
 
 __all__ = ["MOTORS", "MotorParameters", "SampledMotor", "motor_system", "motors",
            "sampled_motor"]
@@ -40,7 +41,7 @@ def motors(motor: MotorParameters | Mapping[str, MotorParameters] | None = None
         return MOTORS | {"geared": motor}
     unknown = sorted(set(motor) - set(MOTORS))
     if unknown:
-        raise ValueError(f"unknown motor(s) {', '.join(unknown)}; known: {', '.join(MOTORS)}")
+        raise UserError(f"unknown motor(s) {', '.join(unknown)}; known: {', '.join(MOTORS)}")
     return MOTORS | dict(motor)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+import zipfile
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +24,9 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
-__all__ = ["CoSimFMU", "FMICallException", "LogMessage"]
+from harness.errors import UserError
+
+__all__ = ["CoSimFMU", "FMICallException", "FMUCallError", "LogMessage"]
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 FATAL = STATUS_NAMES.index("Fatal")
@@ -38,14 +41,33 @@ class LogMessage:
     message: str
 
 
+class FMUCallError(FMICallException, UserError):
+    """An FMI call the FMU refused, with the messages it logged: the FMU's own words (which
+    name the variable) reach the user instead of only a status code."""
+
+    def __init__(self, failure: FMICallException, model: str, messages: list[LogMessage]):
+        super().__init__(failure.function, failure.status)
+        # the model's Error messages; pythonfmu's own 'Fatal py exception' notes add nothing
+        ours = [m.message for m in messages if m.status == "Error"] or [
+            m.message for m in messages]
+        self.messages = ours
+        status = dict(enumerate(STATUS_NAMES)).get(failure.status, failure.status)
+        self.args = (f"{model}: {failure.function} failed with status {status}"
+                     + (f": {' | '.join(ours)}" if ours else ""),)
+
+
 class CoSimFMU:
     """One instance of a Co-Simulation FMU, addressed by variable names."""
 
     def __init__(self, path: str | Path, instance_name: str = "instance") -> None:
         self.path = Path(path)
-        self.model_description = read_model_description(str(self.path))
+        try:
+            self.model_description = read_model_description(str(self.path))
+            self._unzip_dir = extract(str(self.path))
+        except (zipfile.BadZipFile, OSError) as error:  # truncated or missing FMU
+            raise UserError(f"{self.path}: not a readable FMU ({error}); rebuild it "
+                            "(python -m harness build-fmus)") from None
         self.variables = {v.name: v for v in self.model_description.modelVariables}
-        self._unzip_dir = extract(str(self.path))
         self.messages: list[LogMessage] = []
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
@@ -71,6 +93,10 @@ class CoSimFMU:
 
     def set(self, values: Mapping[str, float | bool | str]) -> None:
         """Set Real, Boolean and String variables by name."""
+        with self._watch_fatal():
+            self._set(values)
+
+    def _set(self, values: Mapping[str, float | bool | str]) -> None:
         reals = {n: v for n, v in values.items() if self.variables[n].type == "Real"}
         bools = {n: v for n, v in values.items() if self.variables[n].type == "Boolean"}
         strings = {n: v for n, v in values.items() if self.variables[n].type == "String"}
@@ -110,7 +136,7 @@ class CoSimFMU:
             self.slave.setupExperiment(startTime=start_time, stopTime=stop_time)
             self.slave.enterInitializationMode()
             if parameters:
-                self.set(parameters)
+                self._set(parameters)
             self.slave.exitInitializationMode()
 
     def step(self, time: float, step_size: float) -> None:
@@ -119,11 +145,14 @@ class CoSimFMU:
 
     @contextlib.contextmanager
     def _watch_fatal(self) -> Iterator[None]:
+        """Note a Fatal status, and raise a refused call as FMUCallError with its messages."""
+        logged = len(self.messages)
         try:
             yield
         except FMICallException as error:
             self.fatal = self.fatal or error.status == FATAL
-            raise
+            raise FMUCallError(error, self.model_description.modelName,
+                               self.messages[logged:]) from None
 
     def reset(self) -> None:
         self.slave.reset()

@@ -45,6 +45,7 @@ import fmpy
 from pythonfmu.builder import FmuBuilder
 
 from harness import fmu_docs, osp, scenarios
+from harness.errors import UserError
 
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
@@ -93,7 +94,7 @@ def sequencer_module(scenario: str | Path) -> str:
     try:
         input_units(scenarios.load(scenario))
     except ValueError as error:
-        raise ValueError(f"{scenarios.scenario_file(scenario).name}: {error}") from None
+        raise UserError(f"{scenarios.scenario_file(scenario).name}: {error}") from None
     return source
 
 
@@ -156,7 +157,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     FMU plays instead of the committed default.
     """
     if sequencer_scenario is not None and model != SEQUENCER:
-        raise ValueError(f"a sequencer scenario is for the {SEQUENCER}, not {model}")
+        raise UserError(f"a sequencer scenario is for the {SEQUENCER}, not {model}")
     embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
     dest.mkdir(parents=True, exist_ok=True)
     script = source_dir / f"{model}.py"

@@ -17,16 +17,20 @@ an initial condition, not a feedforward: during the task each drive gets only it
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
+import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from fmpy import read_model_description
 
 from harness import fmu_build, metrics
 from harness.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
 from harness.drive import MotorParameters, motors, sampled_motor
+from harness.errors import UserError
 from harness.fmi import CoSimFMU
 from harness.scenarios import Joint, Scenario, Variant
 
@@ -75,7 +79,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     instance is made and freed.
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
-        raise ValueError(f"step size = {step_size} s is outside (0, inf)")
+        raise UserError(f"step size = {step_size} s is outside (0, inf)")
     scenario = scenario.for_variant(variant)
     joints = scenario.joints
     drive_motors = [motors(motor)[joint.motor] for joint in joints]
@@ -87,17 +91,17 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     inputs = scenario.inputs(times, variant)
     record_every = max(1, round(RECORD_INTERVAL / step_size))
 
+    check_names(scenario, variant, parameters)
     if fmu is None:
         context = CoSimFMU(fmu_build.fmu_path(model), f"{scenario.name}.{variant.name}")
     else:
         if fmu.model_description.modelName != model:
-            raise ValueError(f"variant {variant.name} needs model {model}, "
-                             f"not {fmu.model_description.modelName}")
+            raise UserError(f"variant {variant.name} needs model {model}, "
+                            f"not {fmu.model_description.modelName}")
         fmu.reset()
         context = contextlib.nullcontext(fmu)
     with context as fmu:
         first_message = len(fmu.messages)
-        _check_names(fmu, model, variant, inputs, joints)
         fmu.set({name: signal[0] for name, signal in inputs.items()})
         fmu.initialize(parameters, stop_time=scenario.duration)
 
@@ -216,20 +220,44 @@ def joint_drive(fmu: CoSimFMU, joint: Joint, drive_motor: MotorParameters,
     return gains, joint.hold_effort(values[joint.static_output]) / drive_motor.torque_per_amp
 
 
-def _check_names(fmu: CoSimFMU, model: str, variant: Variant, inputs: dict[str, np.ndarray],
-                 joints: tuple[Joint, ...]) -> None:
-    """ValueError naming scenario inputs and joint variables the model does not have."""
-    unknown = [n for n in inputs if n not in fmu.variables]
+@functools.cache
+def model_variables(model: str) -> dict[str, str]:
+    """{variable name: causality} of one of our models; UserError for an unknown model."""
+    if model not in fmu_build.MODELS:
+        raise UserError(f"unknown model {model!r}; choose from {', '.join(fmu_build.MODELS)}")
+    path = fmu_build.fmu_path(model)
+    try:
+        description = read_model_description(str(path))
+    except (zipfile.BadZipFile, OSError) as error:  # e.g. a truncated build
+        raise UserError(f"{path}: not a readable FMU ({error}); rebuild it "
+                        "(python -m harness build-fmus)") from None
+    return {v.name: v.causality for v in description.modelVariables}
+
+
+def check_names(scenario: Scenario, variant: Variant,
+                parameters: Mapping[str, float | bool]) -> None:
+    """UserError naming a model, parameter, input or joint variable the run's model does not
+    have: found before anything runs (a sweep checks its first point before the others)."""
+    model = variant.model or scenario.model
+    variables = model_variables(model)
+    unknown = [n for n in parameters if variables.get(n) != "parameter"]
     if unknown:
-        raise ValueError(f"model {model} has no input {', '.join(unknown)}: drop it in "
-                         f"variant {variant.name} (drop_inputs)")
-    for joint in joints:
+        known = ", ".join(n for n, c in variables.items() if c == "parameter")
+        raise UserError(f"model {model} has no parameter {', '.join(unknown)} (set in "
+                        f"scenario {scenario.name} or variant {variant.name}); its "
+                        f"parameters: {known}")
+    inputs = scenario.input_segments(variant)[0]
+    unknown = [n for n in inputs if variables.get(n) != "input"]
+    if unknown:
+        raise UserError(f"model {model} has no input {', '.join(unknown)}: drop it in "
+                        f"variant {variant.name} (drop_inputs)")
+    for joint in scenario.for_variant(variant).joints:
         names = (joint.position, joint.speed, joint.effort, joint.start_parameter,
                  joint.inertia, joint.friction, joint.drive_inertia, joint.static_output)
-        unknown = [n for n in names if n not in fmu.variables]
+        unknown = [n for n in names if n not in variables]
         if unknown:
-            raise ValueError(f"model {model} has no variable {', '.join(unknown)} "
-                             f"(named by joint {joint.name})")
+            raise UserError(f"model {model} has no variable {', '.join(unknown)} "
+                            f"(named by joint {joint.name})")
 
 
 def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:

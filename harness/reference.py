@@ -24,6 +24,7 @@ from scipy.integrate import solve_ivp
 
 from harness.controller import ControllerDesign, design_pid
 from harness.drive import MotorParameters, motors
+from harness.errors import UserError
 from harness.metrics import run_metrics
 from harness.scenarios import Scenario, Variant, ramp
 
@@ -51,8 +52,8 @@ def physics_module(model: str) -> ModuleType:
     try:
         return importlib.import_module(PHYSICS[model])
     except KeyError:
-        raise ValueError(f"no monolithic reference for model {model}; "
-                         f"known: {', '.join(PHYSICS)}") from None
+        raise UserError(f"no monolithic reference for model {model}; "
+                        f"known: {', '.join(PHYSICS)}") from None
 
 
 def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,

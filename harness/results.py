@@ -4,14 +4,22 @@ CSVs follow the FMI cross-check conventions (as fmpy.util.write_csv): quoted hea
 `time` first, one column per quantity named after the FMU variable or drive signal, SI units,
 booleans as 0/1. Every file is written to a temporary file in the target folder and renamed
 over the old one, so a crash never leaves a half-written result.
+
+A scenario's folder is one result set: `write_run` merges the variants just run into it
+(their CSVs replaced, the other variants' rows and curves kept), makes every file in a
+staging folder first and then renames them into place in one burst, summary last, and holds
+an exclusive lock on the folder meanwhile, so concurrent runs into one folder are serialised
+instead of overwriting each other's rows.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import tempfile
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -22,6 +30,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from harness.errors import UserError  # noqa: E402
 from harness.master import RunResult, suffix  # noqa: E402
 from harness.metrics import METRICS, efficaciousness  # noqa: E402
 from harness.scenarios import Scenario  # noqa: E402
@@ -98,21 +107,98 @@ def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> 
              "W_phases": sum(abs(w) for works in r.joint_phase_work.values()
                              for w in works.values()),
              "model": r.model, "step_size": r.step_size} for r in results]
-    table = pd.DataFrame(rows)
+    return with_eps(pd.DataFrame(rows), baseline)[summary_columns(results)]
+
+
+def with_eps(table: pd.DataFrame, baseline: str | Mapping[str, str]) -> pd.DataFrame:
+    """The summary table with eps and eps_W computed against each row's baseline row."""
     baselines = table.variant.map(
         (lambda _: baseline) if isinstance(baseline, str) else baseline.get)
     indexed = table.set_index("variant")
     for metric, column in (("E_drawn", "eps"), ("W_phases", "eps_W")):
         table[column] = efficaciousness(table[metric], baselines.map(indexed[metric]))
-    return table[summary_columns(results)]
+    return table
+
+
+@dataclass(frozen=True)
+class StoredRun:
+    """A variant of the result set written by an earlier run: what its plot needs."""
+
+    variant: str
+    model: str
+    series: pd.DataFrame
+
+
+def check_writable(out_dir: Path) -> None:
+    """UserError unless files can be created in out_dir (made if missing): checked before a
+    simulation, so a long run does not end in a write error."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as error:
+        raise UserError(f"output folder {out_dir} is not writable "
+                        f"({error.strerror or error})") from None
+
+
+@contextlib.contextmanager
+def locked(out_dir: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the folder (flock on the folder itself, so no lock file is
+    left behind and a killed writer releases it): concurrent writers wait their turn."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no serialisation of concurrent writers
+        yield
+        return
+    fd = os.open(out_dir, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path) -> list[Path]:
-    """Write <variant>.csv for each run, summary.csv and the plot into out_dir."""
-    written = [write_csv(r.series, out_dir / f"{r.variant}.csv") for r in results]
-    written.append(write_csv(summary(results, scenario.baselines), out_dir / "summary.csv"))
-    written.append(plot(results, scenario, out_dir / f"{scenario.name}.png"))
+    """Write <variant>.csv for each run, then the plot and summary.csv of the whole result set
+    in out_dir: variants run before (with a summary row and a CSV there) are kept, eps is
+    recomputed over all rows. A failure before the renames leaves the old set untouched;
+    the summary is renamed last: it lists what the set holds."""
+    with locked(out_dir), tempfile.TemporaryDirectory(dir=out_dir, prefix=".staging.") as tmp:
+        staging = Path(tmp)  # every file is made here first, then renamed in one burst
+        staged = [write_csv(r.series, staging / f"{r.variant}.csv") for r in results]
+        table = summary(results, scenario.baselines)
+        earlier = _earlier_runs(out_dir, scenario, table.columns, set(table.variant))
+        order = list(scenario.variants)
+        table = pd.concat([table, *(row for _, row in earlier)], ignore_index=True)
+        table = table.sort_values("variant", key=lambda v: v.map(order.index), kind="stable")
+        table = with_eps(table.reset_index(drop=True), scenario.baselines)
+        runs: list[RunResult | StoredRun] = [*results, *(run for run, _ in earlier)]
+        runs.sort(key=lambda r: order.index(r.variant))
+        staged.append(plot(runs, scenario, staging / f"{scenario.name}.png"))
+        staged.append(write_csv(table, staging / "summary.csv"))
+        written = [path.replace(out_dir / path.name) for path in staged]
     return written
+
+
+def _earlier_runs(out_dir: Path, scenario: Scenario, columns: pd.Index, replaced: set[str]
+                  ) -> list[tuple[StoredRun, pd.DataFrame]]:
+    """The variants of an existing summary that this write keeps: in the scenario, not run
+    now, with the same summary columns and their series CSV present."""
+    path = out_dir / "summary.csv"
+    if not path.exists():
+        return []
+    old = pd.read_csv(path)
+    if list(old.columns) != list(columns):
+        return []  # another layout (an older version, or other joints): not mergeable
+    kept = []
+    for _, row in old.iterrows():
+        series = out_dir / f"{row.variant}.csv"
+        if row.variant in replaced or row.variant not in scenario.variants or not series.exists():
+            continue
+        kept.append((StoredRun(row.variant, row.model, pd.read_csv(series)),
+                     row.to_frame().T.astype(old.dtypes.to_dict())))
+    return kept
 
 
 # ---- plots -------------------------------------------------------------------------------
@@ -167,7 +253,7 @@ def panels(scenario: Scenario, model: str) -> tuple[tuple, tuple]:
              ("energy drawn, all drives", "J", "E_drawn")))
 
 
-def plot(results: list[RunResult], scenario: Scenario, path: Path) -> Path:
+def plot(results: Sequence[RunResult | StoredRun], scenario: Scenario, path: Path) -> Path:
     """The mechanism per variant (left; a model's other quantities share a panel, e.g.
     Ciupitu's OB in Franchetti's (d)) and the drives per variant (right), see `panels`."""
     mechanism, drives = panels(scenario, results[0].model)

@@ -17,6 +17,7 @@ import numpy as np
 
 from fmu_src import scenario as core
 from fmu_src.scenario import RAMP_SHAPES, Joint, Phase, Ramp, Variant, ramp
+from harness.errors import UserError
 
 __all__ = ["EMBEDDED", "RAMP_SHAPES", "SCENARIO_DIR", "Joint", "Phase", "Ramp", "Scenario",
            "Variant", "available", "embed", "load", "ramp"]
@@ -41,6 +42,13 @@ class Scenario(core.Scenario):
         ref[times > self.duration] = segments[-1][3]
         return ref
 
+    def variant(self, name: str) -> Variant:
+        """The named variant; UserError naming the choices."""
+        try:
+            return super().variant(name)
+        except ValueError as error:
+            raise UserError(str(error)) from None
+
     def inputs(self, times: np.ndarray, variant: Variant) -> dict[str, np.ndarray]:
         """Input signals at the given times (a phase's changes apply from its start)."""
         signals: dict[str, np.ndarray] = {}
@@ -62,7 +70,7 @@ def scenario_file(name_or_path: str | Path) -> Path:
         path = SCENARIO_DIR / f"{name_or_path}.toml"
     if not path.exists():
         known = ", ".join(available())
-        raise ValueError(f"no scenario {str(name_or_path)!r} (known: {known})")
+        raise UserError(f"no scenario {str(name_or_path)!r} (known: {known})")
     return path
 
 
@@ -72,8 +80,11 @@ def load(name_or_path: str | Path) -> Scenario:
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path.name}: not valid TOML ({error})") from None
-    return core.parse(data, path.name, Scenario)
+        raise UserError(f"{path.name}: not valid TOML ({error})") from None
+    try:
+        return core.parse(data, path.name, Scenario)
+    except ValueError as error:  # the core is standard library only: it raises ValueError
+        raise UserError(str(error)) from None
 
 
 def available() -> list[str]:

@@ -45,12 +45,14 @@ from __future__ import annotations
 import argparse
 import ast
 import atexit
+import contextlib
 import hashlib
 import itertools
 import json
 import logging
 import math
 import re
+import sys
 import tempfile
 import time
 import tomllib
@@ -67,16 +69,19 @@ from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 from tqdm import tqdm
 
+from fmu_src.scenario import check_name
 from harness import fmu_build, master, results, scenarios
 from harness.controller import ControllerDesign
 from harness.drive import MotorParameters
-from harness.fmi import CoSimFMU
+from harness.errors import UserError
+from harness.fmi import CoSimFMU, FMUCallError
 from harness.metrics import METRICS
 
 SWEEP_DIR = Path(__file__).resolve().parent / "sweeps"
 SWEEP_RESULTS_DIR = results.RESULTS_DIR / "sweeps"
 DEFAULT_CHUNK = 8                  # runs per task at most
 CHUNKS_PER_WORKER = 4              # at least this many tasks per worker, for load balance
+MAX_RUNS = 100_000                 # runs per sweep: a plan this long takes days on a laptop
 RUN_METRICS = tuple(m for m in METRICS if m != "eps")  # eps needs a baseline run
 DEGREE_FIELDS = {"target_deg": "target", "initial_angle_deg": "initial_angle"}
 SAVING_REGULATED, SAVING_REFERENCE = "self_regulating", "unregulated"
@@ -129,28 +134,55 @@ class Run:
     values: dict[str, float]                   # axis name -> value
 
 
-def _axis(raw: dict[str, Any], where: str) -> Axis:
+def _number(value: Any, what: str) -> float:
+    """A finite number from the file, else UserError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise UserError(f"{what} = {value!r} is not a finite number")
+    return float(value)
+
+
+def _count(value: Any, what: str, lowest: int, highest: int) -> int:
+    """A whole number in [lowest, highest] from the file (2.0 counts, 2.7 does not)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (
+            lowest <= value <= highest and float(value).is_integer()):
+        raise UserError(f"{what} = {value!r} is not a whole number in [{lowest}, {highest}]")
+    return int(value)
+
+
+def _axis(raw: Any, where: str) -> Axis:
+    if not isinstance(raw, dict):
+        raise UserError(f"{where}: an axis is a table ([[axes]]), not {raw!r}")
     name = raw.get("name")
     paths = raw.get("set")
-    paths = (paths,) if isinstance(paths, str) else tuple(paths or ())
-    if not name or not paths:
-        raise ValueError(f"{where}: an axis needs a name and set = [paths]")
+    paths = [paths] if isinstance(paths, str) else paths
+    if not isinstance(name, str) or not name or not isinstance(paths, list) or not paths or not all(
+            isinstance(p, str) and p.strip() for p in paths):
+        raise UserError(f"{where}: an axis needs name = \"...\" and set = a path or a list of "
+                        f"paths (strings); got name = {name!r}, set = {raw.get('set')!r}")
+    paths = tuple(paths)
     if ("values" in raw) == ("range" in raw):
-        raise ValueError(f"{where}: axis {name} needs either values or range")
+        raise UserError(f"{where}: axis {name} needs either values or range")
     if "values" in raw:
-        values = tuple(float(v) for v in raw["values"])
-        if not values:
-            raise ValueError(f"{where}: axis {name} has no values")
-        return Axis(name, paths, values, unit=raw.get("unit", ""))
-    span = raw["range"]
-    try:
-        start, stop, num = float(span["start"]), float(span["stop"]), int(span.get("num", 2))
-    except KeyError as error:
-        raise ValueError(f"{where}: axis {name} range needs {error.args[0]}") from None
-    if num < 1:
-        raise ValueError(f"{where}: axis {name} range num = {num} is below 1")
-    values = tuple(float(v) for v in np.linspace(start, stop, num))
-    return Axis(name, paths, values, (start, stop), raw.get("unit", ""))
+        if not isinstance(raw["values"], list) or not raw["values"]:
+            raise UserError(f"{where}: axis {name} values = {raw['values']!r} must be a "
+                            "non-empty list of numbers")
+        values = tuple(_number(v, f"{where}: axis {name} values item") for v in raw["values"])
+        range_ = None
+    else:
+        span = raw["range"]
+        if not isinstance(span, dict) or {"start", "stop"} - set(span) or set(span) - {
+                "start", "stop", "num"}:
+            raise UserError(f"{where}: axis {name} range = {span!r} must be a table "
+                            "{ start = number, stop = number, num = whole number }")
+        start = _number(span["start"], f"{where}: axis {name} range start")
+        stop = _number(span["stop"], f"{where}: axis {name} range stop")
+        num = _count(span.get("num", 2), f"{where}: axis {name} range num", 1, MAX_RUNS)
+        values, range_ = tuple(float(v) for v in np.linspace(start, stop, num)), (start, stop)
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise UserError(f"{where}: axis {name} values repeat: "
+                        f"{', '.join(f'{v:g}' for v in repeated)} (runs would share run ids)")
+    return Axis(name, paths, values, range_, raw.get("unit", ""))
 
 
 def load(path: str | Path) -> Sweep:
@@ -159,23 +191,31 @@ def load(path: str | Path) -> Sweep:
     if not path.suffix:
         path = SWEEP_DIR / f"{path}.toml"
     if not path.exists():
-        raise ValueError(f"no sweep file {path}")
-    data = tomllib.loads(path.read_text())
+        raise UserError(f"no sweep file {path}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise UserError(f"{path.name}: not valid TOML ({error})") from None
     where = path.name
+    name = data.get("name", path.stem)
+    try:
+        check_name(name, "name")
+    except ValueError as error:
+        raise UserError(f"{where}: {error}") from None
     scenario_ref = data.get("scenario")
     if not scenario_ref:
-        raise ValueError(f"{where}: no scenario")
+        raise UserError(f"{where}: no scenario")
     scenario = scenarios.load(path.parent / scenario_ref if Path(scenario_ref).suffix
                               else scenario_ref)
     variants = tuple(data.get("variants", scenario.variants))
     for variant in variants:
         scenario.variant(variant)
-    if not data.get("axes"):
-        raise ValueError(f"{where}: no [[axes]]")
+    if not data.get("axes") or not isinstance(data["axes"], list):
+        raise UserError(f"{where}: no [[axes]]")
     axes = tuple(_axis(raw, f"{where} axis {i + 1}") for i, raw in enumerate(data["axes"]))
     names = [axis.name for axis in axes]
     if len(set(names)) < len(names):
-        raise ValueError(f"{where}: axis names repeat: {', '.join(names)}")
+        raise UserError(f"{where}: axis names repeat: {', '.join(names)}")
     for axis in axes:  # bad paths stop the sweep here; bad values are runs that fail
         try:
             configure(scenario, [(p, axis.values[0]) for p in axis.paths])
@@ -183,47 +223,69 @@ def load(path: str | Path) -> Sweep:
             raise
         except ValueError:
             pass
+    _check_first_point(scenario, variants, axes)
     metrics = tuple(data.get("metrics", RUN_METRICS))
     unknown = sorted(set(metrics) - set(RUN_METRICS))
     if unknown:
-        raise ValueError(f"{where}: unknown metrics {', '.join(unknown)} "
-                         f"(choose from {', '.join(RUN_METRICS)})")
+        raise UserError(f"{where}: unknown metrics {', '.join(unknown)} "
+                        f"(choose from {', '.join(RUN_METRICS)})")
     sample = data.get("sample", "grid")
     if sample not in ("grid", "lhs"):
-        raise ValueError(f"{where}: sample = {sample!r}, not 'grid' or 'lhs'")
-    samples = int(data.get("samples", 0))
+        raise UserError(f"{where}: sample = {sample!r}, not 'grid' or 'lhs'")
+    samples = _count(data.get("samples", 0), f"{where}: samples", 0, MAX_RUNS)
     if sample == "lhs" and samples < 1:
-        raise ValueError(f"{where}: a Latin-hypercube sample needs samples >= 1")
+        raise UserError(f"{where}: a Latin-hypercube sample needs samples >= 1")
+    size = (samples if sample == "lhs" else math.prod(len(a.values) for a in axes)) * len(
+        variants)
+    if size > MAX_RUNS:
+        raise UserError(f"{where}: {size:,} runs planned, more than {MAX_RUNS:,}: fewer axis "
+                        "values or samples")
     plots = data.get("plots", {})
     for kind, spec in plots.items():
         if kind not in PLOTS:
-            raise ValueError(f"{where}: unknown plot {kind!r} (choose from {', '.join(PLOTS)})")
+            raise UserError(f"{where}: unknown plot {kind!r} (choose from {', '.join(PLOTS)})")
         if kind == "lines":
             _check_lines_plot(spec, names, where)
             continue
         roles = [spec.get(role) for role in ("x", "y", "lines", "panels") if spec.get(role)]
         if set(roles) - set(names) or not spec.get("x") or (kind == "map" and not spec.get("y")):
-            raise ValueError(f"{where}: plot {kind} needs x{' and y' if kind == 'map' else ''}"
-                             f" and may have lines, panels, all axes ({', '.join(names)})")
+            raise UserError(f"{where}: plot {kind} needs x{' and y' if kind == 'map' else ''}"
+                            f" and may have lines, panels, all axes ({', '.join(names)})")
         if "E_drawn" not in metrics or {SAVING_REGULATED, SAVING_REFERENCE} - set(variants):
-            raise ValueError(f"{where}: plot {kind} needs the metric E_drawn and the variants "
-                             f"{SAVING_REGULATED} and {SAVING_REFERENCE}")
-    step_size = float(data.get("step_size", master.DEFAULT_STEP))
-    if not step_size > 0.0:
-        raise ValueError(f"{where}: step_size = {step_size} s is outside (0, inf)")
-    chunk_size = int(data.get("chunk_size", DEFAULT_CHUNK))
-    if chunk_size < 1:
-        raise ValueError(f"{where}: chunk_size = {chunk_size} is below 1")
+            raise UserError(f"{where}: plot {kind} needs the metric E_drawn and the variants "
+                            f"{SAVING_REGULATED} and {SAVING_REFERENCE}")
+    step_size = _number(data.get("step_size", master.DEFAULT_STEP), f"{where}: step_size")
+    if not 0.0 < step_size <= scenario.duration:
+        raise UserError(f"{where}: step_size = {step_size} s is outside (0, "
+                        f"{scenario.duration:g}] (the scenario's duration)")
+    chunk_size = _count(data.get("chunk_size", DEFAULT_CHUNK), f"{where}: chunk_size", 1,
+                        MAX_RUNS)
+    seed = _count(data.get("seed", 0), f"{where}: seed", 0, 2 ** 63 - 1)
     outputs = data.get("outputs", [])
     if not isinstance(outputs, list) or not all(isinstance(n, str) for n in outputs):
-        raise ValueError(f"{where}: outputs = {outputs!r} is not a list of output names")
-    return Sweep(data.get("name", path.stem), data.get("description", ""), scenario, variants,
-                 axes, metrics, step_size, sample, samples, int(data.get("seed", 0)),
-                 chunk_size, plots, tuple(outputs))
+        raise UserError(f"{where}: outputs = {outputs!r} is not a list of output names")
+    return Sweep(name, data.get("description", ""), scenario, variants,
+                 axes, metrics, step_size, sample, samples, seed, chunk_size, plots,
+                 tuple(outputs))
+
+
+def _check_first_point(scenario: scenarios.Scenario, variants: Sequence[str],
+                       axes: Sequence[Axis]) -> None:
+    """UserError naming an FMU parameter, input or model that no run can have, found on the
+    first value of every axis before any run (values the model refuses still fail per run)."""
+    try:
+        configured, _, _ = configure(scenario, [(p, a.values[0]) for a in axes for p in a.paths])
+    except PathError:
+        raise
+    except ValueError:
+        return
+    for name in variants:
+        variant = configured.variant(name)
+        master.check_names(configured, variant, configured.parameters | variant.parameters)
 
 
 # ---- configuration paths ------------------------------------------------------------------
-class PathError(ValueError):
+class PathError(UserError):
     """A set path that does not name anything in the run's configuration."""
 
 
@@ -307,7 +369,7 @@ def configure(scenario: scenarios.Scenario, assignments: Iterable[tuple[str, flo
         head = tokens[0][0]
         if tokens == [("duration_scale",)]:
             if not (value > 0.0 and math.isfinite(value)):
-                raise ValueError(f"duration_scale = {value} is outside (0, inf)")
+                raise UserError(f"duration_scale = {value} is outside (0, inf)")
             current = config["scenario"]
             config["scenario"] = replace(current, phases=tuple(
                 replace(p, duration=p.duration * value) for p in current.phases))
@@ -360,7 +422,7 @@ def plan(sweep: Sweep) -> list[Run]:
     for values in points(sweep):
         setting = {a.name: {"set": list(a.paths), "value": values[a.name]} for a in sweep.axes}
         point = _digest({"scenario": scenario.name, "step_size": sweep.step_size,
-                         "axes": setting})
+                        "axes": setting})
         runs.extend(Run(_digest({"scenario": definitions[v], "step_size": sweep.step_size,
                                  "axes": setting}), point, v, values)
                     for v in sweep.variants)
@@ -431,8 +493,9 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
     except Exception as error:  # noqa: BLE001 - recorded, and the sweep goes on
         details = [f"{error.__class__.__name__}: {error}"]
         if model in _FMUS:
-            details += [m.message for m in _FMUS[model].messages
-                        if m.status in ("Error", "Fatal")]
+            if not isinstance(error, FMUCallError):  # that one carries the FMU's messages
+                details += [m.message for m in _FMUS[model].messages
+                            if m.status in ("Error", "Fatal")]
             _discard(model)
         row.update(status="failed", error=" ".join("; ".join(details).split()))
     row["seconds"] = time.perf_counter() - start
@@ -520,9 +583,16 @@ def consolidate(sweep: Sweep, out: Path) -> pd.DataFrame:
     columns = ["run_id", "point", "variant", *axes, "status", "error", *sweep.metrics,
                *extra, *last]
     table = table.reindex(columns=columns)
-    results.write_atomic(out / f"{sweep.name}.parquet",
-                         lambda tmp: table.to_parquet(tmp, index=False))
-    results.write_csv(table, out / f"{sweep.name}.csv")
+    out.mkdir(parents=True, exist_ok=True)
+    # both files into one temporary folder, then renamed one after the other: the window in
+    # which a kill leaves them with different rows is two renames, not a whole CSV write
+    with tempfile.TemporaryDirectory(dir=out, prefix=f".{sweep.name}.") as tmp:
+        staged = Path(tmp)
+        table.to_parquet(staged / "table.parquet", index=False)
+        results.write_csv(table, staged / "table.csv")
+        for suffix in ("parquet", "csv"):
+            (staged / f"table.{suffix}").chmod(0o644)
+            (staged / f"table.{suffix}").replace(out / f"{sweep.name}.{suffix}")
     return table
 
 
@@ -593,8 +663,8 @@ def plot_saving(sweep: Sweep, points: pd.DataFrame, spec: dict[str, Any], path: 
             ax.grid(alpha=0.3)
         if mark and mark in group and group[mark].notna().any():
             top.annotate(f"{mark} = {float(group[mark].median()):.3g} ",
-                         (float(group[mark].median()), 0.5), ha="right",
-                         xycoords=("data", "axes fraction"), fontsize=8)
+                        (float(group[mark].median()), 0.5), ha="right",
+                        xycoords=("data", "axes fraction"), fontsize=8)
         top.axhline(0.0, color="0.5", lw=0.8)
         top.set_ylim(SAVING_FLOOR - 8.0, 105.0)
         top.set_title(_panel_title(sweep, spec, value), fontsize=10)
@@ -640,13 +710,13 @@ def plot_map(sweep: Sweep, points: pd.DataFrame, spec: dict[str, Any], path: Pat
 
 
 def _check_lines_plot(spec: dict[str, Any], axes: list[str], where: str) -> None:
-    """ValueError unless a lines plot names an x axis, optional lines axis and y columns."""
+    """UserError unless a lines plot names an x axis, optional lines axis and y columns."""
     roles = [spec.get(role) for role in ("x", "lines") if spec.get(role)]
     y = spec.get("y")
     if (set(roles) - set(axes) or not spec.get("x") or not isinstance(y, list) or not y
             or not all(isinstance(c, str) for c in y)):
-        raise ValueError(f"{where}: plot lines needs x and may have lines, both axes "
-                         f"({', '.join(axes)}), and y = [result columns]")
+        raise UserError(f"{where}: plot lines needs x and may have lines, both axes "
+                        f"({', '.join(axes)}), and y = [result columns]")
 
 
 def plot_lines(sweep: Sweep, table: pd.DataFrame, spec: dict[str, Any], path: Path) -> Path:
@@ -708,10 +778,13 @@ def local_client(workers: int) -> Client:
 
 
 def _close(client: Client) -> None:
+    """Close the client and its local cluster. After Ctrl-C the workers may be gone already:
+    a closed connection (CommClosedError, an OSError) is then expected, not an error."""
     cluster = client.cluster
-    client.close()
-    if cluster is not None:
-        cluster.close()
+    with contextlib.suppress(OSError):
+        client.close()
+        if cluster is not None:
+            cluster.close()
 
 
 def run_sweep(path: str | Path, out: Path = SWEEP_RESULTS_DIR, workers: int = 2,
@@ -778,7 +851,7 @@ def sweep_benchmark(runs: int = 12, workers: Sequence[int] = (1, 2)) -> pd.DataF
             if failed:
                 raise RuntimeError(f"{failed} of {done} benchmark runs failed")
             rows.append({"workers": n, "runs": done, "seconds": seconds,
-                         "runs_per_s": done / seconds})
+                        "runs_per_s": done / seconds})
     table = pd.DataFrame(rows)
     table["speed_up"] = table.runs_per_s / table.runs_per_s.iloc[0]
     return table
@@ -805,11 +878,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1 or (args.chunk_size is not None and args.chunk_size < 1):
-        raise ValueError("--workers and --chunk-size must be at least 1")
+        raise UserError("--workers and --chunk-size must be at least 1")
     try:
-        run_sweep(args.file, args.out, args.workers, args.scheduler, args.chunk_size,
-              args.retry_failed, args.quiet)
+        table = run_sweep(args.file, args.out, args.workers, args.scheduler, args.chunk_size,
+                          args.retry_failed, args.quiet)
     except KeyboardInterrupt:
-        print("interrupted: finished chunks are stored; run the same command to resume")
+        print("interrupted: finished chunks are stored; run the same command to resume",
+              file=sys.stderr)
         return 130
+    if len(table) and not (table.status == "ok").any():
+        print(f"error: all {len(table)} runs failed; the first: {table.error.iloc[0]}",
+              file=sys.stderr)
+        return 1
     return 0

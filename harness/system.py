@@ -53,6 +53,7 @@ from tqdm import tqdm
 from harness import cosim, fmu_build, master, osp, results, scenarios
 from harness.controller import ControllerDesign, PIDGains
 from harness.drive import motors
+from harness.errors import UserError
 from harness.fmi import CoSimFMU
 
 ENGINES = ("libcosim", "fmpy-ssp")
@@ -467,7 +468,7 @@ def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
                step_size: float, out: Path, source: str = "osp") -> list[master.RunResult]:
     """Describe, write and run each variant's system; write results into out."""
     if engine not in ENGINES:
-        raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
+        raise UserError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
     runs = []
     for name in tqdm(variants, desc=f"{scenario.name} system ({engine})", unit="variant"):
         system = describe(scenario, scenario.variant(name), step_size)
@@ -485,7 +486,7 @@ def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
 
 def run(args: argparse.Namespace) -> int:
     if not (args.step > 0.0):
-        raise ValueError(f"--step = {args.step} s is outside (0, inf)")
+        raise UserError(f"--step = {args.step} s is outside (0, inf)")
     scenario = scenarios.load(args.scenario)
     variants = cosim.selected_variants(scenario, args.variant)
     out = args.out or SYSTEM_DIR / scenario.name / args.engine

@@ -1,0 +1,122 @@
+"""Shared set-up of the fuzz suite: hypothesis profiles and an FMU runner in a child process.
+
+Profiles (select with the environment variable HYPOTHESIS_PROFILE):
+- `ci` (default, used by `make test`): a fixed seed (derandomize) and a small example budget;
+- `deep` (`make fuzz`): random seeds and many examples, about ten minutes in all.
+
+FMU cases run in a child process (`FmuRunner`), so a call that never returns or crashes the
+process is reported as a failure of that case instead of hanging the test session.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import time
+from collections.abc import Mapping
+from typing import Any
+
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+
+settings.register_profile("ci", max_examples=15, derandomize=True, deadline=None,
+                          database=None, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("deep", max_examples=1000, deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+# Hostile floats: the special values and the edges of double precision, then anything.
+SPECIAL = (0.0, -0.0, 5e-324, -5e-324, 1e-300, 1e-15, 1e15, 1e50, 1e51, 1e300, -1e300,
+           math.inf, -math.inf, math.nan)
+hostile_floats = st.one_of(st.sampled_from(SPECIAL), st.floats(allow_nan=True,
+                                                               allow_infinity=True))
+# communication step sizes from 1e-15 s to 10 s, log-uniform
+step_sizes = st.floats(min_value=-15.0, max_value=1.0).map(lambda e: 10.0 ** e)
+
+CASE_TIMEOUT = 60.0   # s: a case that takes longer counts as a hang
+CALL_LIMIT = 5.0      # s: the most one FMI call may take (MAX_SUBSTEPS RK4 sub-steps)
+
+
+def run_case(case: Mapping[str, Any]) -> dict[str, Any]:
+    """In the child: instantiate, initialise with the case's parameters and inputs, take its
+    steps. Reports statuses, messages, outputs before and after each step and call times."""
+    from harness import fmu_build
+    from harness.fmi import CoSimFMU, FMICallException
+
+    fmu = CoSimFMU(fmu_build.fmu_path(case["model"]), "fuzz")
+    report: dict[str, Any] = {"init": "ok", "steps": [], "slowest": 0.0}
+    reals = [v.name for v in fmu.model_description.modelVariables
+             if v.type == "Real" and v.causality in ("output", "calculatedParameter")]
+
+    def timed(call: Any, *args: Any) -> str:
+        start = time.perf_counter()
+        try:
+            call(*args)
+            status = "ok"
+        except FMICallException as error:
+            status = f"status {error.status}"
+        report["slowest"] = max(report["slowest"], time.perf_counter() - start)
+        return status
+
+    try:
+        report["init"] = timed(fmu.initialize, {**case["parameters"], **case["inputs"]})
+        t = 0.0
+        if report["init"] == "ok":
+            for h in case["steps"]:
+                before = fmu.get(reals)
+                status = timed(fmu.step, t, h)
+                report["steps"].append({"h": h, "status": status, "before": before,
+                                        "after": fmu.get(reals)})
+                if status == "ok":
+                    t += h
+                elif status != "status 2":
+                    break
+        report["messages"] = [(m.status, m.message) for m in fmu.messages]
+    finally:
+        fmu.close()
+    return report
+
+
+def _serve(connection: Any) -> None:
+    while True:
+        case = connection.recv()
+        if case is None:
+            return
+        try:
+            connection.send(run_case(case))
+        except Exception as error:  # noqa: BLE001 - reported to the parent as the case's result
+            connection.send({"exception": f"{type(error).__name__}: {error}"})
+
+
+class FmuRunner:
+    """A child process that runs FMU cases; restarted after a hang or a crash."""
+
+    def __init__(self) -> None:
+        self._context = multiprocessing.get_context("spawn")
+        self._start()
+
+    def _start(self) -> None:
+        self.connection, child = self._context.Pipe()
+        self.process = self._context.Process(target=_serve, args=(child,), daemon=True)
+        self.process.start()
+
+    def run(self, case: Mapping[str, Any]) -> dict[str, Any]:
+        self.connection.send(dict(case))
+        if not self.connection.poll(CASE_TIMEOUT):
+            self.process.kill()
+            self._start()
+            raise AssertionError(f"no answer within {CASE_TIMEOUT} s (a hang): {case}")
+        try:
+            return self.connection.recv()
+        except EOFError:
+            self.process.join()
+            code = self.process.exitcode
+            self._start()
+            raise AssertionError(f"the FMU process died (exit code {code}): {case}") from None
+
+    def close(self) -> None:
+        self.connection.send(None)
+        self.process.join(10.0)
+        if self.process.is_alive():
+            self.process.kill()

@@ -1,0 +1,344 @@
+"""Hostile files and options for the command line: one line naming the field and its allowed
+values, exit 2, nothing simulated or written; the FMU's own messages reach the user; result
+sets keep their rows; compare refuses what it cannot check."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from harness import cli, results, scenarios, sweep
+from harness.errors import UserError
+
+SHORT = '''
+name = "short"
+model = "SelfRegulatingBalancer"
+initial_angle_deg = 60.0
+baseline = "unbalanced"
+[parameters]
+[[phases]]
+name = "hold"
+duration = 0.2
+target_deg = 60.0
+inputs = { payload = 0.0 }
+[[phases]]
+name = "move"
+duration = 0.2
+target_deg = 70.0
+[variants.balanced]
+[variants.unbalanced]
+parameters = { k = 0.0 }
+'''
+
+
+def scenario_file(tmp_path: Path, old: str = "", new: str = "", text: str = SHORT) -> Path:
+    path = tmp_path / "scenario.toml"
+    path.write_text(text.replace(old, new, 1) if old else text)
+    return path
+
+
+def refused(argv: list[str], capsys: pytest.CaptureFixture[str], *named: str) -> str:
+    """Run the command line: exit 2 and one error line naming every string in named."""
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("error: ") and "Traceback" not in err
+    for text in named:
+        assert text in err, err
+    return err
+
+
+# ---- scenario files and cosim options (sections 5 and 12)
+
+@pytest.mark.parametrize(("old", "new", "named"), [
+    ("duration = 0.2", "duration = inf", ("duration", "inf")),
+    ("duration = 0.2", "duration = [1, 2]", ("duration", "[1, 2]")),
+    ("[parameters]", "[parameters]\nk = [1, 2]", ("parameters k",)),
+    ("[parameters]", "[parameters]\nnot_a_parameter = 1.0", ("no parameter not_a_parameter",)),
+    ('model = "SelfRegulatingBalancer"', 'model = "NoSuchModel"', ("unknown model",)),
+    ("target_deg = 70.0", "target_deg = nan", ("target_deg", "nan")),
+    ("payload = 0.0", "payload = { ramp = nan }", ("payload ramp", "nan")),
+    ("parameters = { k = 0.0 }", "parameters = { k = 0.0 }\ninputs = { payload = nan }",
+     ("variant unbalanced inputs payload", "nan")),
+    ('name = "move"', 'name = "hold"', ("phase names repeat", "hold")),
+    ("duration = 0.2", "duration = 1e308", ("phase move", "finite")),
+    ('name = "move"\nduration = 0.2', 'name = "move"\nduration = 1e-18', ("phase move",)),
+    ('name = "short"', 'name = "../../x"', ("name", "../../x")),
+    ('name = "short"', 'name = ""', ("name", "''")),
+    ("[variants.balanced]", "[variants.\"../up\"]", ("variant name", "../up")),
+], ids=["duration=inf", "duration=list", "parameter=list", "unknown-parameter", "unknown-model",
+        "target_deg=nan", "ramp=nan", "variant-input=nan", "duplicate-phase",
+        "duration-huge", "duration-vanishes", "name=../../x",
+        "name=empty", "variant-name=../up"])
+def test_bad_scenario_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                       old: str, new: str, named: tuple[str, ...]) -> None:
+    out = tmp_path / "out"
+    refused(["cosim", "--scenario", str(scenario_file(tmp_path, old, new)), "--out", str(out),
+             "--quiet"], capsys, *named)
+    assert not any(out.rglob("*.csv"))
+
+
+def test_empty_variants_table_is_one_line(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    text = SHORT[:SHORT.index("[variants.balanced]")] + "[variants]\n"
+    refused(["cosim", "--scenario", str(scenario_file(tmp_path, text=text)), "--quiet"], capsys,
+            "no variants")
+
+
+@pytest.mark.parametrize(("options", "named"), [
+    (["--step", "0"], "--step"), (["--step", "inf"], "--step"), (["--step", "nan"], "--step"),
+    (["--variants", "nope"], "no variant 'nope'"), (["--variants", ""], "no variant ''"),
+    (["--scenario", "no_such_scenario"], "no scenario 'no_such_scenario'"),
+])
+def test_bad_cosim_option_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                      options: list[str], named: str) -> None:
+    argv = ["cosim", "--scenario", str(scenario_file(tmp_path)), "--out", str(tmp_path),
+            "--quiet"]
+    refused(argv + options, capsys, named)
+
+
+def test_read_only_out_is_found_before_simulating(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "locked"
+    out.mkdir()
+    out.chmod(0o500)
+    if os.access(out, os.W_OK):
+        out.chmod(0o700)
+        pytest.skip("this user writes into read-only folders (root); see the next test")
+    try:
+        start = time.perf_counter()
+        refused(["cosim", "--scenario", str(scenario_file(tmp_path)), "--out", str(out),
+                 "--quiet"], capsys, "not writable")
+        assert time.perf_counter() - start < 5.0
+    finally:
+        out.chmod(0o700)
+
+
+def test_out_that_is_a_file_is_found_before_simulating(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """(Works as root too: a file where the folder should be.)"""
+    blocker = tmp_path / "out"
+    blocker.write_text("")
+    refused(["cosim", "--scenario", str(scenario_file(tmp_path)), "--out", str(blocker),
+             "--quiet"], capsys, "not writable")
+
+
+def test_fmu_message_reaches_the_user(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """k = -5 used to end in 'fmi2ExitInitializationMode failed with status 4' only."""
+    path = scenario_file(tmp_path, "[parameters]", "[parameters]\nk = -5.0")
+    refused(["cosim", "--scenario", str(path), "--out", str(tmp_path / "out"), "--quiet"],
+            capsys, "k = -5.0 N/m is outside [0.0, inf)", "SelfRegulatingBalancer")
+
+
+def test_truncated_fmu_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from harness.fmi import CoSimFMU
+
+    broken = tmp_path / "Broken.fmu"
+    broken.write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(UserError, match="Broken.fmu"):
+        CoSimFMU(broken)
+
+
+# ---- result sets (section 3)
+
+def test_one_variant_merges_into_the_result_set(tmp_path: Path) -> None:
+    """cosim --variants X used to rewrite summary.csv with X's row alone."""
+    path, out = scenario_file(tmp_path), tmp_path / "out"
+    assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet"]) == 0
+    first = pd.read_csv(out / "short" / "summary.csv")
+    assert list(first.variant) == ["balanced", "unbalanced"]
+    # the baseline alone (a variant's run also runs its baseline; this one is its own)
+    assert cli.main(["cosim", "--scenario", str(path), "--variants", "unbalanced", "--out",
+                     str(out), "--quiet"]) == 0
+    second = pd.read_csv(out / "short" / "summary.csv")
+    pd.testing.assert_frame_equal(first, second)  # same runs, same numbers, both rows
+
+
+def test_interrupted_write_leaves_the_result_set_as_it_was(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Killed mid-write, cosim used to leave a new CSV and a 1-row summary beside the old
+    plot; now every file is staged first, so a failure before the renames changes nothing."""
+    path, out = scenario_file(tmp_path), tmp_path / "out"
+    assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet"]) == 0
+    before = {p.name: p.read_bytes() for p in (out / "short").iterdir()}
+
+    def killed(*_args: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(results, "plot", killed)
+    assert cli.main(["cosim", "--scenario", str(path), "--variants", "unbalanced", "--step",
+                     "0.002", "--out", str(out), "--quiet"]) == 130
+    assert {p.name: p.read_bytes() for p in (out / "short").iterdir()} == before
+
+
+def test_concurrent_writers_are_serialised(tmp_path: Path) -> None:
+    """A second writer waits for the folder lock instead of interleaving its files."""
+    out = tmp_path / "set"
+    finished = threading.Event()
+
+    def writer() -> None:
+        with results.locked(out):
+            finished.set()
+
+    with results.locked(out):
+        thread = threading.Thread(target=writer)
+        thread.start()
+        time.sleep(0.3)
+        assert not finished.is_set()
+    thread.join(5.0)
+    assert finished.is_set()
+
+
+# ---- compare (section 2)
+
+def write(path: Path, frame: pd.DataFrame) -> Path:
+    frame.to_csv(path, index=False)
+    return path
+
+
+@pytest.fixture
+def reference(tmp_path: Path) -> Path:
+    t = np.linspace(0.0, 35.0, 351)
+    return write(tmp_path / "reference.csv", pd.DataFrame({"time": t, "theta": np.sin(t)}))
+
+
+@pytest.mark.parametrize(("result", "named"), [
+    (pd.DataFrame({"time": np.linspace(0, 35, 351), "theta": np.nan}), "NaN in signal(s) theta"),
+    (pd.DataFrame({"time": np.linspace(0, 0.5, 6), "theta": np.sin(np.linspace(0, 0.5, 6))}),
+     "covers time [0, 0.5] s"),
+    (pd.DataFrame({"time": np.linspace(0, 35, 351), "omega": 0.0}), "no signal in common"),
+], ids=["nan", "short", "disjoint"])
+def test_compare_refuses_what_it_cannot_check(tmp_path: Path, reference: Path,
+                                              capsys: pytest.CaptureFixture[str],
+                                              result: pd.DataFrame, named: str) -> None:
+    refused(["compare", str(reference), str(write(tmp_path / "result.csv", result))], capsys,
+            named)
+
+
+def test_compare_still_passes_an_equal_result(tmp_path: Path, reference: Path) -> None:
+    assert cli.main(["compare", str(reference), str(reference)]) == 0
+
+
+# ---- sweep files (section 11)
+
+SWEEP = '''
+name = "tiny"
+scenario = "scenario.toml"
+variants = ["balanced"]
+[[axes]]
+name = "k"
+set = "parameters.k"
+values = [981.0, 500.0]
+'''
+
+
+@pytest.mark.parametrize(("old", "new", "named"), [
+    ('set = "parameters.k"', "set = 5", "set = 5"),
+    ("values = [981.0, 500.0]", "values = [[1.0, 2.0]]", "[1.0, 2.0]"),
+    ("values = [981.0, 500.0]", 'range = "0:1"', "range = '0:1'"),
+    ("values = [981.0, 500.0]", "range = { start = 0, stop = 1, num = 1e12 }", "num"),
+    ("values = [981.0, 500.0]", "range = { start = 0, stop = 1, num = 2.7 }", "num = 2.7"),
+    ("values = [981.0, 500.0]", "values = [981.0, 981.0]", "values repeat: 981"),
+    ("values = [981.0, 500.0]", "values = [981.0, nan]", "nan"),
+    ('name = "tiny"', 'name = "tiny"\nstep_size = inf', "step_size"),
+    ('name = "tiny"', 'name = "../../x"', "../../x"),
+    ('set = "parameters.k"', 'set = "parameters.no_such"', "no parameter no_such"),
+], ids=["set=5", "nested", "range=string", "num=1e12", "num=2.7", "duplicates", "nan",
+        "step=inf", "name=../../x", "unknown-parameter"])
+def test_bad_sweep_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                    old: str, new: str, named: str) -> None:
+    scenario_file(tmp_path)
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP.replace(old, new, 1))
+    with pytest.raises(UserError, match=None) as failure:
+        sweep.load(path)
+    assert named in str(failure.value)
+    refused(["sweep", str(path), "--out", str(tmp_path / "out")], capsys, named)
+    assert not (tmp_path / "out").exists()
+
+
+# ---- ciupitu-example --json (section 12)
+
+def test_ciupitu_json_is_json_for_degenerate_data(capsys: pytest.CaptureFixture[str],
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Data with no unbalanced work (E_u = 0, as OP = 5e-324 m gave before the magnitude
+    limits) leave eps undefined: written null, not NaN or -Infinity (which are not JSON)."""
+    from fmu_src import ciupitu
+
+    undefined = ciupitu.StrokeResult(0.0, 1.0, -math.inf, 6.0, -0.46)
+    monkeypatch.setattr(ciupitu, "stroke", lambda data, law: undefined._replace(
+        eps=math.nan if law == "linear" else -math.inf))
+    assert cli.main(["ciupitu-example", "--json"]) == 0
+    captured = capsys.readouterr()
+    values = json.loads(captured.out, parse_constant=lambda name: pytest.fail(name))
+    assert values["eps_parabolic"] is None and values["eps_linear"] is None
+    assert "eps_parabolic" in captured.err
+    assert all(v is None or math.isfinite(v) for v in values.values())
+    assert cli.main(["ciupitu-example", "--json", "--OP=5e-324"]) == 2  # now out of range
+
+
+def test_scenarios_load_error_is_a_user_error(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="duration"):
+        scenarios.load(scenario_file(tmp_path, "duration = 0.2", "duration = -1.0"))
+
+
+@pytest.mark.slow
+def test_sweep_whose_runs_all_fail_exits_non_zero(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Every run refused by the FMU (k < 0): exit 1 with the first error, not 0."""
+    scenario_file(tmp_path)
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP.replace("values = [981.0, 500.0]", "values = [-1.0, -2.0]"))
+    assert cli.main(["sweep", str(path), "--out", str(tmp_path / "out"), "--workers", "1",
+                     "--quiet"]) == 1
+    assert "all 2 runs failed" in capsys.readouterr().err
+
+
+def test_sweep_tables_are_replaced_together(tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """A failure (or kill) while the final tables are written leaves the old parquet and CSV
+    together: it used to leave a 20-row parquet beside a 17-row CSV."""
+    scenario_file(tmp_path)
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    definition = sweep.load(path)
+    out = tmp_path / "out"
+    runs = sweep.plan(definition)
+    row = {"status": "failed", "error": "test"}
+    sweep._write_part(definition, out, [{"run_id": runs[0].run_id, "point": runs[0].point,
+                                         "variant": runs[0].variant, **runs[0].values, **row}])
+    sweep.consolidate(definition, out)
+    sweep._write_part(definition, out, [{"run_id": runs[1].run_id, "point": runs[1].point,
+                                         "variant": runs[1].variant, **runs[1].values, **row}])
+
+    def killed(*_args: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(results, "write_csv", killed)
+    with pytest.raises(KeyboardInterrupt):
+        sweep.consolidate(definition, out)
+    parquet = pd.read_parquet(out / "tiny.parquet")
+    csv = pd.read_csv(out / "tiny.csv")
+    assert len(parquet) == len(csv) == 1
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+def test_closing_a_cluster_whose_workers_are_gone_is_quiet() -> None:
+    """After Ctrl-C the workers may be gone: closing the client used to end in a
+    CommClosedError traceback instead of the 'interrupted' line."""
+    from distributed.comm.core import CommClosedError
+
+    class GoneClient:
+        cluster = None
+
+        def close(self) -> None:
+            raise CommClosedError("in <TCP (closed)>: Stream is closed")
+
+    sweep._close(GoneClient())  # type: ignore[arg-type]
