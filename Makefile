@@ -42,6 +42,7 @@ xc: fmu
 
 sweep: fmu
 	$(PY) -m harness sweep harness/sweeps/table1.toml
+	$(PY) -m harness sweep harness/sweeps/regulation.toml
 
 # docs/variables/<Model>.md from the built FMUs' model descriptions
 docs: fmu

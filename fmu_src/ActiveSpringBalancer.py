@@ -88,6 +88,8 @@ OUTPUTS = (
     ("F_q", "N", "Spring's force on the carriage along +q"),
     ("F_lock", "N", "Force of the self-locking screw on the carriage along +q (holding it, or "
      "absorbing a load that would drive it)"),
+    ("F_hold", "N", "Actuator force that holds the carriage at rest: 0 through the self-locking "
+     "screw, m_q g - F_q when back-drivable"),
     ("balance_error", "N.m", "(m c + payload w) g - x1A Y_B F_s / l_s; 0 when balanced "
      "(with X_B = 0, tau_gravity = balance_error sin(theta))"),
     ("E_p", "J", "Gravitational potential energy of link, payload and carriage"),

@@ -15,7 +15,9 @@ imported first.
 
 Outputs at a communication point t (after fmi2DoStep(t - h, h); at the start time after
 initialisation), with t on the scenario's clock (t = 0 is its start):
-- `<position>_ref` per joint [rad or m]: the quintic reference (`Scenario.reference_at`);
+- `<position>_ref` per joint of any variant [rad or m]: the quintic reference
+  (`Scenario.reference_at` of the scenario resolved for the variant, `Scenario.for_variant`);
+  0 for a variant's own joint when another variant is played;
 - every input that a phase or a variant of the scenario sets (`Scenario.inputs_at`), Real or
   Boolean as in the file; an input the chosen variant drops stays at 0 or false.
 A t less than `scenario.STEP_TIME_TOLERANCE` h before a phase start counts as that start, so
@@ -109,10 +111,15 @@ class ScenarioSequencer(ModelSlave):
         self._add(Integer("variant_number", causality=Fmi2Causality.parameter,
                           variability=Fmi2Variability.fixed, description=description),
                   VariableInfo(None, description))
-        self.reference_names = [f"{joint.position}_ref" for joint in scenario.joints]
-        for name, joint in zip(self.reference_names, scenario.joints):
-            self.add_output(name, joint.unit, f"Reference position of joint {joint.name} "
-                            "(quintic between the phases' targets)")
+        # the joints of every variant: the scenario's, then variants' own (0 where the
+        # variant played does not drive them)
+        joints = {j.name: j for v in scenario.variants.values()
+                  for j in scenario.for_variant(v).joints}
+        self.reference_names = {name: f"{j.position}_ref" for name, j in joints.items()}
+        for name, joint in joints.items():
+            self.add_output(self.reference_names[name], joint.unit, "Reference position of "
+                            f"joint {name} (quintic between the phases' targets)")
+        self.played = scenario                # resolved for the variant played
         self.defaults = scenario_inputs(scenario)
         for name, unit in input_units(scenario).items():
             self.add_output(name, unit, f"Scenario input {name} for the mechanism")
@@ -138,8 +145,13 @@ class ScenarioSequencer(ModelSlave):
         self.start_time = start_time
 
     def initialise(self, params: NoParameters) -> None:
-        self.segments = self.scenario.input_segments(self.chosen_variant())
+        self.play(self.chosen_variant())
         self.show(self.start_time)
+
+    def play(self, variant: core.Variant) -> None:
+        """Prepare to play a variant: its input segments and its joints' references."""
+        self.segments = self.scenario.input_segments(variant)
+        self.played = self.scenario.for_variant(variant)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         self.step_start = current_time
@@ -151,10 +163,13 @@ class ScenarioSequencer(ModelSlave):
     def show(self, time: float, tolerance: float = 0.0) -> None:
         """Set the outputs to the scenario's values at time [s]; a time within tolerance [s]
         before a phase start counts as that start."""
-        scenario = self.scenario
-        self.__dict__.update(zip(self.reference_names, scenario.reference_at(time, tolerance)))
+        played = self.played
+        references = dict(zip((j.name for j in played.joints),
+                              played.reference_at(time, tolerance)))
+        self.__dict__.update({output: references.get(name, 0.0)
+                              for name, output in self.reference_names.items()})
         self.__dict__.update({**self.defaults,
-                              **scenario.inputs_at(time, self.segments, tolerance)})
+                              **played.inputs_at(time, self.segments, tolerance)})
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.segments = self.scenario.input_segments(self.chosen_variant())
+        self.play(self.chosen_variant())

@@ -313,6 +313,7 @@ class Outputs(NamedTuple):
     tau_gravity: float
     F_q: float
     F_lock: float
+    F_hold: float
     balance_error: float
     E_p: float
     E_e: float
@@ -340,6 +341,7 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
     _, F_lock = carriage(p, u.F_adjust, sp.F_q - p.m_q * p.g, q_dot,
                          motion_direction(u.F_adjust, q_dot))
+    F_hold = 0.0 if p.self_locking else p.m_q * p.g - sp.F_q
     return Outputs(theta, omega, q, q_dot, Y_B, sp.l_s, sp.F_s,
-                   moment * math.sin(theta) + sp.tau, sp.F_q, F_lock, moment - sp.moment,
+                   moment * math.sin(theta) + sp.tau, sp.F_q, F_lock, F_hold, moment - sp.moment,
                    E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust, E_loss, E_added)

@@ -28,6 +28,11 @@ Variants are configurations of the same run (docs/scenarios.md): they may replac
 run (`inputs`), replace the input changes of named phases (`phase_inputs`, e.g.
 `{ down = { payload = { ramp = 0.4, shape = "quintic" } } }`), drop scenario inputs the model
 does not have (`drop_inputs`), or name their own eps `baseline` (default: the scenario's).
+A variant whose model has more joints than the scenario drives them too: its own
+`[variants.<v>.joints.<name>]` tables (the format of `[joints.<name>]`) come after the
+scenario's joints, and `phase_targets = { <phase> = { <joint> = value } }` gives their
+targets [rad or m] (a phase it does not name holds the previous one);
+`Scenario.for_variant` resolves them into a scenario with every joint the variant drives.
 
 Evaluation: `Scenario.reference_at(t)` and `Scenario.inputs_at(t, segments)` on floats. The
 shape functions and `ramp` are plain arithmetic, so they work on floats and numpy arrays alike.
@@ -40,13 +45,14 @@ from __future__ import annotations
 import math
 import re
 from bisect import bisect_right
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 JOINT_KINDS = ("revolute", "prismatic")
-# drives the harness can put on a joint: the default geared DC motor, or a DC motor on a
-# lead screw (harness.drive.MOTORS maps these names to motor parameters)
-MOTORS = ("geared", "lead_screw")
+# drives the harness can put on a joint: the default geared DC motor, a DC motor on a lead
+# screw, or on a self-locking trapezoidal screw (harness.drive.MOTORS maps these names to motor
+# parameters)
+MOTORS = ("geared", "lead_screw", "trapezoidal_screw")
 # the one joint of a scenario without a `joints` table: the balancer FMUs' names
 DEFAULT_JOINT = {"position": "theta", "speed": "omega", "effort": "tau_drive",
                  "start_parameter": "theta0", "inertia": "J_link", "friction": "d_link",
@@ -211,6 +217,11 @@ class Variant:
     drop_inputs: tuple[str, ...] = ()
     phase_inputs: dict[str, dict[str, Any]] = field(default_factory=dict)  # by phase name
     baseline: str | None = None     # variant against which eps is computed, if not the default
+    # joints driven besides the scenario's, their positions at t = 0 [rad or m] and targets
+    # by phase; left out of repr (which sweep run ids hash), for_variant's scenario shows them
+    joints: tuple[Joint, ...] = field(default=(), repr=False)
+    joint_initial: tuple[float, ...] = field(default=(), repr=False)
+    phase_targets: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)
@@ -281,6 +292,24 @@ class Scenario:
         except KeyError:
             raise ValueError(f"scenario {self.name} has no variant {name!r}; "
                              f"choose from {', '.join(self.variants)}") from None
+
+    def for_variant(self, variant: Variant) -> Scenario:
+        """The scenario with every joint the variant drives: the scenario's, then the
+        variant's own, whose targets follow its phase_targets (a phase it does not name
+        holds the previous target). Joints the scenario already has are not added again."""
+        names = {j.name for j in self.joints}
+        extra = [(j, x) for j, x in zip(variant.joints, variant.joint_initial)
+                 if j.name not in names]
+        if not extra:
+            return self
+        phases, targets = [], [x for _, x in extra]
+        for phase in self.phases:
+            changes = variant.phase_targets.get(phase.name, {})
+            targets = [changes.get(j.name, x) for (j, _), x in zip(extra, targets)]
+            phases.append(replace(phase, target=(*phase.target, *targets)))
+        return replace(self, joints=(*self.joints, *(j for j, _ in extra)),
+                       initial_angle=(*self.initial_angle, *(x for _, x in extra)),
+                       phases=tuple(phases))
 
     def joint_index(self, joint: int | str) -> int:
         """Index of a joint given by index or name."""
@@ -415,6 +444,19 @@ def _joint(name: str, raw: dict[str, Any]) -> Joint:
                  kind=str(raw.get("kind", "revolute")), motor=str(raw.get("motor", "geared")))
 
 
+def _initial_positions(joints: tuple[Joint, ...], tables: dict[str, Any]) -> tuple[float, ...]:
+    """The `initial` position [rad or m] of each joint's table."""
+    initial = []
+    for joint, raw in zip(joints, tables.values()):
+        value = raw["initial"]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
+                value):
+            raise ValueError(f"joint {joint.name}: initial = {value!r} is not a finite number "
+                             f"[{joint.unit}]")
+        initial.append(float(value))
+    return tuple(initial)
+
+
 def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]:
     """The scenario's joints and their initial positions [rad or m]."""
     if "joints" not in data:
@@ -431,15 +473,7 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
                          "there, not [joint] or initial_angle_deg")
     joints = tuple(_joint(name, table(raw, f"joints.{name}"))
                    for name, raw in table(data["joints"], "joints").items())
-    initial = []
-    for joint, raw in zip(joints, data["joints"].values()):
-        value = raw["initial"]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-                value):
-            raise ValueError(f"joint {joint.name}: initial = {value!r} is not a finite number "
-                             f"[{joint.unit}]")
-        initial.append(float(value))
-    return joints, tuple(initial)
+    return joints, _initial_positions(joints, data["joints"])
 
 
 def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[float, ...]
@@ -484,7 +518,35 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
     return tuple(phases)
 
 
-def _variants(data: dict[str, Any], phase_names: set[str]) -> dict[str, Variant]:
+def _variant_joints(name: str, raw: dict[str, Any], scenario_joints: tuple[Joint, ...],
+                    phase_names: set[str]
+                    ) -> tuple[tuple[Joint, ...], tuple[float, ...], dict[str, dict[str, float]]]:
+    """A variant's own joints, their initial positions and their targets by phase."""
+    tables = table(raw.get("joints", {}), f"variant {name} joints")
+    joints = tuple(_joint(joint, table(raw_joint, f"variant {name} joints.{joint}"))
+                   for joint, raw_joint in tables.items())
+    taken = sorted({j.name for j in joints} & {j.name for j in scenario_joints})
+    if taken:
+        raise ValueError(f"variant {name} joints {', '.join(taken)}: the scenario has "
+                         "joints of these names")
+    targets = table(raw.get("phase_targets", {}), f"variant {name} phase_targets")
+    unknown = sorted(set(targets) - phase_names)
+    if unknown:
+        raise ValueError(f"variant {name} phase_targets names no phase {', '.join(unknown)}")
+    resolved = {}
+    for phase, changes in targets.items():
+        try:
+            values = _targets({"targets": changes}, joints, (0.0,) * len(joints))
+        except ValueError as error:
+            raise ValueError(f"variant {name} phase_targets {phase}: {error} (the variant's "
+                             "own joints)") from None
+        resolved[phase] = {j.name: v for j, v in zip(joints, values)
+                           if j.name in changes}
+    return joints, _initial_positions(joints, tables), resolved
+
+
+def _variants(data: dict[str, Any], phase_names: set[str], joints: tuple[Joint, ...]
+              ) -> dict[str, Variant]:
     variants = {}
     for name, raw in table(data["variants"], "variants").items():
         check_name(name, "variant name")
@@ -508,7 +570,7 @@ def _variants(data: dict[str, Any], phase_names: set[str]) -> dict[str, Variant]
             tuple(drop),
             {phase: _input_changes(changes, f"variant {name} phase {phase}")
              for phase, changes in phase_inputs.items()},
-            raw.get("baseline"))
+            raw.get("baseline"), *_variant_joints(name, raw, joints, phase_names))
     return variants
 
 
@@ -521,7 +583,7 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
                 raise ValueError(f"{key} = {data[key]!r} must be a string")
         joints, initial = _joints(data)
         phases = _phases(data, joints, initial)
-        variants = _variants(data, {phase.name for phase in phases})
+        variants = _variants(data, {phase.name for phase in phases}, joints)
         scenario = scenario_type(
             name=check_name(data["name"], "name"), description=data.get("description", ""),
             model=data["model"],

@@ -14,7 +14,11 @@ the reflected rotor J_rotor N^2 [kg], d_link its viscous friction [N s/m], K_tau
 ampere [N/A], and the gains are volts per metre of error; alpha stays in 1/s.
 With C(s) = Kp + Ki/s + Kd s the closed loop is s^3 + (alpha + beta Kd) s^2 + beta Kp s
 + beta Ki; placing its three poles at -omega_c gives Kd = (3 omega_c - alpha)/beta,
-Kp = 3 omega_c^2/beta, Ki = omega_c^3/beta. The derivative is filtered with
+Kp = 3 omega_c^2/beta, Ki = omega_c^3/beta. A plant damped by its own back-EMF beyond that,
+alpha > 3 omega_c (a screw whose reflected rotor dominates the joint), would get a negative
+Kd; it gets Kd = 0 instead and the poles at -omega_c (double) and -(alpha - 2 omega_c):
+Kp = (2 (alpha - 2 omega_c) omega_c + omega_c^2)/beta, Ki = (alpha - 2 omega_c) omega_c^2/beta.
+The derivative is filtered with
 T_f = 1/(derivative_filter_ratio omega_c). There is no gravity feedforward: what balancing
 saves must show up in the drive. The full model (inductance, filter) is checked with
 python-control (closed-loop poles, margins) in `design_report`.
@@ -59,16 +63,20 @@ def design_pid(motor: MotorParameters, inertia: float, d_link: float,
                design: ControllerDesign = ControllerDesign()) -> PIDGains:
     """PID gains placing the reduced closed loop's poles at -omega_c (triple).
 
-    inertia [kg m^2 or kg] and d_link [N m s/rad or N s/m] as in `reduced_plant`. The plant's
-    own damping alpha should stay below 3 omega_c, else the rule gives a negative Kd.
+    inertia [kg m^2 or kg] and d_link [N m s/rad or N s/m] as in `reduced_plant`. Where the plant's
+    own damping alpha exceeds 3 omega_c, Kd = 0 and the third pole goes to -(alpha - 2 omega_c).
     """
     if not (inertia > 0.0 and d_link >= 0.0):
         raise UserError(f"joint inertia = {inertia} must be in (0, inf) and friction = "
                         f"{d_link} in [0, inf)")
     alpha, beta = reduced_plant(motor, inertia, d_link)
     w = design.omega_c
-    return PIDGains(Kp=3 * w ** 2 / beta, Ki=w ** 3 / beta, Kd=(3 * w - alpha) / beta,
-                    T_f=1.0 / (design.derivative_filter_ratio * w))
+    T_f = 1.0 / (design.derivative_filter_ratio * w)
+    if alpha > 3 * w:
+        third = alpha - 2 * w
+        return PIDGains(Kp=(2 * third * w + w ** 2) / beta, Ki=third * w ** 2 / beta, Kd=0.0,
+                        T_f=T_f)
+    return PIDGains(Kp=3 * w ** 2 / beta, Ki=w ** 3 / beta, Kd=(3 * w - alpha) / beta, T_f=T_f)
 
 
 def pid_transfer_function(gains: PIDGains) -> ct.TransferFunction:
@@ -98,11 +106,15 @@ def design_report(motor: MotorParameters, inertia: float, d_link: float,
 
 
 def discretise(gains: PIDGains, dt: float) -> PIDCoefficients:
-    """Tustin difference-equation coefficients at dt [s] from control.c2d."""
-    derivative = ct.c2d(ct.tf([gains.Kd, 0.0], [gains.T_f, 1.0]), dt, method="tustin")
+    """Tustin difference-equation coefficients at dt [s] from control.c2d (with Kd = 0 the
+    filter s / (T_f s + 1) is discretised alone, c2d dropping a zero numerator, and its
+    numerator coefficients are 0)."""
+    used = 1.0 if gains.Kd == 0.0 else 0.0
+    derivative = ct.c2d(ct.tf([gains.Kd + used, 0.0], [gains.T_f, 1.0]), dt, method="tustin")
     integral = ct.c2d(ct.tf([gains.Ki], [1.0, 0.0]), dt, method="tustin")
     (b0, b1), (_, a1) = np.ravel(derivative.num[0][0]), np.ravel(derivative.den[0][0])
-    return PIDCoefficients(float(b0), float(b1), float(a1),
+    keep = 1.0 - used
+    return PIDCoefficients(float(keep * b0), float(keep * b1), float(a1),
                            float(np.ravel(integral.num[0][0])[0]))
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from fmu_src.dc_motor import (
     LEAD_SCREW_MOTOR,
+    TRAPEZOIDAL_SCREW_MOTOR,
     MotorParameters,
     SampledMotor,
     StepCoefficients,
@@ -25,8 +26,9 @@ from harness.errors import UserError
 __all__ = ["MOTORS", "MotorParameters", "SampledMotor", "motor_system", "motors",
            "sampled_motor"]
 
-# joint-side units: N m and rad for "geared", N and m for "lead_screw"
-MOTORS = {"geared": MotorParameters(), "lead_screw": LEAD_SCREW_MOTOR}
+# joint-side units: N m and rad for "geared", N and m for the screws
+MOTORS = {"geared": MotorParameters(), "lead_screw": LEAD_SCREW_MOTOR,
+          "trapezoidal_screw": TRAPEZOIDAL_SCREW_MOTOR}
 
 
 def motors(motor: MotorParameters | Mapping[str, MotorParameters] | None = None

@@ -73,12 +73,14 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     """Co-simulate one variant of a scenario and return its series and metrics.
 
     motor: the drives by name (`harness.drive.motors`; default MOTORS, one MotorParameters
-    replaces the geared motor). fmu: an instance of the variant's model to reuse (it is
+    replaces the geared motor). The variant's own joints are driven too
+    (`Scenario.for_variant`). fmu: an instance of the variant's model to reuse (it is
     reset first and left open), e.g. one per worker in a parameter sweep; by default a new
     instance is made and freed.
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
         raise UserError(f"step size = {step_size} s is outside (0, inf)")
+    scenario = scenario.for_variant(variant)
     joints = scenario.joints
     drive_motors = [motors(motor)[joint.motor] for joint in joints]
     model = variant.model or scenario.model
@@ -249,7 +251,7 @@ def check_names(scenario: Scenario, variant: Variant,
     if unknown:
         raise UserError(f"model {model} has no input {', '.join(unknown)}: drop it in "
                         f"variant {variant.name} (drop_inputs)")
-    for joint in scenario.joints:
+    for joint in scenario.for_variant(variant).joints:
         names = (joint.position, joint.speed, joint.effort, joint.start_parameter,
                  joint.inertia, joint.friction, joint.drive_inertia, joint.static_output)
         unknown = [n for n in names if n not in variables]

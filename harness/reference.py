@@ -78,6 +78,7 @@ def simulate(scenario: Scenario, variant: Variant,
              design: ControllerDesign = ControllerDesign(), rtol: float = 1e-9) -> ReferenceResult:
     """Solve the whole task as one ODE; returns the drive energies of docs/results.md."""
     physics = physics_module(variant.model or scenario.model)
+    scenario = scenario.for_variant(variant)
     joints = scenario.joints
     drives = [motors(motor)[joint.motor] for joint in joints]
     p = parameters(physics, scenario, variant, motor)

@@ -37,6 +37,9 @@ from harness.scenarios import Scenario  # noqa: E402
 
 RESULTS_DIR = Path(__file__).resolve().parent.parent / "results"
 SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size")
+# mechanism outputs a summary reports at the end of the run, where a variant's model has them
+# (NaN, an empty cell, for the others): W_adjust, the cumulative work of an adjusting actuator
+SUMMARY_OUTPUTS = ("W_adjust",)
 
 
 def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
@@ -65,12 +68,32 @@ def write_csv(frame: pd.DataFrame, path: Path) -> Path:
 
 def summary_columns(results: list[RunResult]) -> list[str]:
     """Columns of a summary: SUMMARY_COLUMNS for one-joint runs; with several joints the
-    totals, eps, then each drive's metrics (see harness.metrics), then the rest."""
-    return ["variant", *results[0].metrics, "eps", "W_phases", "eps_W", "model", "step_size"]
+    totals, then each drive's metrics (see harness.metrics), then eps and the rest. Where the
+    runs differ in their joints, every metric any of them has, in order of appearance; the
+    SUMMARY_OUTPUTS any of them has go before model."""
+    metrics = dict.fromkeys(name for r in results for name in r.metrics)
+    outputs = [name for name in SUMMARY_OUTPUTS if any(name in r.series for r in results)]
+    return ["variant", *metrics, "eps", "W_phases", "eps_W", *outputs, "model", "step_size"]
+
+
+def _summary_row(run: RunResult, per_joint: bool) -> dict[str, object]:
+    """A run's metrics, its SUMMARY_OUTPUTS at the end and, with per_joint, a one-joint run's
+    drive metrics also under the joint-suffixed names of several-joint runs."""
+    (joint, *others) = run.joint_phase_work or [None]
+    suffixed = ({f"{name}_{joint}": value for name, value in run.metrics.items()}
+                if per_joint and joint is not None and not others else {})
+    return {**run.metrics, **suffixed,
+            **{name: float(run.series[name].iloc[-1]) for name in SUMMARY_OUTPUTS
+               if name in run.series}}
 
 
 def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> pd.DataFrame:
     """One row per variant with the metrics of docs/results.md and the per-phase work.
+
+    Where some variants drive several joints and others one (franchetti2021's
+    active_relocation), a one-joint variant's drive metrics also fill the columns of its
+    joint (`E_drawn_theta`), and the drive metrics of a several-joint variant under plain
+    names stay empty (NaN) unless they are totals.
 
     W_phases [J] is the sum over the task's phases (and drives) of |net mechanical work of the
     drive on its joint in the phase|: the paper's stroke energy |integral of M dphi| summed
@@ -79,7 +102,8 @@ def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> 
     NaN where the baseline was not run.
     """
     results = list(results)
-    rows = [{"variant": r.variant, **r.metrics,
+    per_joint = any(len(r.joint_phase_work) > 1 for r in results)
+    rows = [{"variant": r.variant, **_summary_row(r, per_joint),
              "W_phases": sum(abs(w) for works in r.joint_phase_work.values()
                              for w in works.values()),
              "model": r.model, "step_size": r.step_size} for r in results]
@@ -187,9 +211,10 @@ def _to_mm(values: np.ndarray) -> np.ndarray:
 MECHANISM_PANELS = (
     ("(a) link angle", "deg", [("theta", np.degrees), ("theta_ref", np.degrees)]),
     ("(b) energies", "J", [("E_p", None), ("E_e", None), ("E_t", None)]),
-    ("(c) slider travel and payload", "mm | kg", [("delta_b", _to_mm), ("payload", None)]),
-    ("(d) spring length x, counterweight distance OB or height Y_cw", "mm",
-     [("x", _to_mm), ("OB", _to_mm), ("Y_cw", _to_mm)]),
+    ("(c) slider travel, carriage travel and payload", "mm | kg",
+     [("delta_b", _to_mm), ("payload", None), ("q", _to_mm)]),
+    ("(d) spring length x (l_s), counterweight distance OB or height Y_cw", "mm",
+     [("x", _to_mm), ("OB", _to_mm), ("Y_cw", _to_mm), ("l_s", _to_mm)]),
 )
 # the mechanism panels of multi-joint models, after one tracking panel per joint
 MODEL_PANELS = {
@@ -260,7 +285,8 @@ def plot(results: Sequence[RunResult | StoredRun], scenario: Scenario, path: Pat
     for row, (title, unit, name) in enumerate(drives):
         ax = axes[row, 1]
         for colour, r in zip(colours, results, strict=False):
-            ax.plot(r.series.time, r.series[name], color=colour, lw=1.2, label=r.variant)
+            column = name if name in r.series else f"{name}_{next(iter(r.joint_phase_work))}"
+            ax.plot(r.series.time, r.series[column], color=colour, lw=1.2, label=r.variant)
         ax.legend(fontsize=7)
         _decorate(ax, title, unit)
     for ax in axes[rows - 1:, :].ravel():
@@ -297,12 +323,17 @@ def summary_text(path: Path, scenario: Scenario) -> str:
     table = pd.read_csv(path)
     shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech"]
     per_drive = ["tau_peak", "tau_rms", "i_rms", "V_peak", "track_err_max", "track_err_rms"]
-    suffixes = {suffix(scenario, joint): joint for joint in scenario.joints}
-    shown += [f"{metric}{s}" for s in suffixes for metric in per_drive]
+    suffixes = {}
+    for variant in scenario.variants.values():  # the joints of every variant
+        resolved = scenario.for_variant(variant)
+        suffixes |= {suffix(resolved, joint): joint for joint in resolved.joints}
+    shown += [f"{metric}{s}" for s in suffixes for metric in per_drive
+              if f"{metric}{s}" in table]
     for s, joint in suffixes.items():
         for column in (f"track_err_max{s}", f"track_err_rms{s}"):
-            table[column] = np.degrees(table[column]) if joint.kind == "revolute" else (
-                1e3 * table[column])
-    shown += ["eps", "W_phases", "eps_W"]
+            if column in table:
+                table[column] = np.degrees(table[column]) if joint.kind == "revolute" else (
+                    1e3 * table[column])
+    shown += ["eps", "W_phases", "eps_W", *(c for c in SUMMARY_OUTPUTS if c in table)]
     return (f"{path.parent.name} (tracking errors in deg, or mm for prismatic joints)\n"
             + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))

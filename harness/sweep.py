@@ -9,7 +9,9 @@ metrics to keep. Each axis sets one or more paths of the run's configuration to 
 - `phases["III regulate"].inputs.payload`: a phase input (a ramp keeps its shape and
   gets the value as its target); `phases["II move", "III regulate"].target_deg`: phase
   targets in degrees (`initial_angle_deg` likewise); `phases["V move"].duration` [s];
-- `duration_scale`: every phase duration times the value (task speed).
+- `duration_scale`: every phase duration times the value (task speed);
+- `0.0583 * variants.active_relocation.phase_targets["III regulate"].q`: any path preceded by
+  a factor takes the axis value times it (a joint target proportional to the payload).
 
 Axes take `values = [...]` or `range = { start, stop, num }` (inclusive). `sample = "grid"`
 (default) runs the full factorial; `sample = "lhs"` draws a Latin-hypercube sample of
@@ -25,7 +27,9 @@ freed and replaced).
 
 Results: one row per run (point and variant) with run_id, point, variant, the axis values,
 status ("ok" or "failed"), error, the kept metrics, the FMU's calculated parameters (e.g.
-payload_max), the number of FMU log messages and the first one, and the wall time [s].
+payload_max), the final values of the mechanism outputs listed in `outputs` (NaN where the
+variant's model has no such output), the number of FMU log messages and the first one, and
+the wall time [s].
 The client writes each finished chunk atomically as results/sweeps/<name>/part-*.parquet;
 a restart skips the run_ids found there, so a killed sweep loses at most the chunks in
 flight. run_id hashes the scenario definition with the run's variant, the step size and
@@ -117,6 +121,7 @@ class Sweep:
     seed: int = 0
     chunk_size: int = DEFAULT_CHUNK
     plots: dict[str, dict[str, Any]] = field(default_factory=dict)
+    outputs: tuple[str, ...] = ()              # mechanism outputs kept at the run's end
 
 
 @dataclass(frozen=True)
@@ -239,6 +244,9 @@ def load(path: str | Path) -> Sweep:
     for kind, spec in plots.items():
         if kind not in PLOTS:
             raise UserError(f"{where}: unknown plot {kind!r} (choose from {', '.join(PLOTS)})")
+        if kind == "lines":
+            _check_lines_plot(spec, names, where)
+            continue
         roles = [spec.get(role) for role in ("x", "y", "lines", "panels") if spec.get(role)]
         if set(roles) - set(names) or not spec.get("x") or (kind == "map" and not spec.get("y")):
             raise UserError(f"{where}: plot {kind} needs x{' and y' if kind == 'map' else ''}"
@@ -253,8 +261,12 @@ def load(path: str | Path) -> Sweep:
     chunk_size = _count(data.get("chunk_size", DEFAULT_CHUNK), f"{where}: chunk_size", 1,
                         MAX_RUNS)
     seed = _count(data.get("seed", 0), f"{where}: seed", 0, 2 ** 63 - 1)
+    outputs = data.get("outputs", [])
+    if not isinstance(outputs, list) or not all(isinstance(n, str) for n in outputs):
+        raise UserError(f"{where}: outputs = {outputs!r} is not a list of output names")
     return Sweep(name, data.get("description", ""), scenario, variants,
-                 axes, metrics, step_size, sample, samples, seed, chunk_size, plots)
+                 axes, metrics, step_size, sample, samples, seed, chunk_size, plots,
+                 tuple(outputs))
 
 
 def _check_first_point(scenario: scenarios.Scenario, variants: Sequence[str],
@@ -332,6 +344,18 @@ def _replace(obj: Any, tokens: list[tuple[str, ...]], value: float, path: str) -
     raise PathError(f"set path {path!r}: cannot select {names} in a {type(obj).__name__}")
 
 
+def _scaled(path: str) -> tuple[str, float]:
+    """`0.5 * parameters.k` -> ("parameters.k", 0.5); a path without a factor has factor 1."""
+    factor, times, rest = path.partition("*")
+    if not times:
+        return path, 1.0
+    try:
+        return rest.strip(), float(factor)
+    except ValueError:
+        raise PathError(f"set path {path!r}: {factor.strip()!r} is not a number (write "
+                        "'<factor> * <path>')") from None
+
+
 def configure(scenario: scenarios.Scenario, assignments: Iterable[tuple[str, float]]
               ) -> tuple[scenarios.Scenario, MotorParameters, ControllerDesign]:
     """The scenario, motor and controller design of one run: defaults with the assignments
@@ -339,6 +363,8 @@ def configure(scenario: scenarios.Scenario, assignments: Iterable[tuple[str, flo
     config: dict[str, Any] = {"scenario": scenario, "motor": MotorParameters(),
                               "design": ControllerDesign()}
     for path, value in assignments:
+        path, factor = _scaled(path)
+        value *= factor
         tokens = _tokens(path)
         head = tokens[0][0]
         if tokens == [("duration_scale",)]:
@@ -385,10 +411,12 @@ def _digest(data: Any) -> str:
 def plan(sweep: Sweep) -> list[Run]:
     """Every run of the sweep, point by point and variant by variant, with stable ids.
 
-    A run_id covers the scenario with only the run's variant, so adding or editing another
-    variant of the scenario leaves stored runs valid."""
+    A run_id covers the scenario with only the run's variant (and the joints it drives,
+    `Scenario.for_variant`), so adding or editing another variant of the scenario leaves
+    stored runs valid."""
     scenario = sweep.scenario
-    definitions = {v: repr(replace(scenario, variants={v: scenario.variant(v)}))
+    definitions = {v: repr(replace(scenario.for_variant(scenario.variant(v)),
+                                   variants={v: scenario.variant(v)}))
                    for v in sweep.variants}
     runs = []
     for values in points(sweep):
@@ -458,6 +486,8 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
         result = master.run(scenario, variant, sweep.step_size, motor, design, fmu=fmu)
         row.update(status="ok", error="", **result.metrics,
                    **fmu.get(fmu.names("calculatedParameter")),
+                   **{name: float(result.series[name].iloc[-1]) if name in result.series
+                      else math.nan for name in sweep.outputs},
                    fmu_messages=len(result.messages),
                    first_message=result.messages[0] if result.messages else "")
     except Exception as error:  # noqa: BLE001 - recorded, and the sweep goes on
@@ -679,16 +709,63 @@ def plot_map(sweep: Sweep, points: pd.DataFrame, spec: dict[str, Any], path: Pat
     return _save(fig, path)
 
 
+def _check_lines_plot(spec: dict[str, Any], axes: list[str], where: str) -> None:
+    """UserError unless a lines plot names an x axis, optional lines axis and y columns."""
+    roles = [spec.get(role) for role in ("x", "lines") if spec.get(role)]
+    y = spec.get("y")
+    if (set(roles) - set(axes) or not spec.get("x") or not isinstance(y, list) or not y
+            or not all(isinstance(c, str) for c in y)):
+        raise UserError(f"{where}: plot lines needs x and may have lines, both axes "
+                        f"({', '.join(axes)}), and y = [result columns]")
+
+
+def plot_lines(sweep: Sweep, table: pd.DataFrame, spec: dict[str, Any], path: Path) -> Path:
+    """One panel per `y` column (a row) and variant (a column) against the x axis, one line
+    per value of `lines`; a variant without the column (all NaN) leaves its panel empty.
+    `labels` may give a y column a longer label."""
+    x, lines, labels = spec["x"], spec.get("lines"), spec.get("labels", {})
+    ok = table[table.status == "ok"]
+    variants = list(sweep.variants)
+    fig = Figure(figsize=(5.2 * len(variants), 0.6 + 2.6 * len(spec["y"])), layout="constrained")
+    axes = fig.subplots(len(spec["y"]), len(variants), squeeze=False, sharex=True)
+    for row, column in enumerate(spec["y"]):
+        for col, variant in enumerate(variants):
+            ax = axes[row, col]
+            data = ok[ok.variant == variant]
+            if column in data and data[column].notna().any():
+                groups = data.groupby(lines) if lines else [(None, data)]
+                for i, (line, group) in enumerate(groups):
+                    group = group.sort_values(x)
+                    label = None if line is None else f"{_axis_label(sweep, lines)} = {line:g}"
+                    ax.plot(group[x], group[column], "o-", color=f"C{i}", ms=3, lw=1.2,
+                            label=label)
+                if lines and row == 0:
+                    ax.legend(fontsize=7)
+            else:
+                ax.text(0.5, 0.5, f"no {column}", transform=ax.transAxes, ha="center",
+                        color="0.5")
+            ax.grid(alpha=0.3)
+            ax.set_ylabel(labels.get(column, column), fontsize=8)
+            if row == 0:
+                ax.set_title(variant, fontsize=10)
+            if row == len(spec["y"]) - 1:
+                ax.set_xlabel(_axis_label(sweep, x))
+    fig.suptitle(f"{sweep.name}: {sweep.description or sweep.scenario.name}")
+    return _save(fig, path)
+
+
 PLOTS: dict[str, Callable[[Sweep, pd.DataFrame, dict[str, Any], Path], Path]] = {
-    "saving": plot_saving, "map": plot_map}
+    "saving": plot_saving, "map": plot_map, "lines": plot_lines}
 
 
 def plot(sweep: Sweep, table: pd.DataFrame, out: Path) -> list[Path]:
-    """Draw the sweep's [plots] as <name>_<plot>.png in out."""
+    """Draw the sweep's [plots] as <name>_<plot>.png in out (saving and map from the saving
+    of each point, lines from the rows)."""
     if not sweep.plots:
         return []
-    points = saving(sweep, table)
-    return [PLOTS[kind](sweep, points, spec, out / f"{sweep.name}_{kind}.png")
+    points = saving(sweep, table) if set(sweep.plots) - {"lines"} else table
+    return [PLOTS[kind](sweep, table if kind == "lines" else points, spec,
+                        out / f"{sweep.name}_{kind}.png")
             for kind, spec in sweep.plots.items()]
 
 

@@ -103,7 +103,9 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
              step_size: float = master.DEFAULT_STEP,
              design: ControllerDesign = ControllerDesign()) -> System:
     """The system of FMUs for a variant, with the harness's parameters and start (the
-    ScenarioSequencer built for the scenario if build/fmus' one plays another)."""
+    ScenarioSequencer built for the scenario if build/fmus' one plays another). A variant's
+    own joints get their controllers and drives too (`Scenario.for_variant`)."""
+    scenario = scenario.for_variant(variant)
     drive_motors = [motors()[joint.motor] for joint in scenario.joints]
     model = variant.model or scenario.model
     mechanism_parameters = master.run_parameters(scenario, variant, drive_motors)

@@ -1,5 +1,7 @@
 """The franchetti2021 co-simulation against physics that does not depend on the trajectory,
-against the monolithic solve_ivp reference, and against the committed summary."""
+against the monolithic solve_ivp reference, and against the committed summary; the
+active_relocation variant (two drives) against the closed-form balance and the spring's
+energy."""
 
 from __future__ import annotations
 
@@ -9,19 +11,22 @@ import numpy as np
 import pytest
 from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 
+from fmu_src import active_spring
 from fmu_src.self_regulating import Parameters
-from harness import master, reference, scenarios
-from harness.drive import MotorParameters
+from harness import master, reference, results, scenarios
+from harness.drive import MOTORS, MotorParameters
 
 SCENARIO = scenarios.load("franchetti2021")
 VARIANTS = ("self_regulating", "unregulated", "unbalanced")
+RELOCATION = "active_relocation"    # the link's drive and the carriage's (joints theta, q)
 TABLE1 = Parameters()
+ACTIVE = active_spring.Parameters()
 MOTOR = MotorParameters()
 
 
 @pytest.fixture(scope="module")
 def runs() -> dict[str, master.RunResult]:
-    return {v: master.run(SCENARIO, SCENARIO.variant(v)) for v in VARIANTS}
+    return {v: master.run(SCENARIO, SCENARIO.variant(v)) for v in (*VARIANTS, RELOCATION)}
 
 
 def friction_loss(run: master.RunResult, start: float, end: float) -> float:
@@ -66,14 +71,16 @@ def test_tracking_without_saturation(runs: dict[str, master.RunResult], variant:
     assert m["V_peak"] < MOTOR.V_supply
 
 
-@pytest.mark.parametrize("variant", VARIANTS)
-def test_energy_balance(runs: dict[str, master.RunResult], variant: str) -> None:
-    # electrical energy in = armature losses + work on the link + magnetic energy left
-    # (eta = 1); the tolerance covers the use of step-average current in R i^2
+@pytest.mark.parametrize("variant, drive", [(v, "") for v in VARIANTS] + [
+    (RELOCATION, "_theta"), (RELOCATION, "_q")])
+def test_energy_balance(runs: dict[str, master.RunResult], variant: str, drive: str) -> None:
+    # per drive: electrical energy in = armature losses + work on the joint + magnetic energy
+    # left (eta = 1); the tolerance covers the use of step-average current in R i^2
     m = runs[variant].metrics
-    assert MOTOR.eta == 1.0
-    assert m["E_in"] == pytest.approx(m["E_copper"] + m["W_link"] + m["E_inductor"],
-                                      rel=0.005, abs=1e-4)
+    assert MOTOR.eta == MOTORS["trapezoidal_screw"].eta == 1.0
+    assert m[f"E_in{drive}"] == pytest.approx(
+        m[f"E_copper{drive}"] + m[f"W_link{drive}"] + m[f"E_inductor{drive}"],
+        rel=0.005, abs=1e-4)
 
 
 def test_regulation_settles_at_the_paper_position(runs: dict[str, master.RunResult]) -> None:
@@ -83,6 +90,59 @@ def test_regulation_settles_at_the_paper_position(runs: dict[str, master.RunResu
     assert locked.delta_b.iloc[0] == pytest.approx(0.035, abs=1e-4)
     assert locked.balance_error.abs().max() < 0.01
     assert np.ptp(locked.E_t) < 1e-3
+
+
+def balancing_height(payload: float) -> float:
+    """Y_B [m] that balances the link with the payload: (m c + payload w) g / (k x1A)."""
+    return (ACTIVE.m * ACTIVE.c + payload * ACTIVE.w) * ACTIVE.g / (ACTIVE.k * ACTIVE.x1A)
+
+
+def test_active_relocation_reaches_the_closed_form_height(
+        runs: dict[str, master.RunResult]) -> None:
+    # 1 kg at w = 0.35 m: Y_B 0.1 -> 0.1583 m, reached at the end of phase III (17 s); the
+    # link stays balanced on the way (the payload follows q's quintic) and after it, and the
+    # self-locking screw holds B without current from the end of phase IV (20 s)
+    series = runs[RELOCATION].series
+    assert balancing_height(0.0) == pytest.approx(ACTIVE.Y_B0, rel=1e-12)
+    regulating = series[(series.time >= 14.0) & (series.time <= 17.0)]
+    assert regulating.Y_B.iloc[-1] == pytest.approx(balancing_height(1.0), abs=1e-4)
+    assert regulating.balance_error.abs().max() < 0.02      # of 3.43 N m for the payload
+    held = series[series.time >= 20.0]
+    assert held.Y_B.to_numpy() == pytest.approx(balancing_height(1.0), abs=2e-5)
+    assert held.balance_error.abs().max() < 0.01
+    assert held.i_q.abs().max() < 1e-3
+
+
+def test_active_relocation_work_is_the_spring_energy(runs: dict[str, master.RunResult]) -> None:
+    # at theta = 180 deg the spring runs from A, x1A below O, to B: l_s = Y_B + x1A, so
+    # raising B stores 1/2 k ((Y_B' + x1A)^2 - (Y_B + x1A)^2) = 10.83 J; the drive also lifts
+    # the carriage (m_q g dY) and pays its damper, d_q times the integral of q_dot^2
+    run = runs[RELOCATION]
+    series = run.series
+    start, end = ACTIVE.Y_B0 + ACTIVE.x1A, balancing_height(1.0) + ACTIVE.x1A
+    spring = 0.5 * ACTIVE.k * (end ** 2 - start ** 2)
+    assert spring == pytest.approx(10.83, abs=0.005)
+    lift = ACTIVE.m_q * ACTIVE.g * (end - start)
+    damper = ACTIVE.d_q * float(np.trapezoid(series.q_dot ** 2, series.time))
+    work = run.metrics["W_link_q"]
+    assert series.W_adjust.iloc[-1] == pytest.approx(work, rel=1e-9)
+    assert work == pytest.approx(spring + lift + damper, rel=0.005)
+
+
+def test_active_relocation_draws_for_both_drives(runs: dict[str, master.RunResult]) -> None:
+    table = results.summary(runs.values(), SCENARIO.baselines).set_index("variant")
+    active = table.loc[RELOCATION]
+    assert active.E_drawn == pytest.approx(active.E_drawn_theta + active.E_drawn_q, rel=1e-12)
+    assert active.W_adjust == pytest.approx(active.W_link_q, rel=1e-12)
+    for variant in VARIANTS:    # one drive: its metrics are also the link's columns
+        assert table.loc[variant, "E_drawn_theta"] == table.loc[variant, "E_drawn"]
+        assert np.isnan(table.loc[variant, "W_adjust"])
+    # both keep the link balanced throughout, so the link's drives draw alike; the carriage's
+    # drive pays the spring energy (and its copper losses), which self-regulation takes from
+    # the counterweight
+    assert active.E_drawn_theta == pytest.approx(table.loc["self_regulating", "E_drawn"],
+                                                 rel=0.05)
+    assert active.E_drawn_q > active.W_adjust > 10.83
 
 
 @pytest.fixture(scope="module")

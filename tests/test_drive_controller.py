@@ -19,8 +19,8 @@ from harness.controller import (
     discretise,
     reduced_plant,
 )
+from harness.drive import MOTORS, motor_system
 from harness.drive import discretise as discretise_motor
-from harness.drive import motor_system
 
 MOTOR = MotorParameters()
 LINK_INERTIA = 0.16 + MOTOR.J_drive  # Franchetti link plus reflected rotor [kg m^2]
@@ -77,6 +77,28 @@ def test_design_places_reduced_closed_loop_poles_at_omega_c() -> None:
     # on the full model (armature inductance, derivative filter) the loop stays well damped
     report = design_report(MOTOR, LINK_INERTIA, 0.01, gains)
     assert report["phase_margin_deg"] > 45 and report["max_pole_real"] < 0
+
+
+def test_overdamped_joint_gets_no_derivative_and_its_third_pole_at_alpha_minus_two_omega_c(
+) -> None:
+    """The self-locking screw's reflected rotor (33 kg on a 0.5 kg carriage) makes the
+    back-EMF damp the joint at alpha = 326 1/s > 3 omega_c: Kd = 0, poles -omega_c (double)
+    and -(alpha - 2 omega_c), and the full loop keeps a good margin."""
+    motor, mass, friction = MOTORS["trapezoidal_screw"], 0.5, 100.0
+    design = ControllerDesign()
+    alpha, beta = reduced_plant(motor, mass + motor.J_drive, friction)
+    assert alpha > 3 * design.omega_c
+    gains = design_pid(motor, mass + motor.J_drive, friction, design)
+    assert gains.Kd == 0.0
+    pid = ct.tf([gains.Kp, gains.Ki], [1.0, 0.0])
+    poles = ct.poles(ct.feedback(pid * ct.tf([beta], [1.0, alpha, 0.0]), 1))
+    w = design.omega_c
+    np.testing.assert_allclose(np.sort(poles.real), [-(alpha - 2 * w), -w, -w], rtol=1e-3)
+    report = design_report(motor, mass + motor.J_drive, friction, gains)
+    assert report["phase_margin_deg"] > 45 and report["max_pole_real"] < 0
+    # and the discrete PID is a PI: no derivative coefficients
+    coefficients = discretise(gains, 1e-3)
+    assert coefficients.b0 == coefficients.b1 == 0.0
 
 
 def test_anti_windup_holds_the_integrator_while_saturated() -> None:

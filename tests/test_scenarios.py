@@ -92,6 +92,28 @@ def test_demian_joints_and_targets() -> None:
     assert scenario.variant("uncompensated").parameters == {"compensated": False}
 
 
+def test_a_variant_drives_joints_of_its_own() -> None:
+    """franchetti2021's active_relocation: the link, then the carriage q, which holds 0 until
+    phase III takes it to 58.3 mm (a quintic: half way at 15.5 s) and holds that after."""
+    scenario = scenarios.load("franchetti2021")
+    variant = scenario.variant("active_relocation")
+    assert scenario.for_variant(scenario.variant("self_regulating")) is scenario
+    resolved = scenario.for_variant(variant)
+    assert [j.name for j in resolved.joints] == ["theta", "q"]
+    assert resolved.joints[1].motor == "trapezoidal_screw" and resolved.joints[1].unit == "m"
+    assert resolved.for_variant(variant) is resolved      # resolving twice adds nothing
+    q_bal = 0.35 * 9.81 / (981.0 * 0.06)                  # payload w g / (k x1A) for 1 kg
+    assert resolved.reference_at(9.0) == (pytest.approx(math.radians(120.0)), 0.0)
+    assert resolved.reference_at(15.5) == pytest.approx((math.pi, q_bal / 2), abs=1e-15)
+    assert resolved.reference_at(30.0) == pytest.approx((math.radians(340.0), q_bal),
+                                                        abs=1e-15)
+    # the payload follows q's quintic, so the link stays balanced on the way
+    segments = scenario.input_segments(variant)
+    assert scenario.inputs_at(15.5, segments) == {"payload": 0.5}
+    assert scenario.inputs_at(14.3, segments)["payload"] == pytest.approx(
+        resolved.reference_at(14.3)[1] / q_bal, rel=1e-12)
+
+
 def test_default_joint_holds_the_negative_load() -> None:
     (joint,) = scenarios.load("franchetti2021").joints
     assert (joint.position, joint.static_output, joint.static_is_load) == (
@@ -154,6 +176,17 @@ FRANCHETTI = (scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text()
      "phase II move: unknown key.* targt"),
     (FRANCHETTI.replace('baseline = "unbalanced"', 'baseline = "balanced"'),
      "baseline balanced names no variant; choose from self_regulating"),
+    (FRANCHETTI.replace("[variants.active_relocation.joints.q]",
+                        "[variants.active_relocation.joints.theta]"),
+     "variant active_relocation joints theta: the scenario has joints of these names"),
+    (FRANCHETTI.replace('phase_targets = { "III regulate" = { q',
+                        'phase_targets = { "III regulat" = { q'),
+     "variant active_relocation phase_targets names no phase III regulat"),
+    (FRANCHETTI.replace('phase_targets = { "III regulate" = { q',
+                        'phase_targets = { "III regulate" = { theta'),
+     "variant active_relocation phase_targets III regulate: targets name no joint theta"),
+    (FRANCHETTI.replace('static_effort = "F_hold"', ""),
+     r"joint q needs .*static_effort, static_load"),
 ])
 def test_bad_files_are_rejected_with_clear_messages(tmp_path: Path, text: str,
                                                     message: str) -> None:
@@ -190,9 +223,12 @@ def test_sequencer_model_description(sequencer: Path) -> None:
     variant = variables["variant"]
     assert (variant.type, variant.causality, variant.start) == ("String", "parameter",
                                                                 "self_regulating")
+    # the references of every variant's joints (active_relocation's carriage q too)
     assert [v.name for v in md.modelVariables if v.causality == "output"] == [
-        "theta_ref", "slider_locked", "pulley_locked", "payload", "counterweight_added"]
+        "theta_ref", "q_ref", "slider_locked", "pulley_locked", "payload",
+        "counterweight_added"]
     assert variables["theta_ref"].declaredType.unit == "rad"
+    assert variables["q_ref"].declaredType.unit == "m"
     assert variables["slider_locked"].type == "Boolean"
     assert variables["slider_locked"].variability == "discrete"
     # the Real inputs carry the units of the mechanism's inputs they feed
@@ -209,11 +245,14 @@ def test_sequencer_plays_the_scenario_as_the_harness(sequencer: Path, variant: s
     times = np.arange(n + 1) * SEQUENCER_STEP
     with CoSimFMU(sequencer, variant) as fmu:
         played = play_sequencer(fmu, variant, n, SEQUENCER_STEP)
-    outputs = list(played)
-    np.testing.assert_allclose(played["theta_ref"], scenario.reference(times), rtol=0.0,
-                               atol=1e-12)
+    resolved = scenario.for_variant(scenario.variant(variant))
+    np.testing.assert_allclose(played["theta_ref"], resolved.reference(times, "theta"),
+                               rtol=0.0, atol=1e-12)
+    # the carriage's reference where the variant drives it, else 0
+    q = resolved.reference(times, "q") if len(resolved.joints) > 1 else np.zeros(n + 1)
+    np.testing.assert_allclose(played["q_ref"], q, rtol=0.0, atol=1e-12)
     inputs = scenario.inputs(times, scenario.variant(variant))
-    for name in outputs[1:]:
+    for name in list(played)[2:]:
         if name not in inputs:  # dropped by the variant: stays at its default
             assert not played[name].any(), name
         elif inputs[name].dtype == bool:

@@ -68,8 +68,8 @@ def test_it_plays_the_references_of_the_scenario(demian: Path, variant: str) -> 
           CoSimFMU(demian, "demian") as fmu):
         franchetti = play_sequencer(default, "self_regulating", 64, STEP)
         played = play_sequencer(fmu, variant, steps, STEP)
-    assert set(franchetti) == {"theta_ref", "slider_locked", "pulley_locked", "payload",
-                               "counterweight_added"}
+    assert set(franchetti) == {"theta_ref", "q_ref", "slider_locked", "pulley_locked",
+                               "payload", "counterweight_added"}
     for j, joint in enumerate(scenario.joints):
         np.testing.assert_allclose(played[f"{joint.position}_ref"],
                                    scenario.reference(times, j), rtol=0.0, atol=1e-12)

@@ -42,6 +42,26 @@ def test_configure_sets_paths_without_touching_the_scenario() -> None:
     assert FRANCHETTI.phases[2].inputs["payload"] == Ramp(1.0)
 
 
+def test_a_factor_scales_the_value_and_variant_paths_reach_its_joints() -> None:
+    """regulation.toml's payload axis: the payload ramps (the scenario's and
+    active_relocation's own quintic) and the anchor's travel, 58.3 mm per kg."""
+    definition = sweep.load("regulation")
+    assert len(sweep.plan(definition)) == 84
+    assert definition.outputs == ("E_cw", "W_adjust", "E_e", "balance_error")
+    scenario, _, _ = sweep.configure(FRANCHETTI, sweep.assignments(
+        definition, {"payload": 3.0, "regulation_angle": 90.0}))
+    variant = scenario.variant("active_relocation")
+    assert variant.phase_inputs["III regulate"]["payload"] == Ramp(3.0, "quintic")
+    assert variant.phase_targets["III regulate"]["q"] == pytest.approx(
+        3.0 * 0.35 * 9.81 / (981.0 * 0.06), rel=1e-12)
+    resolved = scenario.for_variant(variant)
+    assert resolved.reference_at(17.0) == pytest.approx((math.pi / 2, 0.175), rel=1e-12)
+    assert FRANCHETTI.variant("active_relocation").phase_targets["III regulate"]["q"] == (
+        pytest.approx(0.0583333, rel=1e-6))
+    with pytest.raises(sweep.PathError, match="'two' is not a number"):
+        sweep.configure(FRANCHETTI, [("two * parameters.k", 1.0)])
+
+
 @pytest.mark.parametrize("path", ['phases["III regulte"].target_deg', "parameters.L0.x",
                                   "motor.Nx", 'phases["I hold"].inputs[1]', "phases.target"])
 def test_configure_rejects_bad_paths(path: str) -> None:
