@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 settings.register_profile("ci", max_examples=15, derandomize=True, deadline=None,
                           database=None, suppress_health_check=[HealthCheck.too_slow])
-settings.register_profile("deep", max_examples=1000, deadline=None,
+settings.register_profile("deep", max_examples=3000, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
