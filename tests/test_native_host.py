@@ -130,8 +130,12 @@ def test_every_fmu_runs_without_any_environment_like_fmpy(
     assert values == pytest.approx(expected, rel=1e-12, abs=1e-12)
 
 
+# every interpreter with the sequencer (the FMU that once needed 3.11's tomllib) and the
+# self-regulating balancer; the other models with every interpreter in `make test-all`
 @pytest.mark.parametrize("libpython", libpythons(), ids=str)
-@pytest.mark.parametrize("model", CASES)
+@pytest.mark.parametrize("model", [
+    model if model in ("ScenarioSequencer", "SelfRegulatingBalancer")
+    else pytest.param(model, marks=pytest.mark.slow) for model in CASES])
 def test_every_cpython_from_3_8_runs_every_fmu(
         host: Path, unzipped: dict[str, Path], model: str, libpython: Path) -> None:
     values = run_host(host_command(host, model, unzipped[model]),

@@ -67,7 +67,9 @@ def assert_agrees(summary: pd.DataFrame, series: pd.DataFrame,
 
 # unbalanced: the largest drive energies; self_regulating: the sequencer drives the locks, the
 # payload and counterweight ramps, and the slider regulates within the system
-@pytest.mark.parametrize("variant", [VARIANT, "self_regulating"])
+# the self_regulating run (about 18 s) is left to `make test-all`
+@pytest.mark.parametrize("variant", [VARIANT, pytest.param("self_regulating",
+                                                           marks=pytest.mark.slow)])
 def test_libcosim_runs_the_osp_system_like_the_harness(
         tmp_path: Path, variant: str) -> None:
     harness_run = harness_run_of(variant)
@@ -80,6 +82,7 @@ def test_libcosim_runs_the_osp_system_like_the_harness(
     assert np.max(np.abs(series.b - harness_run.series.b)) < 1e-5   # slider [m]
 
 
+@pytest.mark.slow   # about 15 s: the whole 35 s task from the SSP archive
 def test_libcosim_runs_the_ssp_archive_as_the_osp_file(described: system.System,
                                                        tmp_path: Path) -> None:
     ssp = system.write_ssp(described, tmp_path / f"{VARIANT}.ssp")
@@ -140,6 +143,7 @@ def test_osp_variable_group_connections_give_the_per_variable_numbers(
     assert cut["drive.omega"] == 0.0 and abs(cut["mechanism.theta"] - np.radians(60.0)) > 0.5
 
 
+@pytest.mark.slow   # about 7 s: the whole 35 s task in FMPy's SSP runner
 def test_fmpy_ssp_runner_agrees_despite_its_start(
         tmp_path: Path, harness_run: master.RunResult) -> None:
     """simulate_ssp starts every connected input at 0: the mechanism gets no drive torque in
