@@ -398,7 +398,8 @@ class Scenario:
 def _input_change(name: str, value: Any) -> Any:
     if isinstance(value, dict):
         shape = value.get("shape", "linear")
-        if "ramp" not in value or set(value) - {"ramp", "shape"} or shape not in RAMP_SHAPES:
+        if ("ramp" not in value or set(value) - {"ramp", "shape"} or not isinstance(shape, str)
+                or shape not in RAMP_SHAPES):
             raise ValueError(f"input {name} must be a value or {{ ramp = value, "
                              f"shape = one of {', '.join(RAMP_SHAPES)} }}")
         return Ramp(finite_number(value["ramp"], f"input {name} ramp"), shape)

@@ -36,6 +36,11 @@ step_sizes = st.floats(min_value=-15.0, max_value=1.0).map(lambda e: 10.0 ** e)
 
 CASE_TIMEOUT = 60.0   # s: a case that takes longer counts as a hang
 CALL_LIMIT = 5.0      # s: the most one FMI call may take (MAX_SUBSTEPS RK4 sub-steps)
+# An instance that returned Fatal keeps its copy of pythonfmu's binary loaded (freeing it
+# could crash the host), about 13 memory mappings each: a process meets the kernel's
+# limit (vm.max_map_count, 65530) after some 5000 such instances ("failed to map segment"
+# when the next FMU loads), so the child that runs the cases is replaced after this many.
+CASES_PER_PROCESS = 500
 
 
 def run_case(case: Mapping[str, Any]) -> dict[str, Any]:
@@ -97,11 +102,16 @@ class FmuRunner:
         self._start()
 
     def _start(self) -> None:
+        self.cases_run = 0
         self.connection, child = self._context.Pipe()
         self.process = self._context.Process(target=_serve, args=(child,), daemon=True)
         self.process.start()
 
     def run(self, case: Mapping[str, Any]) -> dict[str, Any]:
+        if self.cases_run == CASES_PER_PROCESS:
+            self.close()
+            self._start()
+        self.cases_run += 1
         self.connection.send(dict(case))
         if not self.connection.poll(CASE_TIMEOUT):
             self.process.kill()
