@@ -106,8 +106,9 @@ def check_linkage(k: Linkage) -> None:
     if not (abs(k.AB - k.BC) < low and high < k.AB + k.BC):
         raise ValueError(
             f"bars AB = {k.AB} m and BC = {k.BC} m must satisfy |AB - BC| < |OA - OC| = "
-            f"{low} m and OA + OC = {high} m < AB + BC, so that the linkage moves through every "
-            "arm angle without locking")
+            f"{low} m and OA + OC = {high} m < AB + BC (OA from x1A = {k.x1A} m, y1A = "
+            f"{k.y1A} m; OC from XC = {k.XC} m, YC = {k.YC} m), so that the linkage moves "
+            "through every arm angle without locking")
 
 
 def geometry(k: Linkage, phi: float) -> Geometry:
