@@ -26,7 +26,7 @@ test: fmu
 test-all: fmu
 	$(PY) -m pytest -q
 
-# property tests with random seeds and many examples (about 10 min); `make test` runs the
+# property tests with random seeds and many examples (about 13 min on two cores); `make test` runs the
 # same suite with a fixed seed and a small budget
 fuzz: fmu
 	HYPOTHESIS_PROFILE=deep $(PY) -m pytest -q tests/fuzz
