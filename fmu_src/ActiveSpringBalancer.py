@@ -1,9 +1,8 @@
 """FMI 2.0 Co-Simulation slave of the spring balancer with an actively relocated frame joint
 (Ciupitu 2018, Fig. 8).
 
-A thin layer over `fmu_src.active_spring`: it maps FMI variables to the physics, books a
-payload change at the communication point where it happens, integrates the physics over
-each communication step, and warns through the FMU log when the spring is compressed (the
+A thin layer over `fmu_src.active_spring` (the common plumbing is `MechanismSlave`'s); it
+warns through the FMU log when the spring is compressed (the
 model's linear force law pushes there, which an extension spring cannot).
 """
 
@@ -21,8 +20,9 @@ class ActiveSpringBalancer(MechanismSlave):
     """1-DOF link balanced by a spring whose frame joint a self-locking prismatic joint
     moves along the vertical (Ciupitu 2018, Section 3)."""
 
+    physics = physics
     parameters_type = physics.Parameters
-    hidden_state = ("state", "payload_held", "compression_reported")
+    hidden_state = ("state", "previous_inputs", "compression_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=5.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:
@@ -36,43 +36,25 @@ class ActiveSpringBalancer(MechanismSlave):
         self.add_input("payload", 0.0, "kg", "Payload mass at distance w", min=0.0)
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
-        self.state = None
-        self.payload_held = 0.0     # the payload the state refers to [kg]
         self.compression_reported = False   # once per spell of F_s < 0
-
-    def validate(self, params: physics.Parameters) -> None:
-        physics.validate(params)
 
     def inputs(self) -> physics.Inputs:
         return physics.Inputs(float(self.tau_drive), float(self.F_adjust), float(self.payload))
 
     def initialise(self, params: physics.Parameters) -> None:
-        u = self.inputs()
-        self.state = physics.initial_state(params)
-        self.payload_held = u.payload   # the start value is no event
         self.compression_reported = False
-        self.set_outputs(physics.outputs(params, u, self.state))
+        super().initialise(params)
 
     def step(self, dt: float) -> None:
-        p, u = self.params, self.inputs()
-        if u.payload != self.payload_held:
-            self.state = physics.change_payload(p, self.state, self.payload_held, u.payload)
-            self.payload_held = u.payload
-        self.state = physics.advance(p, u, self.state, dt)
-        out = physics.outputs(p, u, self.state)
-        if out.F_s < 0.0 and not self.compression_reported:
-            self.warn(f"spring in compression (F_s = {out.F_s:.4g} N at l_s = {out.l_s:.4g} m, "
-                      f"free length {p.free_length:.4g} m): the model's linear law pushes, an "
-                      "extension spring would go slack")
-        self.compression_reported = out.F_s < 0.0
-        self.set_outputs(out)
-
-    def refresh_outputs(self) -> None:
-        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
+        super().step(dt)
+        if self.F_s < 0.0 and not self.compression_reported:
+            self.warn(f"spring in compression (F_s = {self.F_s:.4g} N at l_s = {self.l_s:.4g} "
+                      f"m, free length {self.params.free_length:.4g} m): the model's linear law "
+                      "pushes, an extension spring would go slack")
+        self.compression_reported = self.F_s < 0.0
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.state = physics.State(*hidden["state"])
-        self.payload_held = float(hidden["payload_held"])
+        super().restore_hidden_state(hidden)
         self.compression_reported = bool(hidden["compression_reported"])
 
 

@@ -293,10 +293,10 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     return s
 
 
-def change_payload(p: Parameters, s: State, before: float, after: float) -> State:
-    """State just after the payload changes from before to after [kg] at the link's angle
-    (`ledger.change_payload`: caught from rest, or released with its speed)."""
-    return ledger.change_payload(s, before, after, p.w, p.g,
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state just after the inputs change at a communication point: a payload caught
+    from rest or released with its speed (`ledger.change_payload`)."""
+    return ledger.change_payload(s, before.payload, after.payload, p.w, p.g,
                                  lambda payload: link_inertia(p, payload))
 
 

@@ -78,7 +78,7 @@ def run(p: physics.Parameters, schedule: list[tuple[float, float, float]], steps
     reference, drift = ledger(p, payload, s), 0.0
     for n in range(steps):
         u = physics.Inputs(*schedule[n * len(schedule) // steps])
-        s = physics.change_payload(p, s, payload, u.payload)
+        s = physics.switch_inputs(p, physics.Inputs(payload=payload), u, s)
         payload = u.payload
         s = physics.advance(p, u, s, dt)
         drift = max(drift, abs(ledger(p, payload, s) - reference))
@@ -110,11 +110,12 @@ def test_payload_catch_conserves_angular_momentum() -> None:
     p = physics.Parameters()
     theta, omega, dm = 2.0, 1.5, 0.8
     J_b, J_a = 0.16, 0.16 + dm * W * W
-    s = physics.change_payload(p, physics.State(theta, omega, 0.0, 0.0), 0.0, dm)
+    s = physics.switch_inputs(p, physics.Inputs(), physics.Inputs(payload=dm),
+                              physics.State(theta, omega, 0.0, 0.0))
     assert J_a * s.omega == pytest.approx(J_b * omega, rel=1e-15)
     assert s.E_loss == pytest.approx(0.5 * J_b * omega ** 2 * (1 - J_b / J_a), rel=1e-12)
     assert s.E_added == pytest.approx(dm * G * W * math.cos(theta), rel=1e-12)
-    back = physics.change_payload(p, s, dm, 0.0)
+    back = physics.switch_inputs(p, physics.Inputs(payload=dm), physics.Inputs(), s)
     assert back.omega == s.omega
     assert back.E_added - s.E_added == pytest.approx(
         -dm * G * W * math.cos(theta) - 0.5 * dm * (W * s.omega) ** 2, rel=1e-12)
