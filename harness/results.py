@@ -285,7 +285,9 @@ def plot(results: Sequence[RunResult | StoredRun], scenario: Scenario, path: Pat
     for row, (title, unit, name) in enumerate(drives):
         ax = axes[row, 1]
         for colour, r in zip(colours, results, strict=False):
-            column = name if name in r.series else f"{name}_{next(iter(r.joint_phase_work))}"
+            # a several-joint run shows its first joint's signal (<name>_<joint>)
+            column = name if name in r.series else next(
+                c for c in r.series.columns if c.startswith(f"{name}_"))
             ax.plot(r.series.time, r.series[column], color=colour, lw=1.2, label=r.variant)
         ax.legend(fontsize=7)
         _decorate(ax, title, unit)
