@@ -25,6 +25,7 @@ class SelfRegulatingBalancer(MechanismSlave):
     """1-DOF link balanced by a zero-free-length spring on a lockable slider, regulated by
     a pulley-counterweight (Franchetti et al. 2021)."""
 
+    physics = physics
     parameters_type = physics.Parameters
     hidden_state = ("state", "previous_inputs", "stop_reported", "off_angle_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=35.0, step_size=1e-3)
@@ -53,13 +54,8 @@ class SelfRegulatingBalancer(MechanismSlave):
                        "Pulley locked to the frame: counterweight idle, slider wire unloaded")
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
-        self.state = None
-        self.previous_inputs = None
         self.stop_reported = False
         self.off_angle_reported = False     # once per regulation (slider and pulley free)
-
-    def validate(self, params: physics.Parameters) -> None:
-        physics.validate(params)
 
     def inputs(self) -> physics.Inputs:
         return physics.Inputs(float(self.tau_drive), float(self.payload),
@@ -70,32 +66,24 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.M0 = params.M0
         self.b_design = params.b_design
         self.payload_max = params.payload_max
-        self.state = physics.initial_state(params)
-        self.previous_inputs = self.inputs()
         self.stop_reported = self.off_angle_reported = False
-        self.set_outputs(physics.outputs(params, self.previous_inputs, self.state))
+        super().initialise(params)
 
     def step(self, dt: float) -> None:
         p, u = self.params, self.inputs()
         if u.counterweight_added < -p.M0:
             raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
-        if u != self.previous_inputs:
-            if u[1:] != self.previous_inputs[1:]:  # more than tau_drive: an event
-                self.report_misuse(p, u)
-                self.state = physics.switch_inputs(p, self.previous_inputs, u, self.state)
-            self.previous_inputs = u
-        self.state = physics.advance(p, u, self.state, dt)
-        out = physics.outputs(p, u, self.state)
-        if out.slider_at_stop and not self.stop_reported:
+        super().step(dt)
+        if self.slider_at_stop and not self.stop_reported:
             stop = "b_min" if self.state.b <= p.b_min else "b_max"
             self.warn(f"slider reached its end stop {stop} = {self.state.b:.4f} m: "
-                      f"balance_error = {out.balance_error:.4g} N m")
-        self.stop_reported = out.slider_at_stop
-        self.set_outputs(out)
+                      f"balance_error = {self.balance_error:.4g} N m")
+        self.stop_reported = self.slider_at_stop
 
-    def refresh_outputs(self) -> None:
-        self.set_outputs(physics.outputs(self.params, self.inputs(), self.state))
+    def switch_inputs(self, u: physics.Inputs) -> None:
+        self.report_misuse(self.params, u)
+        super().switch_inputs(u)
 
     def report_misuse(self, p: physics.Parameters, u: physics.Inputs) -> None:
         """Warn, at the communication point where inputs change, about misuse the model allows."""
@@ -146,8 +134,7 @@ class SelfRegulatingBalancer(MechanismSlave):
                   f"counterweight_added = {physics.counterweight_for(p, best):.4f} kg)")
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        self.state = physics.State(*hidden["state"])
-        self.previous_inputs = physics.Inputs(*hidden["previous_inputs"])
+        super().restore_hidden_state(hidden)
         self.stop_reported = bool(hidden["stop_reported"])
         self.off_angle_reported = bool(hidden["off_angle_reported"])
 

@@ -148,6 +148,10 @@ class Inputs(NamedTuple):
     payload: float = 0.0    # kg, payload at distance w
 
 
+# inputs whose change at a communication point is an event (switch_inputs)
+EVENT_INPUTS = ("payload",)
+
+
 class State(NamedTuple):
     """Positions and speeds, and the cumulative energies of the ledger [J]."""
 

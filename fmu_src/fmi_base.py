@@ -496,8 +496,9 @@ class MechanismSlave(ModelSlave):
     initial_state(p), advance(p, u, s, dt) (one communication step with the inputs held),
     outputs(p, u, s) (a NamedTuple named like the output variables) and, where inputs change
     the state at a communication point (a payload caught or released, a lock engaged),
-    switch_inputs(p, before, after, s). Subclasses register the variables and map them to
-    physics.Inputs in `inputs()`.
+    EVENT_INPUTS (the names of those inputs) and switch_inputs(p, before, after, s), called
+    only when one of them changes (the drive effort changes at every step and is no event).
+    Subclasses register the variables and map them to physics.Inputs in `inputs()`.
     """
 
     physics: Any
@@ -507,6 +508,10 @@ class MechanismSlave(ModelSlave):
         super().__init__(**kwargs)
         self.state = None
         self.previous_inputs = None
+        names = getattr(self.physics, "EVENT_INPUTS", ())
+        # the event inputs of an Inputs tuple, as one comparable value (None: no events)
+        self.event_values = (itemgetter(*(self.physics.Inputs._fields.index(n) for n in names))
+                             if names else None)
 
     def validate(self, params: Any) -> None:
         self.physics.validate(params)
@@ -521,16 +526,16 @@ class MechanismSlave(ModelSlave):
 
     def step(self, dt: float) -> None:
         u = self.inputs()
-        if u != self.previous_inputs:
+        events = self.event_values
+        if events is not None and events(u) != events(self.previous_inputs):
             self.switch_inputs(u)
         self.state = self.physics.advance(self.params, u, self.state, dt)
         self.set_outputs(self.physics.outputs(self.params, u, self.state))
 
     def switch_inputs(self, u: Any) -> None:
-        """Book the change from previous_inputs to u at this communication point."""
-        switch = getattr(self.physics, "switch_inputs", None)
-        if switch is not None:
-            self.state = switch(self.params, self.previous_inputs, u, self.state)
+        """Book the change of event inputs from previous_inputs to u at this communication
+        point."""
+        self.state = self.physics.switch_inputs(self.params, self.previous_inputs, u, self.state)
         self.previous_inputs = u
 
     def refresh_outputs(self) -> None:

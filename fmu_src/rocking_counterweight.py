@@ -252,6 +252,10 @@ class Inputs(NamedTuple):
     payload: float = 0.0      # kg, payload at distance w
 
 
+# inputs whose change at a communication point is an event (switch_inputs)
+EVENT_INPUTS = ("payload",)
+
+
 class State(NamedTuple):
     """Arm angle from the upward vertical [rad] and its rate [rad/s], and the energy ledger
     [J] (E_p + E_kin + E_loss - W_drive - E_added is constant)."""

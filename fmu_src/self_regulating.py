@@ -152,6 +152,10 @@ class Inputs(NamedTuple):
     pulley_locked: bool = True
 
 
+# inputs whose change at a communication point is an event (switch_inputs)
+EVENT_INPUTS = ("payload", "counterweight_added", "slider_locked", "pulley_locked")
+
+
 class State(NamedTuple):
     """Continuous state: link angle and speed, slider position and speed, counterweight descent,
     and the energy ledger [J]."""
