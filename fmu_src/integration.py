@@ -45,25 +45,6 @@ def rk4(f: Callable[[S], S], s: S, h: float) -> S:
                  for si, d1, d2, d3, d4 in zip(s, k1, k2, k3, k4)])
 
 
-def rk4_second_order(acceleration: Callable[[float, float], float], x: float, v: float,
-                     h: float) -> tuple[float, float]:
-    """One RK4 step of size h for x'' = acceleration(x, v) (a 1-DOF mechanism), on scalars.
-
-    The same arithmetic as rk4 on the state (x, v), so the same numbers, without building a
-    tuple per stage: about half the cost of a 1-DOF step.
-    """
-    half, sixth = 0.5 * h, h / 6.0
-    a1 = acceleration(x, v)
-    x2, v2 = x + half * v, v + half * a1
-    a2 = acceleration(x2, v2)
-    x3, v3 = x + half * v2, v + half * a2
-    a3 = acceleration(x3, v3)
-    x4, v4 = x + h * v3, v + h * a3
-    a4 = acceleration(x4, v4)
-    return (x + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4),
-            v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
-
-
 def substeps(dt: float, rate: float) -> int:
     """Number of RK4 sub-steps for a step dt [s] of dynamics whose fastest rate is rate [1/s].
 
@@ -88,13 +69,3 @@ def integrate(f: Callable[[S], S], s: S, dt: float, rate: float,
         if constrain is not None:
             s = constrain(s)
     return s
-
-
-def integrate_second_order(acceleration: Callable[[float, float], float], x: float, v: float,
-                           dt: float, rate: float) -> tuple[float, float]:
-    """Advance x'' = acceleration(x, v) over dt with RK4 sub-steps; returns (x, v)."""
-    n = substeps(dt, rate)
-    h = dt / n
-    for _ in range(n):
-        x, v = rk4_second_order(acceleration, x, v, h)
-    return x, v

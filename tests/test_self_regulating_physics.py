@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import NamedTuple
 
 import pytest
 
 from fmu_src import self_regulating as physics
-from fmu_src.integration import integrate, integrate_second_order
+from fmu_src.integration import integrate
 
 DEG = math.pi / 180.0
 TABLE_1 = physics.Parameters()
@@ -91,24 +90,6 @@ def test_real_spring_free_slider_conserves_energy() -> None:
         travel = max(travel, abs(s.b - p.b0))
         assert not physics.slider_at_stop(p, u, s)
     assert travel > 1e-3 and drift < 1e-8
-
-
-class Pendulum(NamedTuple):
-    x: float
-    v: float
-
-
-def test_second_order_rk4_is_the_same_arithmetic_as_rk4() -> None:
-    """integrate_second_order duplicates rk4 for speed: the results must be bit-identical."""
-    def acceleration(x: float, v: float) -> float:
-        return -9.0 * math.sin(x) - 0.3 * v + 0.1 * math.cos(3.0 * x)
-
-    for dt, rate in ((1e-3, 11.0), (1e-2, 40.0), (0.05, 3.0)):
-        state, x, v = Pendulum(2.0, -0.5), 2.0, -0.5
-        for _ in range(50):
-            state = integrate(lambda s: Pendulum(s.v, acceleration(s.x, s.v)), state, dt, rate)
-            x, v = integrate_second_order(acceleration, x, v, dt, rate)
-        assert (x, v) == tuple(state)
 
 
 def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
