@@ -12,7 +12,7 @@ import pytest
 
 from harness import fmu_build, results
 from harness.compare import compare, read_result, report
-from harness.fmi import CoSimFMU
+from harness.fmi import CoSimFMU, FMICallException
 from harness.master import RunResult
 from harness.scenarios import Scenario
 
@@ -76,6 +76,26 @@ def play_sequencer(fmu: CoSimFMU, variant: str, steps: int,
 def warnings(fmu: CoSimFMU) -> list[str]:
     """The Warning-status messages the FMU has logged."""
     return [m.message for m in fmu.messages if m.status == "Warning"]
+
+
+def errors(fmu: CoSimFMU) -> list[str]:
+    """The Error-status messages the FMU has logged."""
+    return [m.message for m in fmu.messages if m.status == "Error"]
+
+
+def failed_initialisation(model: str, parameters: Mapping[str, float]) -> str:
+    """Initialise with parameters that must be refused (Fatal); the one Error message. In
+    this process: after a Fatal the FMU's loader answers every call without pythonfmu, so
+    freeing the instance is safe."""
+    fmu = CoSimFMU(fmu_build.fmu_path(model))
+    try:
+        with pytest.raises(FMICallException) as failure:
+            fmu.initialize(parameters)
+        assert failure.value.status == FMI_FATAL and fmu.fatal
+        (message,) = errors(fmu)
+        return message
+    finally:
+        fmu.close()
 
 
 def assert_reproduces_committed_summary(scenario: Scenario, runs: Iterable[RunResult]) -> None:

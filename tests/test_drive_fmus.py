@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import FMI_DISCARD, FMI_FATAL, open_fmu
+from conftest import FMI_DISCARD, failed_initialisation, open_fmu
 from fmpy import read_model_description
 
 from fmu_src import self_regulating
@@ -244,15 +244,7 @@ def test_drive_and_controller_fmus_chained_reproduce_the_harness_loop(
 ], ids=["R_a<0", "eta>1", "i0=nan", "T_f=0", "Kp<0"])
 def test_bad_parameter_fails_initialisation_naming_it(model: str, parameters: dict[str, float],
                                                       message: str) -> None:
-    fmu = CoSimFMU(fmu_build.fmu_path(model))
-    try:
-        with pytest.raises(FMICallException) as failure:
-            fmu.initialize(parameters)
-        assert failure.value.status == FMI_FATAL
-        errors = [m.message for m in fmu.messages if m.status == "Error"]
-        assert errors == [f"invalid parameter: {message}"]
-    finally:
-        fmu.close()
+    assert failed_initialisation(model, parameters) == f"invalid parameter: {message}"
 
 
 @pytest.mark.parametrize(("model", "inputs", "named"), [

@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
 
 import pytest
-from conftest import FMI_DISCARD, FMI_FATAL, open_fmu
+from conftest import FMI_DISCARD, FMI_FATAL, errors, failed_initialisation, open_fmu
 
 from fmu_src import self_regulating
 from fmu_src.integration import MAX_SUBSTEPS, SubstepBoundError, substeps
@@ -21,10 +20,6 @@ DT = 1e-3
 # A step may cost at most MAX_SUBSTEPS RK4 sub-steps: well under a second on any machine
 # this runs on (the default models take about 10 us per sub-step).
 STEP_TIME_LIMIT = 5.0
-
-
-def errors(fmu: CoSimFMU) -> list[str]:
-    return [m.message for m in fmu.messages if m.status == "Error"]
 
 
 def refused_step(fmu: CoSimFMU, time_point: float = 0.0, step_size: float = DT) -> str:
@@ -39,19 +34,6 @@ def refused_step(fmu: CoSimFMU, time_point: float = 0.0, step_size: float = DT) 
     assert len(new) == 1
     assert "Traceback" not in new[0]
     return new[0]
-
-
-def failed_initialisation(model: str, parameters: Mapping[str, float]) -> str:
-    """Initialise with parameters that must be refused (Fatal); the Error message."""
-    fmu = CoSimFMU(fmu_build.fmu_path(model))
-    try:
-        with pytest.raises(FMICallException) as failure:
-            fmu.initialize(parameters)
-        assert failure.value.status == FMI_FATAL
-        (message,) = errors(fmu)
-        return message
-    finally:
-        fmu.close()
 
 
 # ---- section 1: bounded work per step
