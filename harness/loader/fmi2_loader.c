@@ -262,6 +262,10 @@ static int load(Message *why) {
             why->length = 0;
             why->text[0] = '\0';
             loaded = load_pythonfmu(folder, why) && resolve_python_api(why);
+            if (!loaded && pythonfmu) { /* a binary that resolved only in part: the next */
+                dlclose(pythonfmu);      /* instantiation opens it afresh, leaking none */
+                pythonfmu = NULL;
+            }
         }
     }
     int ok = loaded;
