@@ -46,6 +46,7 @@ import math
 import re
 from bisect import bisect_right
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 JOINT_KINDS = ("revolute", "prismatic")
@@ -332,10 +333,24 @@ class Scenario:
             position = phase.target[j]
         return out
 
+    @cached_property
+    def _phase_spans(self) -> tuple[tuple[float, float], ...]:
+        """(start, end) of each phase [s], computed once: the sequencer reads it every step."""
+        return tuple((t0, t1) for _, t0, t1 in self.phase_times())
+
+    @cached_property
+    def _phase_starts(self) -> tuple[float, ...]:
+        return tuple(t0 for t0, _ in self._phase_spans)
+
+    @cached_property
+    def _joint_segments(self) -> tuple[tuple[tuple[float, float, float, float], ...], ...]:
+        """`reference_segments` of every joint, computed once."""
+        return tuple(tuple(self.reference_segments(j)) for j in range(len(self.joints)))
+
     def _phase_at(self, time: float, tolerance: float = 0.0) -> int:
         """Index of the phase that holds time (phases hold [start, end)); -1 before 0. A time
         within tolerance [s] before a phase start counts as that start."""
-        return bisect_right([t0 for _, t0, _ in self.phase_times()], time + tolerance) - 1
+        return bisect_right(self._phase_starts, time + tolerance) - 1
 
     def reference_at(self, time: float, tolerance: float = 0.0) -> tuple[float, ...]:
         """Reference position of each joint [rad or m] at a time [s] (tolerance: `_phase_at`)."""
@@ -345,8 +360,8 @@ class Scenario:
         if k < 0:
             return self.initial_angle
         out = []
-        for j in range(len(self.joints)):
-            t0, t1, start, end = self.reference_segments(j)[k]
+        for segments in self._joint_segments:
+            t0, t1, start, end = segments[k]
             out.append(ramp(start, end, "quintic", (time - t0) / (t1 - t0)))
         return tuple(out)
 
@@ -389,7 +404,7 @@ class Scenario:
         if k < 0:
             return {n: False if isinstance(end, bool) else 0.0
                     for n, (_, end, _) in segments[0].items()}
-        _, t0, t1 = self.phase_times()[k]
+        t0, t1 = self._phase_spans[k]
         s = min(max((time - t0) / (t1 - t0), 0.0), 1.0)
         return {n: ramp(start, end, shape, s) for n, (start, end, shape) in segments[k].items()}
 
