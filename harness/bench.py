@@ -130,8 +130,7 @@ def fmu_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
 
 def native_host() -> Path:
     """The C host of tests/native_host, compiled when its source is newer."""
-    if (not NATIVE_HOST_BUILD.exists()
-            or NATIVE_HOST_BUILD.stat().st_mtime < NATIVE_HOST_SOURCE.stat().st_mtime):
+    if fmu_build.stale(NATIVE_HOST_BUILD, NATIVE_HOST_SOURCE):
         fmu_build.zig_cc(NATIVE_HOST_SOURCE, NATIVE_HOST_BUILD)
     return NATIVE_HOST_BUILD
 

@@ -116,9 +116,15 @@ def zig_cc(source: Path, output: Path, *options: str) -> Path:
     return output
 
 
+def stale(output: Path, *sources: Path) -> bool:
+    """True if output is missing or older than any of its sources."""
+    return not output.exists() or output.stat().st_mtime < max(s.stat().st_mtime
+                                                               for s in sources)
+
+
 def loader_binary(output: Path = LOADER_BUILD) -> Path:
     """The compiled loader, rebuilt when its source is newer."""
-    if output.exists() and output.stat().st_mtime >= LOADER_SOURCE.stat().st_mtime:
+    if not stale(output, LOADER_SOURCE):
         return output
     return zig_cc(LOADER_SOURCE, output, "-shared", "-fPIC", "-s")
 
@@ -204,7 +210,7 @@ def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DI
     fmu = dest / f"{model}.fmu"
     sources = [source_dir / f"{model}.py", *dependencies(model, source_dir),
                Path(fmu_docs.__file__), LOADER_SOURCE]
-    if not fmu.exists() or fmu.stat().st_mtime < max(s.stat().st_mtime for s in sources):
+    if stale(fmu, *sources):
         build(model, dest, source_dir=source_dir)
     return fmu
 

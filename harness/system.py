@@ -154,8 +154,7 @@ def sequencer_fmu(scenario: scenarios.Scenario) -> Path:
         return default
     source = scenarios.scenario_file(scenario.name)  # ValueError naming the known scenarios
     fmu = SYSTEM_DIR / scenario.name / "fmus" / f"{fmu_build.SEQUENCER}.fmu"
-    if not fmu.exists() or fmu.stat().st_mtime < max(source.stat().st_mtime,
-                                                     default.stat().st_mtime):
+    if fmu_build.stale(fmu, source, default):
         fmu_build.build(fmu_build.SEQUENCER, fmu.parent, sequencer_scenario=source)
     return fmu
 
