@@ -73,6 +73,26 @@ def play_sequencer(fmu: CoSimFMU, variant: str, steps: int,
     return {name: np.array([row[name] for row in rows]) for name in outputs}
 
 
+# each mechanism's energy ledger (docs/energy_ledger.md): its terms and their signs; the sum
+# stays constant over any input sequence
+LEDGER: dict[str, dict[str, float]] = {
+    "SelfRegulatingBalancer": {"E_t": 1, "E_cw": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1,
+                               "E_added": -1},
+    "CiupituBalancer": {"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
+    "RockingCounterweightBalancer": {"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1,
+                                     "E_added": -1},
+    "PrismaticCompensator": {"E_grav": 1, "E_springs": 1, "E_kin": 1, "E_loss": 1,
+                             "W_drive": -1, "W_worm": -1, "E_added": -1},
+    "ActiveSpringBalancer": {"E_t": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "W_adjust": -1,
+                             "E_added": -1},
+}
+
+
+def ledger_residual(model: str, out: Mapping[str, float]) -> float:
+    """Stored energy + E_loss - W_drive - E_added (- W_worm, - W_adjust) [J]."""
+    return sum(sign * out[name] for name, sign in LEDGER[model].items())
+
+
 def warnings(fmu: CoSimFMU) -> list[str]:
     """The Warning-status messages the FMU has logged."""
     return [m.message for m in fmu.messages if m.status == "Warning"]

@@ -9,7 +9,7 @@ import math
 from collections.abc import Iterator, Mapping
 
 import pytest
-from conftest import FMI_DISCARD, failed_initialisation, warnings
+from conftest import FMI_DISCARD, LEDGER, failed_initialisation, ledger_residual, warnings
 from fmpy import read_model_description
 
 from harness.fmi import CoSimFMU, FMICallException
@@ -18,7 +18,6 @@ from harness.fmu_build import fmu_path
 MODEL = "ActiveSpringBalancer"
 G, M, C, J_LINK, W, X1A, K, Y_B0 = 9.81, 3.0, 0.2, 0.16, 0.35, 0.06, 981.0, 0.1
 DT = 1e-3
-LEDGER = ("E_t", "E_kin", "E_loss", "W_drive", "W_adjust", "E_added")
 
 
 @pytest.fixture(scope="module")
@@ -31,12 +30,6 @@ def start(fmu: CoSimFMU, values: Mapping[str, float]) -> None:
     """Reset to the defaults; initialise with these parameters and input start values."""
     fmu.reset()
     fmu.initialize(values)
-
-
-def residual(out: Mapping[str, float]) -> float:
-    """E_t + E_kin + E_loss - W_drive - W_adjust - E_added [J]."""
-    return (out["E_t"] + out["E_kin"] + out["E_loss"] - out["W_drive"] - out["W_adjust"]
-            - out["E_added"])
 
 
 def balancing_travel(payload: float) -> float:
@@ -79,15 +72,15 @@ def simulate(fmu: CoSimFMU, values: Mapping[str, float],
     """Largest drift of the ledger residual [J] and the final outputs; schedule: (time, inputs
     set from then on)."""
     start(fmu, values)
-    names = [*LEDGER, "theta", "q"]
-    reference, drift = residual(fmu.get(names)), 0.0
+    names = [*LEDGER[MODEL], "theta", "q"]
+    reference, drift = ledger_residual(MODEL, fmu.get(names)), 0.0
     pending = list(schedule)
     for n in range(round(stop / DT)):
         while pending and pending[0][0] <= n * DT + 1e-12:
             fmu.set(pending.pop(0)[1])
         fmu.step(n * DT, DT)
         out = fmu.get(names)
-        drift = max(drift, abs(residual(out) - reference))
+        drift = max(drift, abs(ledger_residual(MODEL, out) - reference))
     return drift, out
 
 

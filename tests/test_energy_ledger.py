@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 import pytest
-from conftest import SRB, open_fmu, run
+from conftest import LEDGER, SRB, ledger_residual, open_fmu, run
 
 from harness.fmi import CoSimFMU
 from harness.fmu_build import fmu_path
@@ -26,20 +26,6 @@ DT = 1e-3
 M, C, W, A, B0 = 3.0, 0.2, 0.35, 0.1, 0.06
 R_CW, R_WIRE, K, G, D_SLIDER = 0.035, 0.01, 981.0, 9.81, 500.0
 
-# stored energy terms (+) and ledger terms (sign) of each mechanism
-LEDGER: dict[str, dict[str, float]] = {
-    SRB: {"E_t": 1, "E_cw": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
-    "CiupituBalancer": {"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
-    "PrismaticCompensator": {"E_grav": 1, "E_springs": 1, "E_kin": 1, "E_loss": 1,
-                             "W_drive": -1, "W_worm": -1, "E_added": -1},
-}
-
-
-def residual(model: str, out: Mapping[str, float]) -> float:
-    """Stored energy + E_loss - W_drive - E_added (- W_worm) [J]."""
-    return sum(sign * out[name] for name, sign in LEDGER[model].items())
-
-
 def random_run(model: str, parameters: Mapping[str, float], steps: int,
                inputs: Callable[[random.Random, dict], dict], extra: tuple[str, ...] = ()
                ) -> dict[str, np.ndarray]:
@@ -48,7 +34,7 @@ def random_run(model: str, parameters: Mapping[str, float], steps: int,
     rng = random.Random(20260513)
     names = (*LEDGER[model], *extra)
     with open_fmu(fmu_path(model), parameters) as fmu:
-        start = residual(model, fmu.get(names))
+        start = ledger_residual(model, fmu.get(names))
         values: dict = {}
         rows = []
         for k in range(steps):
@@ -56,7 +42,7 @@ def random_run(model: str, parameters: Mapping[str, float], steps: int,
             fmu.set({n: v for n, v in values.items() if n != "step"})
             fmu.step(k * DT, DT)
             out = fmu.get(names)
-            rows.append([residual(model, out) - start, *(out[n] for n in names)])
+            rows.append([ledger_residual(model, out) - start, *(out[n] for n in names)])
     table = np.array(rows, dtype=float)
     return {"residual": table[:, 0], **{n: table[:, i + 1] for i, n in enumerate(names)}}
 
@@ -195,7 +181,7 @@ def test_pulley_released_after_the_slider(m_slider: float) -> None:
     fine = np.linspace(0.0, DT, 20001)
     damper = D_SLIDER * np.trapezoid(overdamped_speed(m_eff, b1 - b_eq, v1, fine) ** 2, fine)
     assert rows[0, 2] - before["E_loss"] == pytest.approx(lost_at_release + damper, abs=1e-12)
-    ledger = [residual(SRB, dict(zip(LEDGER[SRB], row[3:]))) for row in rows]
+    ledger = [ledger_residual(SRB, dict(zip(LEDGER[SRB], row[3:]))) for row in rows]
     assert np.ptp(ledger) < 1e-10
 
 

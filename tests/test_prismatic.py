@@ -16,7 +16,7 @@ import math
 from collections.abc import Iterator, Mapping
 
 import pytest
-from conftest import failed_initialisation
+from conftest import failed_initialisation, ledger_residual
 
 from fmu_src import prismatic
 from harness.fmi import CoSimFMU
@@ -55,12 +55,6 @@ def static_efforts(fmu: CoSimFMU, mode: str, q1: float, q2: float) -> tuple[floa
     return out["tau1_gravity_residual"], out["f2_gravity_residual"]
 
 
-def balance(out: Mapping[str, float]) -> float:
-    """E_grav + E_springs + E_kin - W_drive - W_worm + E_loss - E_added [J]."""
-    return (out["E_grav"] + out["E_springs"] + out["E_kin"] - out["W_drive"] - out["W_worm"]
-            + out["E_loss"] - out["E_added"])
-
-
 def simulate(fmu: CoSimFMU, parameters: Mapping[str, float | bool],
              inputs: Mapping[str, float], stop: float = 10.0, dt: float = 1e-3
              ) -> tuple[float, dict[str, tuple[float, float]], dict[str, float]]:
@@ -69,12 +63,12 @@ def simulate(fmu: CoSimFMU, parameters: Mapping[str, float | bool],
     fmu.set(inputs)
     names = [*ENERGY_TERMS, "q1", "q2"]
     out = fmu.get(names)
-    reference, drift = balance(out), 0.0
+    reference, drift = ledger_residual("PrismaticCompensator", out), 0.0
     ranges = {q: (out[q], out[q]) for q in ("q1", "q2")}
     for n in range(round(stop / dt)):
         fmu.step(n * dt, dt)
         out = fmu.get(names)
-        drift = max(drift, abs(balance(out) - reference))
+        drift = max(drift, abs(ledger_residual("PrismaticCompensator", out) - reference))
         ranges = {q: (min(lo, out[q]), max(hi, out[q])) for q, (lo, hi) in ranges.items()}
     return drift, ranges, out
 
