@@ -129,10 +129,8 @@ def fmu_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
 
 
 def native_host() -> Path:
-    """The C host of tests/native_host, compiled when its source is newer."""
-    if fmu_build.stale(NATIVE_HOST_BUILD, NATIVE_HOST_SOURCE):
-        fmu_build.zig_cc(NATIVE_HOST_SOURCE, NATIVE_HOST_BUILD)
-    return NATIVE_HOST_BUILD
+    """The C host of tests/native_host, compiled when its inputs change."""
+    return fmu_build.compiled(NATIVE_HOST_SOURCE, NATIVE_HOST_BUILD)
 
 
 def native_seconds_per_step(host: Path, fmu: Path, loop: StepLoop, steps: int) -> float:

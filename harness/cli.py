@@ -24,7 +24,8 @@ class Command(NamedTuple):
 
 
 COMMANDS = {
-    "build-fmus": Command("harness.fmu_build", "build every FMU of fmu_src into build/fmus"),
+    "build-fmus": Command("harness.fmu_build",
+                          "build the FMUs of fmu_src whose inputs changed into build/fmus"),
     "cosim": Command("harness.cosim",
                      "co-simulate scenario variants and write CSV series, summary and plots"),
     "system": Command("harness.system",

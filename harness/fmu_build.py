@@ -25,12 +25,24 @@ The ScenarioSequencer plays the scenario embedded in its module `sequencer_scena
 committed `fmu_src/sequencer_scenario.py` (franchetti2021), or, with `--sequencer-scenario
 FILE` (`build(..., sequencer_scenario=FILE)`), a module generated from that file into the
 build's staging folder only, so the source tree keeps its default.
+
+A build is by content: every FMU records in `resources/build_inputs.sha256` the digest of
+everything that goes into it (`fmu_inputs`: the slave script and the fmu_src modules it
+imports, the embedded scenario, the loader's source and compiler, the building interpreter's
+record, the versions of the tools that write it and this build code), and `fmu_path` or
+`build-fmus` rebuild it only when that digest changes; the loader and the bench's C host
+record theirs beside the binary (`compiled`). Timestamps play no part, so a fresh clone, a
+`touch` or a copy neither hides a change nor forces a rebuild, and an unchanged FMU keeps its
+bytes and GUID. `build-fmus --force` rebuilds regardless.
 """
 
 from __future__ import annotations
 
 import argparse
 import ast
+import functools
+import hashlib
+import importlib.metadata
 import os
 import platform
 import shutil
@@ -58,7 +70,12 @@ LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "fmi2_loader.c"
 LOADER_BUILD = DEFAULT_DEST.parent / "loader" / "fmi2_loader.so"
 # the oldest glibc the loader runs on (pythonfmu's own binary needs 2.32)
 LOADER_TARGET = "x86_64-linux-gnu.2.17"
+LOADER_OPTIONS = ("-shared", "-fPIC", "-s")
 PYTHON_RECORD = "resources/python.txt"  # read by the loader: keep the keys in step
+INPUTS_RECORD = "resources/build_inputs.sha256"  # fmu_inputs of the FMU's build
+# the code that writes an FMU besides its fmu_src modules, and the tools whose output it holds
+BUILD_CODE = (Path(__file__), Path(fmu_docs.__file__), Path(osp.__file__))
+TOOLS = ("pythonfmu", "fmpy", "ziglang", "matplotlib")
 
 
 def _fmu_src_imports(path: Path) -> set[str]:
@@ -116,17 +133,61 @@ def zig_cc(source: Path, output: Path, *options: str) -> Path:
     return output
 
 
-def stale(output: Path, *sources: Path) -> bool:
-    """True if output is missing or older than any of its sources."""
-    return not output.exists() or output.stat().st_mtime < max(s.stat().st_mtime
-                                                               for s in sources)
+def digest(*parts: Path | str) -> str:
+    """SHA-256 (hex) of parts in order: a file by its name and bytes, a string as it is. Each
+    part is length-prefixed, so different lists of parts never give the same stream."""
+    sha = hashlib.sha256()
+    for part in parts:
+        data = (part.name.encode() + b"\0" + part.read_bytes() if isinstance(part, Path)
+                else part.encode())
+        sha.update(len(data).to_bytes(8, "big") + data)
+    return sha.hexdigest()
+
+
+@functools.cache
+def tool_versions() -> str:
+    """The installed versions of TOOLS, as `name=version` lines."""
+    return "".join(f"{name}={importlib.metadata.version(name)}\n" for name in TOOLS)
+
+
+def recorded_inputs(output: Path) -> str | None:
+    """The digest of the inputs output was made from, as recorded: inside an FMU
+    (INPUTS_RECORD), beside any other file (<output>.sha256); None if there is none."""
+    try:
+        if output.suffix == ".fmu":
+            with zipfile.ZipFile(output) as archive:
+                return archive.read(INPUTS_RECORD).decode()
+        return output.with_name(f"{output.name}.sha256").read_text()
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return None
+
+
+def stale(output: Path, inputs: str) -> bool:
+    """True unless output exists and records `inputs`, the digest of what it is made from."""
+    return not output.exists() or recorded_inputs(output) != inputs
+
+
+def compile_inputs(source: Path, *options: str) -> str:
+    """Digest of what `zig_cc(source, output, *options)` depends on: the source, the options,
+    the target, the tools (ziglang, FMPy's headers) and this module (zig_cc's own flags)."""
+    return digest(source, LOADER_TARGET, *options, tool_versions(), Path(__file__))
+
+
+def compiled(source: Path, output: Path, *options: str) -> Path:
+    """output compiled from source by zig_cc, unless the digest recorded beside it
+    (<output>.sha256) says it was compiled from the same inputs (compile_inputs)."""
+    inputs = compile_inputs(source, *options)
+    if stale(output, inputs):
+        record = output.with_name(f"{output.name}.sha256")
+        record.unlink(missing_ok=True)  # no record vouches for output while it changes
+        zig_cc(source, output, *options)
+        record.write_text(inputs)       # a torn record never matches: no rename needed
+    return output
 
 
 def loader_binary(output: Path = LOADER_BUILD) -> Path:
-    """The compiled loader, rebuilt when its source is newer."""
-    if not stale(output, LOADER_SOURCE):
-        return output
-    return zig_cc(LOADER_SOURCE, output, "-shared", "-fPIC", "-s")
+    """The compiled loader, recompiled when its inputs change."""
+    return compiled(LOADER_SOURCE, output, *LOADER_OPTIONS)
 
 
 def python_record() -> str:
@@ -139,9 +200,10 @@ def python_record() -> str:
             f"prefix={sys.base_prefix}\n")
 
 
-def install_loader(fmu: Path, model: str) -> None:
+def install_loader(fmu: Path, model: str, inputs: str) -> None:
     """Make the loader the FMU's linux64 binary, pythonfmu's binary <model>.pythonfmu.so
-    beside it, and record the building interpreter's libpython in resources/python.txt."""
+    beside it, record the building interpreter's libpython in resources/python.txt and the
+    digest of the build's inputs in INPUTS_RECORD."""
     binary = f"binaries/linux64/{model}.so"
     with zipfile.ZipFile(fmu) as archive:
         entries = [(info, archive.read(info)) for info in archive.infolist()]
@@ -152,12 +214,23 @@ def install_loader(fmu: Path, model: str) -> None:
             archive.writestr(info, data)
         archive.write(loader_binary(), binary)
         archive.writestr(PYTHON_RECORD, python_record())
+        archive.writestr(INPUTS_RECORD, inputs)
+
+
+def fmu_inputs(model: str, source_dir: Path = SOURCE_DIR, embedded: str | None = None) -> str:
+    """Digest of everything that goes into the FMU of source_dir/<model>.py: the script, the
+    fmu_src modules it imports, the embedded `sequencer_scenario` source (if any), the
+    loader's inputs, the building interpreter's record, the tools' versions and BUILD_CODE."""
+    return digest(source_dir / f"{model}.py", *dependencies(model, source_dir),
+                  "" if embedded is None else embedded, compile_inputs(LOADER_SOURCE,
+                                                                       *LOADER_OPTIONS),
+                  python_record(), tool_versions(), *BUILD_CODE)
 
 
 def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
           sequencer_scenario: str | Path | None = None) -> Path:
     """Build the slave script source_dir/<model>.py, with its documentation, into
-    dest/<model>.fmu (atomically) and return that path.
+    dest/<model>.fmu (atomically) and return that path, whether or not it is stale.
 
     sequencer_scenario (ScenarioSequencer only): the scenario (shipped name or TOML file) the
     FMU plays instead of the committed default.
@@ -165,6 +238,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     if sequencer_scenario is not None and model != SEQUENCER:
         raise UserError(f"a sequencer scenario is for the {SEQUENCER}, not {model}")
     embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
+    inputs = fmu_inputs(model, source_dir, embedded)  # before reading them to build
     dest.mkdir(parents=True, exist_ok=True)
     script = source_dir / f"{model}.py"
     modules = dependencies(model, source_dir)
@@ -186,7 +260,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
                 project_files=[package] if modules else [],
                 canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 canHandleVariableCommunicationStepSize=True)
-            install_loader(Path(partial), model)
+            install_loader(Path(partial), model, inputs)
             # the documentation reads the staged modules: those the FMU carries
             fmu_docs.add_documentation(Path(partial), script,
                                        [package / module.name for module in modules])
@@ -199,20 +273,22 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     return fmu
 
 
-def build_all(dest: Path = DEFAULT_DEST) -> list[Path]:
-    """Build every FMU of MODELS into dest."""
-    return [build(model, dest) for model in MODELS]
+def update(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
+           sequencer_scenario: str | Path | None = None, force: bool = False) -> bool:
+    """Build dest/<model>.fmu (see `build`) if forced or stale, that is, unless it records
+    the digest of its current inputs (`fmu_inputs`); True if it was built."""
+    embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
+    if not force and not stale(dest / f"{model}.fmu", fmu_inputs(model, source_dir, embedded)):
+        return False
+    build(model, dest, source_dir, sequencer_scenario)
+    return True
 
 
-def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR) -> Path:
-    """Path of a built FMU; builds it if it is missing or older than its sources (the slave
-    script, the fmu_src modules it uses and the documentation generator)."""
-    fmu = dest / f"{model}.fmu"
-    sources = [source_dir / f"{model}.py", *dependencies(model, source_dir),
-               Path(fmu_docs.__file__), LOADER_SOURCE]
-    if stale(fmu, *sources):
-        build(model, dest, source_dir=source_dir)
-    return fmu
+def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
+             sequencer_scenario: str | Path | None = None) -> Path:
+    """Path of the built FMU dest/<model>.fmu, built first if stale (`update`)."""
+    update(model, dest, source_dir, sequencer_scenario)
+    return dest / f"{model}.fmu"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -225,12 +301,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"build only the {SEQUENCER}, playing this scenario (a name of "
              f"harness/scenarios or a TOML file) instead of franchetti2021, into "
              f"DIR/{SEQUENCER}.fmu (default: build every FMU)")
+    parser.add_argument("--force", action="store_true",
+                        help="rebuild even the FMUs whose inputs have not changed (default: "
+                             "build only those whose recorded input digest differs)")
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.sequencer_scenario is not None:
-        print(build(SEQUENCER, args.dest, sequencer_scenario=args.sequencer_scenario))
-        return 0
-    for fmu in build_all(args.dest):
-        print(fmu)
+    for model in MODELS if args.sequencer_scenario is None else (SEQUENCER,):
+        built = update(model, args.dest, sequencer_scenario=args.sequencer_scenario,
+                       force=args.force)
+        print(f"{'built    ' if built else 'unchanged'} {args.dest / f'{model}.fmu'}")
     return 0

@@ -147,16 +147,14 @@ def _plays(fmu: Path, scenario: scenarios.Scenario) -> bool:
 
 def sequencer_fmu(scenario: scenarios.Scenario) -> Path:
     """A ScenarioSequencer FMU that plays the scenario: build/fmus' one if it does, else one
-    built for the (shipped) scenario into build/system/<scenario>/fmus/, rebuilt when older
-    than the scenario file or build/fmus' sequencer."""
+    built for the (shipped) scenario into build/system/<scenario>/fmus/, rebuilt when its
+    inputs change (`fmu_build.fmu_path`)."""
     default = fmu_build.fmu_path(fmu_build.SEQUENCER)
     if _plays(default, scenario):
         return default
     source = scenarios.scenario_file(scenario.name)  # ValueError naming the known scenarios
-    fmu = SYSTEM_DIR / scenario.name / "fmus" / f"{fmu_build.SEQUENCER}.fmu"
-    if fmu_build.stale(fmu, source, default):
-        fmu_build.build(fmu_build.SEQUENCER, fmu.parent, sequencer_scenario=source)
-    return fmu
+    return fmu_build.fmu_path(fmu_build.SEQUENCER, SYSTEM_DIR / scenario.name / "fmus",
+                              sequencer_scenario=source)
 
 
 # ---- system descriptions ------------------------------------------------------------------
