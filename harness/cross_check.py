@@ -3,7 +3,8 @@
 For every FMU of `harness.fmu_build.MODELS` it writes, under the destination folder,
 `fmus/2.0/cs/<platform>/pythonfmu/<pythonfmu version>/<Model>/` with
 
-- `<Model>.fmu`: the built FMU;
+- `<Model>.fmu`: a copy of build/fmus' FMU, built only if stale (`fmu_build.fmu_path`),
+  so the cross-check publishes the very FMU (bytes and GUID) the other commands use;
 - `<Model>_in.csv`: its input signals, if it has inputs (every input; linear interpolation
   between rows). A step is written as a ramp over the communication step before it
   (`importer_inputs`), not as a repeated time: an importer that samples the inputs at its

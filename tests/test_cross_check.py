@@ -20,7 +20,14 @@ INPUT_MODELS = [m for m in fmu_build.MODELS if fmu_docs.reference_run(m).inputs 
 
 
 @pytest.fixture(scope="module")
-def repo(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def built() -> dict[str, tuple[int, bytes]]:
+    """Every FMU of build/fmus (built if stale) before the cross-check: mtime [ns], bytes."""
+    paths = {model: fmu_build.fmu_path(model) for model in fmu_build.MODELS}
+    return {model: (path.stat().st_mtime_ns, path.read_bytes()) for model, path in paths.items()}
+
+
+@pytest.fixture(scope="module")
+def repo(tmp_path_factory: pytest.TempPathFactory, built: dict[str, tuple[int, bytes]]) -> Path:
     dest = tmp_path_factory.mktemp("xc")
     assert cli.main(["cross-check", "--dest", str(dest)]) == 0
     return dest
@@ -31,6 +38,16 @@ def test_validate_vendor_repo_finds_no_problem(repo: Path) -> None:
                            str(repo)], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stdout  # its exit code is the number of problems
     assert f"Validated {len(fmu_build.MODELS)} FMUs" in done.stdout
+
+
+@pytest.mark.parametrize("model", fmu_build.MODELS)
+def test_the_cross_check_exports_the_built_fmu(repo: Path, built: dict[str, tuple[int, bytes]],
+                                               model: str) -> None:
+    """`make xc` reuses build/fmus: it rebuilds none of them (same mtime and bytes, so the
+    same GUID) and publishes each byte for byte."""
+    fmu = fmu_build.DEFAULT_DEST / f"{model}.fmu"
+    assert (fmu.stat().st_mtime_ns, fmu.read_bytes()) == built[model]
+    assert (cross_check.model_dir(repo, model) / f"{model}.fmu").read_bytes() == built[model][1]
 
 
 @pytest.mark.parametrize("model", fmu_build.MODELS)
