@@ -3,17 +3,21 @@ of the FMU's Lagrangian model in closed form, and the ciupitu variant of franche
 design, its drive energy, the monolithic reference).
 
 Expected values are computed here from the paper's data and the quintic reference, not with
-fmu_src.ciupitu or the harness's scenario functions.
+fmu_src.ciupitu or the harness's scenario functions; eps on the drawn energy from the
+monolithic reference, an independent integration of the same system; the design's predicted
+energy from the rigid arm it reduces to, along the franchetti2021 reference.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 from scipy.integrate import quad
 
+from fmu_src import ciupitu
 from harness import ciupitu_design, master, reference, results, scenarios
 from harness.drive import MotorParameters
 
@@ -41,6 +45,13 @@ def test_cycle_holds_the_paper_data() -> None:
 @pytest.fixture(scope="module")
 def cycle() -> dict[str, master.RunResult]:
     return {v: master.run(CYCLE, CYCLE.variant(v)) for v in CYCLE_VARIANTS}
+
+
+@pytest.fixture(scope="module")
+def monolithic() -> dict[str, reference.ReferenceResult]:
+    """The monolithic reference of each cycle variant (rtol 1e-6: E_drawn to 1e-7 of the
+    rtol 1e-9 result, in a fifth of the time)."""
+    return {v: reference.simulate(CYCLE, CYCLE.variant(v), rtol=1e-6) for v in CYCLE_VARIANTS}
 
 
 def stroke_work(variant: str, direction: float) -> float:
@@ -91,8 +102,9 @@ def static_eps(law: str) -> float:
 
 
 @pytest.mark.parametrize("law, value", [("parabolic", 0.9326007), ("linear", 0.5)])
-def test_eps_on_work_approaches_the_static_value(cycle: dict[str, master.RunResult], law: str,
-                                                 value: float) -> None:
+def test_eps_on_work_approaches_the_static_value(cycle: dict[str, master.RunResult],
+                                                 monolithic: dict[str, reference.ReferenceResult],
+                                                 law: str, value: float) -> None:
     assert static_eps(law) == pytest.approx(value, abs=1e-7)
     table = results.summary(cycle.values(), CYCLE.baselines).set_index("variant")
     balanced, unbalanced = f"{law}_balanced", f"{law}_unbalanced"
@@ -102,17 +114,21 @@ def test_eps_on_work_approaches_the_static_value(cycle: dict[str, master.RunResu
                       / sum(abs(stroke_work(unbalanced, d)) for d in STROKES.values()))
     assert table.eps_W[balanced] == pytest.approx(expected, abs=1e-3)
     assert table.eps_W[balanced] == pytest.approx(static_eps(law), abs=0.01)
-    # eps on E_drawn is against the same law's unbalanced run
-    drawn = table.E_drawn
-    assert table.eps[balanced] == pytest.approx(1.0 - drawn[balanced] / drawn[unbalanced])
-    assert table.eps[unbalanced] == 0.0
+    # eps on E_drawn is against the same law's unbalanced run: the monolithic reference's
+    # drawn energies give it within 7e-5 (both laws); 2e-4 allows 3x that, while the other
+    # law's baseline would move it by 0.11 or more
+    drawn = {v: monolithic[v].metrics["E_drawn"] for v in (balanced, unbalanced)}
+    assert table.eps[balanced] == pytest.approx(1.0 - drawn[balanced] / drawn[unbalanced],
+                                                abs=2e-4)
 
 
 @pytest.mark.parametrize("variant", CYCLE_VARIANTS)
 def test_cycle_tracking_without_saturation(cycle: dict[str, master.RunResult],
                                            variant: str) -> None:
     m = cycle[variant].metrics
-    assert math.degrees(m["track_err_rms"]) < 0.5
+    # the design's loop (triple pole at omega_c = 25 rad/s) alone leaves 0.0011 deg rms on
+    # these 4 s strokes; the payload's changing mass and gravity bring it to 0.0017-0.0024 deg
+    assert math.degrees(m["track_err_rms"]) < 0.005
     assert m["V_peak"] < MOTOR.V_supply
 
 
@@ -123,9 +139,11 @@ def assert_matches_reference(run: master.RunResult, ref: reference.ReferenceResu
         assert run.metrics[name] == pytest.approx(ref.metrics[name], abs=tolerance), name
 
 
-def test_cycle_matches_monolithic_reference(cycle: dict[str, master.RunResult]) -> None:
-    variant = "parabolic_balanced"
-    assert_matches_reference(cycle[variant], reference.simulate(CYCLE, CYCLE.variant(variant)))
+@pytest.mark.parametrize("variant", CYCLE_VARIANTS)
+def test_cycle_matches_monolithic_reference(cycle: dict[str, master.RunResult],
+                                            monolithic: dict[str, reference.ReferenceResult],
+                                            variant: str) -> None:
+    assert_matches_reference(cycle[variant], monolithic[variant])
 
 
 # ---- the ciupitu variant of franchetti2021 -----------------------------------------------
@@ -146,11 +164,37 @@ def test_scenario_holds_the_design(chosen: ciupitu_design.Design) -> None:
     assert p["AB"] == chosen.AB == 0.35
 
 
+def rigid_arm_energy(m2: float, AB: float, step: float = 1e-3) -> float:
+    """E_drawn [J] over franchetti2021 of its link carrying m2 [kg] fixed at AB [m] opposite
+    the payload (Ciupitu's counterweight with OA = 0, where OB = AB at every angle): the
+    rigid arm's inverse dynamics along the reference, tau = J theta'' + d_link theta'
+    - g sin(theta) (m c + payload w - m_fixed_cw c_fixed_cw - m2 AB) with J = J_link +
+    J_drive + m_fixed_cw c_fixed_cw^2 + m2 AB^2 + payload w^2, the motor without inductance,
+    and P = (R_a i + K_e theta') i integrated where positive."""
+    variant = FRANCHETTI.variant("ciupitu")
+    p = reference.parameters(ciupitu, FRANCHETTI, variant, MOTOR)
+    times = np.arange(round(FRANCHETTI.duration / step) + 1) * step
+    theta = FRANCHETTI.reference(times)
+    omega = np.gradient(theta, step)
+    payload = FRANCHETTI.inputs(times, variant)["payload"]
+    inertia = (p.J_link + p.J_drive + p.m_fixed_cw * p.c_fixed_cw ** 2 + m2 * AB ** 2
+               + payload * p.w ** 2)
+    unbalance = p.m * p.c + payload * p.w - p.m_fixed_cw * p.c_fixed_cw - m2 * AB
+    torque = (inertia * np.gradient(omega, step) + p.d_link * omega
+              - p.g * np.sin(theta) * unbalance)
+    current = torque / MOTOR.torque_per_amp
+    power = (MOTOR.R_a * current + MOTOR.back_emf_per_link_speed * omega) * current
+    return float(np.trapezoid(np.maximum(power, 0.0), dx=step))
+
+
 def test_design_is_a_local_optimum(chosen: ciupitu_design.Design,
                                    objective: ciupitu_design.TaskEnergy) -> None:
     design = {"m2": chosen.m2, "OA": chosen.OA, "AB": chosen.AB}
     best = objective(**design)
-    assert best == pytest.approx(chosen.E_drawn, rel=1e-9)
+    # OA on its bound makes the counterweight a fixed one: the rigid arm's energy, sampled
+    # ten times finer, agrees to 3e-8 (1e-5 allows for the sampling)
+    assert chosen.OA == 0.0
+    assert chosen.E_drawn == pytest.approx(rigid_arm_energy(chosen.m2, chosen.AB), rel=1e-5)
     for name, value in design.items():
         # +-5 %; OA sits on its bound 0, so it moves to 5 % of AB (the feasible side)
         for moved in ((0.05 * chosen.AB,) if value == 0.0 else (0.95 * value, 1.05 * value)):
@@ -168,7 +212,9 @@ def test_ciupitu_saves_drive_energy(franchetti: dict[str, master.RunResult],
     assert m["E_drawn"] < 0.2 * franchetti["unbalanced"].metrics["E_drawn"]
     # the design's prediction (perfect tracking, no inductance) is what the drive draws
     assert m["E_drawn"] == pytest.approx(chosen.E_drawn, rel=0.005)
-    assert math.degrees(m["track_err_rms"]) < 0.5
+    # 0.023 deg rms measured: the design's loop alone leaves 0.019 deg on this reference
+    # (test_cosim_franchetti), the counterweight's small unbalance the rest
+    assert math.degrees(m["track_err_rms"]) < 0.05
     assert m["V_peak"] < MOTOR.V_supply
 
 
