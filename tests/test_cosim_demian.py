@@ -90,7 +90,12 @@ def test_energy_balance(runs: dict[str, master.RunResult], variant: str) -> None
             assert row.E_grav - start.E_grav == pytest.approx(e_grav, rel=0.005)
             assert row.W_worm == pytest.approx(worm, abs=0.005 * e_grav)
             assert row.E_friction > 0.0
-    assert work == pytest.approx(run.metrics["W_link"], rel=1e-9)
+    # the W_link metric (both drives, from their torque and travel) against the mechanism's
+    # own account at the end of the run (its energies, worm work and friction losses)
+    end = series.iloc[-1]
+    stored = sum(end[e] - start[e] for e in ("E_grav", "E_springs", "E_kin"))
+    assert run.metrics["W_link"] == pytest.approx(stored - end.W_worm + end.E_friction,
+                                                  abs=0.005 * e_grav)
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
@@ -104,8 +109,12 @@ def test_electrical_energy_balance(runs: dict[str, master.RunResult], variant: s
         assert m[f"E_in{s}"] == pytest.approx(
             m[f"E_copper{s}"] + m[f"W_link{s}"] + m[f"E_inductor{s}"],
             rel=0.005, abs=1e-4), joint.name
-    for total in ("E_in", "E_drawn", "E_copper", "E_mech", "W_link"):
-        assert m[total] == pytest.approx(m[f"{total}_q1"] + m[f"{total}_q2"], rel=1e-12)
+    # the totals keep the same balance (their W_link is checked against the mechanism's
+    # account in test_energy_balance); drawn energy is at least the net, absolute work at
+    # least the net work
+    assert m["E_in"] == pytest.approx(m["E_copper"] + m["W_link"] + m["E_inductor"],
+                                      rel=0.005, abs=1e-4)
+    assert m["E_drawn"] >= m["E_in"] and m["E_mech"] >= abs(m["W_link"])
 
 
 def test_compensation_saves_the_drive_energy(runs: dict[str, master.RunResult]) -> None:

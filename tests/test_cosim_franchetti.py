@@ -67,7 +67,11 @@ def test_self_regulation_saves_the_drive_energy(runs: dict[str, master.RunResult
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_tracking_without_saturation(runs: dict[str, master.RunResult], variant: str) -> None:
     m = runs[variant].metrics
-    assert math.degrees(m["track_err_rms"]) < 0.5
+    # the design's loop, S(s) = s^2 (s + alpha) / (s + omega_c)^3 with omega_c = 25 rad/s and
+    # alpha = 67.3 1/s, leaves 0.019 deg rms on this reference, what the self-regulating link
+    # shows; the payload's unbalance (unregulated) and the link's gravity (unbalanced),
+    # disturbances to the loop, raise it to 0.024 and 0.033 deg
+    assert math.degrees(m["track_err_rms"]) < 0.05
     assert m["V_peak"] < MOTOR.V_supply
 
 

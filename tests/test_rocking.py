@@ -275,5 +275,6 @@ def test_cycle_stroke_work_is_the_lagrangian_energy(cycle: dict[str, master.RunR
     run = cycle[law]
     for stroke, direction in (("down", 1.0), ("up", -1.0)):
         assert run.phase_work[stroke] == pytest.approx(stroke_work(law, direction), abs=2e-3)
-    assert math.degrees(run.metrics["track_err_rms"]) < 0.5
+    # 0.0012 deg rms measured for both laws: 2x that
+    assert math.degrees(run.metrics["track_err_rms"]) < 0.0025
     assert run.messages == []
