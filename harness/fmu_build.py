@@ -78,16 +78,22 @@ BUILD_CODE = (Path(__file__), Path(fmu_docs.__file__), Path(osp.__file__))
 TOOLS = ("pythonfmu", "fmpy", "ziglang", "matplotlib")
 
 
-def _fmu_src_imports(path: Path) -> set[str]:
+def _fmu_src_imports(path: Path) -> frozenset[str]:
     """Modules of the fmu_src package imported by the file at path."""
+    return _imports_in(path.read_text())
+
+
+@functools.cache  # parsed once per content: fmu_path reads them at every call
+def _imports_in(source: str) -> frozenset[str]:
+    """Modules of the fmu_src package imported by a Python source."""
     names: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.ImportFrom) and node.module:
             if node.module == "fmu_src":
                 names.update(alias.name for alias in node.names)
             elif node.module.startswith("fmu_src."):
                 names.add(node.module.split(".", 1)[1])
-    return names
+    return frozenset(names)
 
 
 def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
