@@ -36,6 +36,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import scenario as core
 from fmu_src.fmi_base import ModelSlave, VariableInfo
+from fmu_src.mechanism import DocumentedRun, Registration, Run
 
 # units of the Real inputs scenarios drive: those of the mechanism FMUs' inputs
 INPUT_UNITS = {"payload": "kg", "counterweight_added": "kg"}
@@ -173,3 +174,14 @@ class ScenarioSequencer(ModelSlave):
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.play(self.chosen_variant())
+
+REGISTRATION = Registration(
+    reference_run=DocumentedRun(
+        "The embedded scenario over its default experiment (its duration), played with the "
+        "default variant (the start value of `variant`); the sequencer has no inputs. "
+        "Recorded every 1/8 s (a binary fraction: the phase boundaries of the shipped "
+        "scenarios fall on it) and on both sides of every switch of a Boolean output.",
+        output_interval=0.125),
+    moving_run=Run(duration=5.0),  # 1 s into the move of phase II
+    dependency_probes=(Run(duration=5.0),),  # no inputs: a function of time alone
+)

@@ -44,15 +44,13 @@ from pathlib import Path
 import fmpy
 from pythonfmu.builder import FmuBuilder
 
-from harness import fmu_docs, osp, scenarios
+from harness import fmu_docs, osp, registry, scenarios
 from harness.errors import UserError
 
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
-MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator", "DcMotorDrive",
-          "PositionController", "ScenarioSequencer", "ActiveSpringBalancer",
-          "RockingCounterweightBalancer")
+MODELS = registry.models(SOURCE_DIR)  # those that declare a registration (harness.registry)
 SEQUENCER = "ScenarioSequencer"
 LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "fmi2_loader.c"
 LOADER_BUILD = DEFAULT_DEST.parent / "loader" / "fmi2_loader.so"
@@ -80,8 +78,8 @@ def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
         for name in _fmu_src_imports(pending.pop()):
             if name not in found:
                 found.add(name)
-                pending.append(SOURCE_DIR / f"{name}.py")
-    return sorted(SOURCE_DIR / f"{name}.py" for name in found)
+                pending.append(source_dir / f"{name}.py")
+    return sorted(source_dir / f"{name}.py" for name in found)
 
 
 def sequencer_module(scenario: str | Path) -> str:
