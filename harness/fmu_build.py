@@ -84,16 +84,12 @@ def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
 
 def sequencer_module(scenario: str | Path) -> str:
     """The source of the ScenarioSequencer's module `sequencer_scenario` for a scenario (name
-    or file); ValueError if the file does not load or the sequencer cannot play it (a Real
-    input without a unit in its INPUT_UNITS)."""
-    from fmu_src.ScenarioSequencer import input_units  # pythonfmu: only for this model
-
-    source = scenarios.embedded_source(scenario)  # loads the file: ValueError on a problem
+    or file); UserError if the file does not load or the sequencer cannot play it (a Real
+    input that no mechanism of its variants has)."""
     try:
-        input_units(scenarios.load(scenario))
-    except ValueError as error:
+        return scenarios.embedded_source(scenario)
+    except UserError as error:
         raise UserError(f"{scenarios.scenario_file(scenario).name}: {error}") from None
-    return source
 
 
 def zig_cc(source: Path, output: Path, *options: str) -> Path:

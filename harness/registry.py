@@ -12,6 +12,8 @@ import ast
 import importlib
 from pathlib import Path
 
+from pythonfmu import Fmi2Causality
+
 from fmu_src.mechanism import Registration
 
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
@@ -42,6 +44,15 @@ def registration(model: str) -> Registration | None:
             raise
         return None
     return getattr(module, REGISTRATION, None)
+
+
+def input_units(model: str) -> dict[str, str | None]:
+    """The unit of each input of the model's slave (None for a Boolean), as its FMU declares
+    it: read from an instance of the slave class."""
+    slave = getattr(importlib.import_module(f"fmu_src.{model}"), model)(
+        instance_name=f"units.{model}", resources=None)
+    return {var.name: slave.info[var.name].unit for var in slave.vars.values()
+            if var.causality == Fmi2Causality.input}
 
 
 def mechanisms(source_dir: Path = SOURCE_DIR) -> dict[str, Registration]:
