@@ -31,7 +31,7 @@ from harness import registry
 OUTPUT_INTERVAL = 0.01  # default spacing of the recorded reference result [s]
 RELATIVE_TOLERANCE = 1e-4  # passed to fmi2SetupExperiment; the FMUs step with fixed schemes
 # fmu_src modules that carry FMI plumbing, not model equations
-PLUMBING = ("fmi_base", "parameters")
+PLUMBING = ("fmi_base", "mechanism", "parameters")
 
 
 @dataclass(frozen=True)
