@@ -13,6 +13,7 @@ from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_mov
 OUTPUTS = (
     ("theta", "rad", "Angle from the downward vertical"),
     ("omega", "rad/s", "Angular velocity"),
+    ("tau_gravity", "N.m", "Gravity torque about the pivot along theta"),
     ("E_p", "J", "Gravitational potential energy (0 at the pivot's height)"),
     ("E_kin", "J", "Kinetic energy of the bob and the drive rotor"),
     ("W_drive", "J", "Cumulative work of tau_drive"),

@@ -2,7 +2,7 @@
 fmu_src through its own two files only (docs/adding_a_mechanism.md). Standard library only.
 
 theta is the angle from the downward vertical, counter-clockwise positive:
-J theta'' = tau_drive - m g l sin(theta) - d omega with J = m l^2 + J_drive.
+J theta'' = tau_drive - m g l sin(theta) - d_link omega with J = m l^2 + J_drive.
 """
 
 from __future__ import annotations
@@ -21,11 +21,16 @@ class Parameters:
 
     m: float = parameter(1.0, "kg", "Bob mass", min=0.0, min_exclusive=True)
     l: float = parameter(0.5, "m", "Rod length", min=0.0, min_exclusive=True)  # noqa: E741
-    d: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
     theta0: float = parameter(0.0, "rad", "Initial angle from the downward vertical")
     omega0: float = parameter(0.0, "rad/s", "Initial angular velocity")
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the pivot", min=0.0)
+
+    @property
+    def J_link(self) -> float:
+        """Moment of inertia of the bob about the pivot, m l^2 [kg m^2]."""
+        return self.m * self.l * self.l
 
 
 def validate(params: Parameters) -> None:
@@ -57,20 +62,26 @@ def initial_state(p: Parameters) -> State:
 
 
 def inertia(p: Parameters) -> float:
-    """Moment of inertia about the pivot [kg m^2]."""
-    return p.m * p.l * p.l + p.J_drive
+    """Moment of inertia about the pivot with the drive's [kg m^2]."""
+    return p.J_link + p.J_drive
+
+
+def tau_gravity(p: Parameters, theta: float) -> float:
+    """Gravity torque about the pivot along theta [N m]."""
+    return -p.m * p.g * p.l * math.sin(theta)
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
     """ds/dt for the inputs held (no input ramps a mass: rates is not used)."""
-    torque = u.tau_drive - p.m * p.g * p.l * math.sin(s.theta) - p.d * s.omega
-    return State(s.omega, torque / inertia(p), u.tau_drive * s.omega, p.d * s.omega * s.omega)
+    torque = u.tau_drive + tau_gravity(p, s.theta) - p.d_link * s.omega
+    return State(s.omega, torque / inertia(p), u.tau_drive * s.omega,
+                 p.d_link * s.omega * s.omega)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]."""
     J = inertia(p)
-    return max(math.sqrt(p.m * p.g * p.l / J), p.d / J, abs(s.omega))
+    return max(math.sqrt(p.m * p.g * p.l / J), p.d_link / J, abs(s.omega))
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -88,6 +99,7 @@ class Outputs(NamedTuple):
 
     theta: float
     omega: float
+    tau_gravity: float
     E_p: float
     E_kin: float
     W_drive: float
@@ -96,5 +108,5 @@ class Outputs(NamedTuple):
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """Outputs at the state s."""
-    return Outputs(s.theta, s.omega, -p.m * p.g * p.l * math.cos(s.theta),
+    return Outputs(s.theta, s.omega, tau_gravity(p, s.theta), -p.m * p.g * p.l * math.cos(s.theta),
                    0.5 * inertia(p) * s.omega * s.omega, s.W_drive, s.E_loss)
