@@ -13,7 +13,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import ciupitu as physics
 from fmu_src.fmi_base import PayloadArmSlave
-from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
+from fmu_src.mechanism import payload_arm
 
 OUTPUTS = (
     ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
@@ -59,15 +59,6 @@ class CiupituBalancer(PayloadArmSlave):
                             "Figure 4a): 1-DOF arm, counterweight sliding along the arm, "
                             "guided by one bar to a ground pivot")
 
-REGISTRATION = Registration(
-    physics=physics,
-    ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
-    ledger={"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
-    reference_run=rest_to_rest_move(
-        {"tau_drive": (0.1, "N m")}, {"payload": 0.0},
-        ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar"),
-        "; no payload"),
-    moving_run=Run({}, {"payload": 2.0}, 2.0),
-    dependency_probes=(Run({}, {"tau_drive": 1.0, "payload": 0.5}, 0.3),),
-    initial_parameters={"omega0": 0.5},
-)
+REGISTRATION = payload_arm(
+    physics, ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar"),
+    initial_parameters={"omega0": 0.5})

@@ -14,7 +14,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import rocking_counterweight as physics
 from fmu_src.fmi_base import PayloadArmSlave
-from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
+from fmu_src.mechanism import payload_arm
 
 OUTPUTS = (
     ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
@@ -61,14 +61,5 @@ class RockingCounterweightBalancer(PayloadArmSlave):
                             "1-DOF arm, counterweight on a bar pivoted on the arm, tied to a "
                             "ground pivot by a second bar")
 
-REGISTRATION = Registration(
-    physics=physics,
-    ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
-    ledger={"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
-    reference_run=rest_to_rest_move(
-        {"tau_drive": (0.1, "N m")}, {"payload": 0.0},
-        ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi"),
-        "; no payload"),
-    moving_run=Run({}, {"payload": 2.0}, 2.0),
-    dependency_probes=(Run({}, {"tau_drive": 1.0, "payload": 0.5}, 0.3),),
-)
+REGISTRATION = payload_arm(
+    physics, ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi"))

@@ -160,3 +160,19 @@ class Registration:
     def joints(self) -> tuple[Port, ...]:
         """The mechanism's joints: its ports with a position, in the master's order."""
         return tuple(p for p in self.ports if isinstance(p, Port) and p.position is not None)
+
+
+def payload_arm(physics: Any, reference_outputs: tuple[str, ...], **more: Any) -> Registration:
+    """The registration of a one-link arm with a drive torque and a payload at distance w
+    (`fmi_base.PayloadArmSlave`): its joint theta, the ledger E_p + E_kin + E_loss - W_drive
+    - E_added, a rest-to-rest move without payload recording reference_outputs, a payload of
+    2 kg that moves it, and a probe with both inputs acting; more: further fields."""
+    return Registration(
+        physics=physics,
+        ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
+        ledger={"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
+        reference_run=rest_to_rest_move({"tau_drive": (0.1, "N m")}, {"payload": 0.0},
+                                        reference_outputs, "; no payload"),
+        moving_run=Run({}, {"payload": 2.0}, 2.0),
+        dependency_probes=(Run({}, {"tau_drive": 1.0, "payload": 0.5}, 0.3),),
+        **more)
