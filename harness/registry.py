@@ -8,8 +8,8 @@ a mechanism touches only its own files (docs/adding_a_mechanism.md).
 
 from __future__ import annotations
 
-import ast
 import importlib
+import re
 from pathlib import Path
 
 from pythonfmu import Fmi2Causality
@@ -21,11 +21,9 @@ REGISTRATION = "REGISTRATION"  # the name a slave script declares its registrati
 
 
 def _declares_registration(path: Path) -> bool:
-    """Whether the module at path assigns REGISTRATION at its top level."""
-    tree = ast.parse(path.read_text(), str(path))
-    return any(isinstance(target, ast.Name) and target.id == REGISTRATION
-               for node in tree.body if isinstance(node, (ast.Assign, ast.AnnAssign))
-               for target in (node.targets if isinstance(node, ast.Assign) else [node.target]))
+    """Whether the module at path assigns REGISTRATION at its top level (a line starting
+    `REGISTRATION =`)."""
+    return re.search(rf"^{REGISTRATION}\s*(:[^=\n]*)?=", path.read_text(), re.MULTILINE) is not None
 
 
 def models(source_dir: Path = SOURCE_DIR) -> tuple[str, ...]:

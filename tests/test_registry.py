@@ -125,17 +125,25 @@ def test_every_registration_is_complete(model: str) -> None:
     assert bool(found.joints()) == (found.physics is not None)
 
 
-def test_no_harness_module_names_a_mechanism() -> None:
-    """The harness reaches the mechanisms through their registrations alone: no string
-    constant of a harness module (its design tools aside) is a mechanism's model name."""
+def _string_constants(path: Path) -> set[str]:
+    return {node.value for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.Constant) and isinstance(node.value, str)}
+
+
+def test_no_harness_or_shared_module_names_a_mechanism() -> None:
+    """The harness and the FMUs' shared modules reach the mechanisms through their
+    registrations alone: no string constant of a harness module (its design tools aside) or
+    of an fmu_src module that belongs to no mechanism is a mechanism's model name. (The
+    generated sequencer_scenario.py is a scenario file's data.)"""
     names = set(MECHANISMS)
     assert len(names) >= 5
-    for path in sorted(HARNESS.glob("*.py")):
-        if path.name in DESIGN_TOOLS:
-            continue
-        constants = {node.value for node in ast.walk(ast.parse(path.read_text()))
-                     if isinstance(node, ast.Constant) and isinstance(node.value, str)}
-        assert not constants & names, path.name
+    own = {*names, *(r.physics.__name__.rsplit(".", 1)[1] for r in MECHANISMS.values()),
+           "sequencer_scenario"}
+    shared = [p for p in sorted(registry.SOURCE_DIR.glob("*.py")) if p.stem not in own]
+    assert {"fmi_base", "ScenarioSequencer", "integration"} <= {p.stem for p in shared}
+    for path in [*sorted(HARNESS.glob("*.py")), *shared]:
+        if path.name not in DESIGN_TOOLS:
+            assert not _string_constants(path) & names, path.name
 
 
 @pytest.fixture
