@@ -97,6 +97,7 @@ INPUT_DEPENDENCIES = {
     "F_lock": ("F_adjust",),
 }
 
+
 REGISTRATION = Registration(
     physics=physics,
     ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),

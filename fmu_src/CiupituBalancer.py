@@ -59,6 +59,7 @@ class CiupituBalancer(PayloadArmSlave):
                             "Figure 4a): 1-DOF arm, counterweight sliding along the arm, "
                             "guided by one bar to a ground pivot")
 
+
 REGISTRATION = payload_arm(
     physics, ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar"),
     initial_parameters={"omega0": 0.5})

@@ -112,6 +112,7 @@ OUTPUTS = (
     ("E_copper", "J", "Armature copper loss since the start, R_a integral of i^2 dt"),
 )
 
+
 REGISTRATION = Registration(
     ports=(Port(ANGULAR, "shaft", "tau_drive", "omega"),
            Port(ELECTROMAGNETIC, "armature", "V", "i")),

@@ -110,6 +110,7 @@ class PositionController(ModelSlave):
         self.pid = self.new_pid()
         self.pid.restore(PIDState(*state))
 
+
 REGISTRATION = Registration(
     ports=(Quantity("Voltage", "command", ("V",)),),
     reference_run=DocumentedRun(

@@ -82,6 +82,7 @@ OUTPUTS = (
                      "W_worm - E_added is constant)"),
 )
 
+
 REGISTRATION = Registration(
     physics=physics,
     ports=(Port(ANGULAR, "q1", "tau1", "q1_dot", "q1"), Port(LINEAR, "q2", "f2", "q2_dot", "q2")),

@@ -61,5 +61,6 @@ class RockingCounterweightBalancer(PayloadArmSlave):
                             "1-DOF arm, counterweight on a bar pivoted on the arm, tied to a "
                             "ground pivot by a second bar")
 
+
 REGISTRATION = payload_arm(
     physics, ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi"))

@@ -163,6 +163,7 @@ class ScenarioSequencer(ModelSlave):
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.play(self.chosen_variant())
 
+
 REGISTRATION = Registration(
     reference_run=DocumentedRun(
         "The embedded scenario over its default experiment (its duration), played with the "

@@ -176,6 +176,7 @@ INPUT_DEPENDENCIES = {
     "slider_at_stop": ("slider_locked",),
 }
 
+
 REGISTRATION = Registration(
     physics=physics,
     ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),

@@ -253,7 +253,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
         direction = motion_direction(u.F_adjust, q_dot)
     q_ddot, lock = carriage(p, u.F_adjust, load, q_dot, direction)
     return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
-            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+                 p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
