@@ -14,6 +14,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import active_spring as physics
 from fmu_src.fmi_base import MechanismSlave
+from fmu_src.mechanism import ANGULAR, LINEAR, Port, Registration, Run, rest_to_rest_move
 
 
 class ActiveSpringBalancer(MechanismSlave):
@@ -95,3 +96,20 @@ INPUT_DEPENDENCIES = {
     "E_kin": ("payload",),
     "F_lock": ("F_adjust",),
 }
+
+
+REGISTRATION = Registration(
+    physics=physics,
+    ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),
+           Port(LINEAR, "carriage", "F_adjust", "q_dot", "q")),
+    ledger={"E_t": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "W_adjust": -1, "E_added": -1},
+    # the self-locking screw holds the carriage at rest: not one smooth ODE
+    monolithic_reference=False,
+    reference_run=rest_to_rest_move(
+        {"tau_drive": (0.1, "N m"), "F_adjust": (0.5, "N")}, {"payload": 0.0},
+        ("theta", "omega", "q", "Y_B", "tau_gravity", "F_q", "F_lock", "balance_error",
+         "W_adjust", "E_loss"), "; no payload"),
+    moving_run=Run({}, {"tau_drive": 0.5, "F_adjust": 30.0, "payload": 0.5}, 2.0),
+    # carriage pushed up against the spring while the link swings: the screw's force acts
+    dependency_probes=(Run({}, {"tau_drive": 1.0, "F_adjust": 40.0, "payload": 0.5}, 0.3),),
+)

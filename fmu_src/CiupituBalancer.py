@@ -13,6 +13,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import ciupitu as physics
 from fmu_src.fmi_base import PayloadArmSlave
+from fmu_src.mechanism import payload_arm
 
 OUTPUTS = (
     ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
@@ -57,3 +58,8 @@ class CiupituBalancer(PayloadArmSlave):
         self.description = ("Passive translational counterweight balancer (Ciupitu 2018, "
                             "Figure 4a): 1-DOF arm, counterweight sliding along the arm, "
                             "guided by one bar to a ground pivot")
+
+
+REGISTRATION = payload_arm(
+    physics, ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar"),
+    initial_parameters={"omega0": 0.5})

@@ -26,6 +26,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.dc_motor import MotorParameters, SampledMotor, copper_energy, zoh_coefficients
 from fmu_src.fmi_base import ModelSlave
+from fmu_src.mechanism import ANGULAR, ELECTROMAGNETIC, DocumentedRun, Port, Registration, Run
 from fmu_src.parameters import parameter
 
 STEP_SIZE = 1e-3  # default communication step [s], the harness's
@@ -109,4 +110,20 @@ OUTPUTS = (
     ("E_drawn", "J", "Energy drawn from a supply that cannot take energy back since the "
                      "start: max(P_elec, 0) times the step size, summed over the steps"),
     ("E_copper", "J", "Armature copper loss since the start, R_a integral of i^2 dt"),
+)
+
+
+REGISTRATION = Registration(
+    ports=(Port(ANGULAR, "shaft", "tau_drive", "omega"),
+           Port(ELECTROMAGNETIC, "armature", "V", "i")),
+    reference_run=DocumentedRun(
+        "Voltage step 0 -> 3 V at 0.1 s on the standing drive (4.9 A); the joint speed then "
+        "ramps 0 -> 2 rad/s over 0.5-1.0 s (the back-EMF, 5.7 V, exceeds the voltage: the "
+        "drive regenerates); voltage 0 from 1.25 s (braking).",
+        ("V", "omega"),
+        ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 3.0, 0.0), (0.5, 3.0, 0.0),
+         (1.0, 3.0, 2.0), (1.25, 3.0, 2.0), (1.25, 0.0, 2.0), (1.5, 0.0, 2.0))),
+    moving_run=Run({}, {"V": 12.0, "omega": 1.0}, 2.0),
+    dependency_probes=(Run({}, {"V": 5.0, "omega": 1.0}, 0.05),),
+    initial_parameters={"i0": 0.5},
 )

@@ -21,6 +21,7 @@ from typing import Any
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.fmi_base import ModelSlave
+from fmu_src.mechanism import DocumentedRun, Quantity, Registration, Run
 from fmu_src.parameters import parameter
 from fmu_src.pid import DiscretePID, PIDGains, PIDState, tustin_coefficients
 
@@ -108,3 +109,17 @@ class PositionController(ModelSlave):
         state, self.step_size = hidden["controller"]
         self.pid = self.new_pid()
         self.pid.restore(PIDState(*state))
+
+
+REGISTRATION = Registration(
+    ports=(Quantity("Voltage", "command", ("V",)),),
+    reference_run=DocumentedRun(
+        "Reference step 0 -> 0.5 rad at 0.1 s; the measured angle follows as a ramp over "
+        "0.1-0.6 s (the output saturates while the error is large, the integrator holds; "
+        "near the limit `saturated` toggles from step to step, so every step is recorded).",
+        ("theta_ref", "theta"),
+        ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 0.5, 0.0), (0.6, 0.5, 0.5), (1.0, 0.5, 0.5)),
+        output_interval=1e-3),
+    moving_run=Run({}, {"theta_ref": 0.002}, 2.0),  # unsaturated
+    dependency_probes=(Run({}, {"theta_ref": 0.05, "theta": 0.01}, 0.05),),  # unsaturated
+)

@@ -12,6 +12,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import prismatic as physics
 from fmu_src.fmi_base import MechanismSlave
+from fmu_src.mechanism import ANGULAR, LINEAR, Port, Registration, Run, rest_to_rest_move
 
 
 class PrismaticCompensator(MechanismSlave):
@@ -79,4 +80,23 @@ OUTPUTS = (
     ("E_added", "J", "Energy brought in by masses joining or leaving: always 0 here (the "
                      "mechanisms' common ledger E_grav + E_springs + E_kin + E_loss - W_drive - "
                      "W_worm - E_added is constant)"),
+)
+
+
+REGISTRATION = Registration(
+    physics=physics,
+    ports=(Port(ANGULAR, "q1", "tau1", "q1_dot", "q1"), Port(LINEAR, "q2", "f2", "q2_dot", "q2")),
+    ledger={"E_grav": 1, "E_springs": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "W_worm": -1,
+            "E_added": -1},
+    reference_run=rest_to_rest_move(
+        {"tau1": (0.1, "N m"), "f2": (0.02, "N")}, {},
+        ("q1", "q1_dot", "q2", "q2_dot", "tau1_gravity_residual", "f2_gravity_residual",
+         "T_wire", "f2_worm", "W_drive", "W_worm")),
+    moving_run=Run({}, {"tau1": 0.5, "f2": 1.0}, 2.0),
+    dependency_probes=(Run({}, {"tau1": 1.0, "f2": 1.0}, 0.3),),
+    plot_panels=(
+        ("gravity residuals: efforts to hold the arm", "N m | N",
+         ("tau1_gravity_residual", "f2_gravity_residual")),
+        ("energies", "J", ("E_grav", "E_springs", "E_kin", "W_worm")),
+    ),
 )

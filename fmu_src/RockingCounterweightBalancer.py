@@ -14,6 +14,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import rocking_counterweight as physics
 from fmu_src.fmi_base import PayloadArmSlave
+from fmu_src.mechanism import payload_arm
 
 OUTPUTS = (
     ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
@@ -59,3 +60,7 @@ class RockingCounterweightBalancer(PayloadArmSlave):
         self.description = ("Passive rocking counterweight balancer (Ciupitu 2018, Figure 4b): "
                             "1-DOF arm, counterweight on a bar pivoted on the arm, tied to a "
                             "ground pivot by a second bar")
+
+
+REGISTRATION = payload_arm(
+    physics, ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi"))

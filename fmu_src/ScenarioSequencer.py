@@ -36,9 +36,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import scenario as core
 from fmu_src.fmi_base import ModelSlave, VariableInfo
-
-# units of the Real inputs scenarios drive: those of the mechanism FMUs' inputs
-INPUT_UNITS = {"payload": "kg", "counterweight_added": "kg"}
+from fmu_src.mechanism import DocumentedRun, Registration, Run
 
 
 @dataclass(frozen=True)
@@ -47,17 +45,17 @@ class NoParameters:
     `variant_number` an Integer)."""
 
 
-def embedded_scenario(resources: str | None) -> core.Scenario:
+def embedded_scenario(resources: str | None) -> tuple[core.Scenario, dict[str, str]]:
     """The scenario embedded in the FMU with this resources folder (outside an FMU, None: the
-    module `fmu_src.sequencer_scenario` of the source tree)."""
+    module `fmu_src.sequencer_scenario` of the source tree) and the unit of each Real input it
+    drives (its INPUT_UNITS, written by the harness from the mechanisms' inputs)."""
     path = None if resources is None else Path(resources) / "fmu_src" / "sequencer_scenario.py"
     if path is not None and path.is_file():
         module = runpy.run_path(str(path))  # not cached in sys.modules (see the docstring)
-        name, data = module["NAME"], module["DATA"]
     else:
         from fmu_src import sequencer_scenario
-        name, data = sequencer_scenario.NAME, sequencer_scenario.DATA
-    return core.parse(data, f"{name}.toml")
+        module = vars(sequencer_scenario)
+    return core.parse(module["DATA"], f"{module['NAME']}.toml"), module["INPUT_UNITS"]
 
 
 def scenario_inputs(scenario: core.Scenario) -> dict[str, bool | float]:
@@ -69,21 +67,11 @@ def scenario_inputs(scenario: core.Scenario) -> dict[str, bool | float]:
     return inputs
 
 
-def input_units(scenario: core.Scenario) -> dict[str, str | None]:
-    """The unit of each input the scenario drives (None for a Boolean); ValueError naming a
-    Real input that INPUT_UNITS gives no unit."""
-    inputs = scenario_inputs(scenario)
-    units = {name: None if isinstance(value, bool) else INPUT_UNITS.get(name)
-             for name, value in inputs.items()}
-    missing = [name for name, value in inputs.items()
-               if not isinstance(value, bool) and units[name] is None]
-    if missing:
-        raise ValueError(
-            f"scenario {scenario.name} drives the Real input(s) {', '.join(missing)}, which "
-            f"ScenarioSequencer.INPUT_UNITS gives no unit (it knows "
-            f"{', '.join(f'{n} [{u}]' for n, u in INPUT_UNITS.items())}): add "
-            "them there with the unit of the mechanism FMU's input")
-    return units
+def input_units(scenario: core.Scenario, units: dict[str, str]) -> dict[str, str | None]:
+    """The unit of each input the scenario drives: None for a Boolean, from units for a Real
+    one."""
+    return {name: None if isinstance(value, bool) else units[name]
+            for name, value in scenario_inputs(scenario).items()}
 
 
 class ScenarioSequencer(ModelSlave):
@@ -93,7 +81,8 @@ class ScenarioSequencer(ModelSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self.scenario = scenario = embedded_scenario(kwargs.get("resources"))
+        self.scenario, units = embedded_scenario(kwargs.get("resources"))
+        scenario = self.scenario
         self.default_experiment = DefaultExperiment(start_time=0.0,
                                                     stop_time=scenario.duration, step_size=1e-3)
         self.description = (f"Scenario sequencer: plays scenario {scenario.name} "
@@ -121,7 +110,7 @@ class ScenarioSequencer(ModelSlave):
                             f"joint {name} (quintic between the phases' targets)")
         self.played = scenario                # resolved for the variant played
         self.defaults = scenario_inputs(scenario)
-        for name, unit in input_units(scenario).items():
+        for name, unit in input_units(scenario, units).items():
             self.add_output(name, unit, f"Scenario input {name} for the mechanism")
         self.start_time = 0.0
         self.step_start = 0.0
@@ -173,3 +162,15 @@ class ScenarioSequencer(ModelSlave):
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         self.play(self.chosen_variant())
+
+
+REGISTRATION = Registration(
+    reference_run=DocumentedRun(
+        "The embedded scenario over its default experiment (its duration), played with the "
+        "default variant (the start value of `variant`); the sequencer has no inputs. "
+        "Recorded every 1/8 s (a binary fraction: the phase boundaries of the shipped "
+        "scenarios fall on it) and on both sides of every switch of a Boolean output.",
+        output_interval=0.125),
+    moving_run=Run(duration=5.0),  # 1 s into the move of phase II
+    dependency_probes=(Run(duration=5.0),),  # no inputs: a function of time alone
+)

@@ -13,6 +13,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src import self_regulating as physics
 from fmu_src.fmi_base import MechanismSlave
+from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
 
 # How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
 REGULATION_ANGLE_TOLERANCE = 0.5 * physics.DEG
@@ -174,3 +175,25 @@ INPUT_DEPENDENCIES = {
     "E_kin": ("payload", "counterweight_added", "slider_locked", "pulley_locked"),
     "slider_at_stop": ("slider_locked",),
 }
+
+
+REGISTRATION = Registration(
+    physics=physics,
+    ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
+    ledger={"E_t": 1, "E_cw": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
+    reference_run=rest_to_rest_move(
+        {"tau_drive": (0.1, "N m")},
+        {"payload": 0.0, "counterweight_added": 0.0, "slider_locked": 1.0, "pulley_locked": 1.0},
+        ("theta", "omega", "b", "tau_gravity", "balance_error", "E_p", "E_e", "E_t", "E_kin",
+         "slider_at_stop"), "; no payload, slider and pulley locked"),
+    moving_run=Run({"k": 0.0}, duration=2.0),  # unbalanced link swinging from 60 deg
+    dependency_probes=(
+        # regulating away from theta = pi with the link driven: link, slider and
+        # counterweight move (E_kin and E_cw feel the counterweight and the locks)
+        Run({}, {"tau_drive": 2.0, "payload": 0.5, "counterweight_added": 0.8,
+                 "slider_locked": False, "pulley_locked": False}, 0.3),
+        # slider released with the pulley locked at theta = pi: the spring pulls it onto b_min
+        Run({"theta0": math.pi}, {"tau_drive": 1.0, "slider_locked": False}, 1.0),
+    ),
+    initial_parameters={"omega0": 0.5},
+)

@@ -239,17 +239,21 @@ def motion_direction(F_adjust: float, q_dot: float) -> float:
     return q_dot if q_dot != 0.0 else F_adjust
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, direction: float) -> tuple[float, ...]:
-    """Time derivative of the state for constant inputs, in State's field order; direction as
-    for `carriage`."""
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                direction: float | None = None) -> State:
+    """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
+    other mechanisms take it: a payload changes only at events here, so it is not used);
+    direction as for `carriage`, None for `motion_direction` at s."""
     theta, omega, q, q_dot = s[:4]
     Y_B = p.Y_B0 + q
     torque = tau_gravity(p, u.payload, theta, Y_B)
     omega_dot = (u.tau_drive + torque - p.d_link * omega) / link_inertia(p, u.payload)
     load = spring(p, theta, Y_B).F_q - p.m_q * p.g
+    if direction is None:
+        direction = motion_direction(u.F_adjust, q_dot)
     q_ddot, lock = carriage(p, u.F_adjust, load, q_dot, direction)
-    return (omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
-            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+    return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+                 p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -271,7 +275,7 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 def _rk4_step(p: Parameters, u: Inputs, s: State, h: float) -> State:
     """One RK4 step of size h [s], the screw's regime fixed by the motion at its start."""
     direction = motion_direction(u.F_adjust, s.q_dot)
-    return rk4(lambda state: derivatives(p, u, state, direction), s, h)
+    return rk4(lambda state: derivatives(p, u, state, None, direction), s, h)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:

@@ -492,13 +492,10 @@ class ModelSlave(Fmi2Slave):
 class MechanismSlave(ModelSlave):
     """Base of the mechanism slaves: a thin layer over a pure physics module.
 
-    `physics` is the module. It provides Parameters, Inputs, State, validate(p),
-    initial_state(p), advance(p, u, s, dt) (one communication step with the inputs held),
-    outputs(p, u, s) (a NamedTuple named like the output variables) and, where inputs change
-    the state at a communication point (a payload caught or released, a lock engaged),
-    EVENT_INPUTS (the names of those inputs) and switch_inputs(p, before, after, s), called
-    only when one of them changes (the drive effort changes at every step and is no event).
-    Subclasses register the variables and map them to physics.Inputs in `inputs()`.
+    `physics` is the module, a `fmu_src.mechanism.Physics`: validate, initial_state, advance
+    (one communication step with the inputs held), outputs, and switch_inputs, called only
+    when one of its EVENT_INPUTS changes (the drive effort changes at every step and is no
+    event). Subclasses register the variables and map them to physics.Inputs in `inputs()`.
     """
 
     physics: Any
@@ -508,7 +505,7 @@ class MechanismSlave(ModelSlave):
         super().__init__(**kwargs)
         self.state = None
         self.previous_inputs = None
-        names = getattr(self.physics, "EVENT_INPUTS", ())
+        names = self.physics.EVENT_INPUTS
         # the event inputs of an Inputs tuple, as one comparable value (None: no events)
         self.event_values = (itemgetter(*(self.physics.Inputs._fields.index(n) for n in names))
                              if names else None)

@@ -182,6 +182,10 @@ class Inputs(NamedTuple):
     f2: float = 0.0     # N, drive force on the prismatic joint, outward positive
 
 
+# no input changes the state at a communication point: the efforts are no events
+EVENT_INPUTS: tuple[str, ...] = ()
+
+
 class State(NamedTuple):
     """Joint positions and speeds, and the cumulative energies integrated with them [J]."""
 
@@ -254,8 +258,9 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
                  p.d1 * w1 * w1 + p.d2 * q2_dot * q2_dot, 0.0)
 
 
-def characteristic_rate(p: Parameters, s: State) -> float:
-    """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
+def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
+    """Fastest rate of the local dynamics [1/s]: sets the internal integration step (the
+    inputs, efforts only, do not change it)."""
     lc2 = p.ls0 + s.q2
     J, mass = p.inertia_1(s.q2), p.mass_2
     stiffness_1 = p.g * (p.m1 * p.lc1 + p.m2 * abs(lc2))
@@ -290,8 +295,13 @@ def _apply_stops(p: Parameters, s: State) -> State:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, s),
+    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s),
                      lambda state: _apply_stops(p, state))
+
+
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state after the inputs change: unchanged (EVENT_INPUTS is empty)."""
+    return s
 
 
 class Outputs(NamedTuple):

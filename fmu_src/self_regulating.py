@@ -259,15 +259,21 @@ def _link_acceleration(p: Parameters, u: Inputs, theta: float, omega: float, b: 
             - p.d_link * omega - coriolis) / link_inertia(p, u.payload, b)
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
-                slip: float | None = None) -> tuple[float, ...]:
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state (see _derivatives) as a State."""
+    return State._make(_derivatives(p, u, s, rates))
+
+
+def _derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                 slip: float | None = None) -> tuple[float, ...]:
     """Time derivative of the state, in State's field order, for inputs u that are constant
     or, for a continuous-time model such as the harness's reference, change at `rates`
     (d/dt of the Real inputs; masses then join and leave continuously, see _mass_flow).
     `slip` fixes the slider's friction state for a whole RK4 sub-step (0: stuck, +1 or -1:
     sliding out or in; see advance); None decides it from s.
 
-    A plain tuple, not a State: this runs four times per RK4 step and a NamedTuple costs more.
+    A plain tuple, not a State: advance runs this four times per RK4 step and a NamedTuple
+    costs more.
     """
     theta, omega, b, v = s[:4]
     omega_dot = _link_acceleration(p, u, theta, omega, b, v)
@@ -424,7 +430,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         return s._replace(theta=end.theta, omega=end.omega, v=0.0, W_drive=end.W_drive,
                           E_loss=end.E_loss)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
-        return integrate(lambda state: derivatives(p, u, state), s, dt, rate,
+        return integrate(lambda state: _derivatives(p, u, state), s, dt, rate,
                          lambda state: _apply_constraints(p, u, state))
     # Coulomb friction: the friction state is decided at the start of each sub-step and held
     # through it, so that RK4 sees one smooth right-hand side (and the ledger stays exact).
@@ -442,7 +448,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         slip[0] = _friction_state(p, u, state)
         return state
 
-    return integrate(lambda state: derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
+    return integrate(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
 
 
 def _friction_state(p: Parameters, u: Inputs, s: State) -> float:

@@ -174,3 +174,5 @@ DATA = {'name': 'franchetti2021',
                                                      'static_effort': 'F_hold',
                                                      'motor': 'trapezoidal_screw',
                                                      'initial': 0.0}}}}}
+# the unit of each Real input the scenario drives: that of the mechanisms' input it feeds
+INPUT_UNITS = {'payload': 'kg', 'counterweight_added': 'kg'}

@@ -40,7 +40,8 @@ from pathlib import Path
 import pandas as pd
 from fmpy import read_model_description
 
-from harness import fmu_build, master, reference, scenarios
+from fmu_src.mechanism import Port
+from harness import fmu_build, master, reference, registry, scenarios
 from harness.errors import UserError
 from harness.fmi import CoSimFMU
 from harness.results import RESULTS_DIR, write_csv
@@ -63,20 +64,21 @@ class StepLoop:
     outputs: tuple[str, ...]
 
 
+def mechanism_loop(model: str, joints: tuple[Port, ...]) -> StepLoop:
+    """The master's step loop of a mechanism: its first joint's effort set (the others stay
+    at their start values), every joint's position and speed read."""
+    return StepLoop(lambda: fmu_build.fmu_path(model), joints[0].effort,
+                    tuple(name for joint in joints for name in (joint.position, joint.flow)))
+
+
+# native_step: the mechanism FMUs (harness.registry); fmu_step: the same and the floor
+MECHANISM_LOOPS = {model: mechanism_loop(model, r.joints())
+                   for model, r in registry.mechanisms().items()}
 STEP_LOOPS = {
     "BenchFloor": StepLoop(
         lambda: fmu_build.fmu_path("BenchFloor", FLOOR_BUILD_DIR, FLOOR_SOURCE_DIR),
         "u", ("y",)),
-    **{model: StepLoop(lambda model=model: fmu_build.fmu_path(model), "tau_drive",
-                       ("theta", "omega"))
-       for model in ("SelfRegulatingBalancer", "CiupituBalancer", "RockingCounterweightBalancer")},
-}
-# native_step: the mechanism FMUs, with what the master sets and reads (the prismatic
-# compensator's second input f2 stays at its start value)
-MECHANISM_LOOPS = {
-    model: STEP_LOOPS[model] for model in ("SelfRegulatingBalancer", "CiupituBalancer")} | {
-    "PrismaticCompensator": StepLoop(lambda: fmu_build.fmu_path("PrismaticCompensator"), "tau1",
-                                     ("q1", "q1_dot", "q2", "q2_dot")),
+    **MECHANISM_LOOPS,
 }
 
 

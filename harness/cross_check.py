@@ -19,7 +19,7 @@ For every FMU of `harness.fmu_build.MODELS` it writes, under the destination fol
 
 following the FMI cross-check rules (modelica/fmi-cross-check, FMI-CROSS-CHECK-RULES.md:
 CSV conventions, files below 1 MB). The run is each model's reference run, the one its
-documentation plots (`harness.fmu_docs.REFERENCE_RUNS`). Every file is written atomically;
+documentation plots (`harness.fmu_docs.reference_run`). Every file is written atomically;
 the command then validates the folder as the cross-check CI does
 (`fmpy.cross_check.validate_vendor_repo`) and returns the number of problems found.
 """

@@ -56,15 +56,13 @@ from pathlib import Path
 import fmpy
 from pythonfmu.builder import FmuBuilder
 
-from harness import fmu_docs, osp, scenarios
+from harness import fmu_docs, osp, registry, scenarios
 from harness.errors import UserError
 
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
-MODELS = ("SelfRegulatingBalancer", "CiupituBalancer", "PrismaticCompensator", "DcMotorDrive",
-          "PositionController", "ScenarioSequencer", "ActiveSpringBalancer",
-          "RockingCounterweightBalancer")
+MODELS = registry.models(SOURCE_DIR)  # those that declare a registration (harness.registry)
 SEQUENCER = "ScenarioSequencer"
 LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "fmi2_loader.c"
 LOADER_BUILD = DEFAULT_DEST.parent / "loader" / "fmi2_loader.so"
@@ -74,7 +72,8 @@ LOADER_OPTIONS = ("-shared", "-fPIC", "-s")
 PYTHON_RECORD = "resources/python.txt"  # read by the loader: keep the keys in step
 INPUTS_RECORD = "resources/build_inputs.sha256"  # fmu_inputs of the FMU's build
 # the code that writes an FMU besides its fmu_src modules, and the tools whose output it holds
-BUILD_CODE = (Path(__file__), Path(fmu_docs.__file__), Path(osp.__file__))
+BUILD_CODE = (Path(__file__), Path(fmu_docs.__file__), Path(osp.__file__),
+              Path(registry.__file__))
 TOOLS = ("pythonfmu", "fmpy", "ziglang", "matplotlib")
 
 
@@ -103,22 +102,18 @@ def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
         for name in _fmu_src_imports(pending.pop()):
             if name not in found:
                 found.add(name)
-                pending.append(SOURCE_DIR / f"{name}.py")
-    return sorted(SOURCE_DIR / f"{name}.py" for name in found)
+                pending.append(source_dir / f"{name}.py")
+    return sorted(source_dir / f"{name}.py" for name in found)
 
 
 def sequencer_module(scenario: str | Path) -> str:
     """The source of the ScenarioSequencer's module `sequencer_scenario` for a scenario (name
-    or file); ValueError if the file does not load or the sequencer cannot play it (a Real
-    input without a unit in its INPUT_UNITS)."""
-    from fmu_src.ScenarioSequencer import input_units  # pythonfmu: only for this model
-
-    source = scenarios.embedded_source(scenario)  # loads the file: ValueError on a problem
+    or file); UserError if the file does not load or the sequencer cannot play it (a Real
+    input that no mechanism of its variants has)."""
     try:
-        input_units(scenarios.load(scenario))
-    except ValueError as error:
+        return scenarios.embedded_source(scenario)
+    except UserError as error:
         raise UserError(f"{scenarios.scenario_file(scenario).name}: {error}") from None
-    return source
 
 
 def zig_cc(source: Path, output: Path, *options: str) -> Path:

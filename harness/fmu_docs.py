@@ -4,10 +4,10 @@ It comes from the same sources as the model description: the docstrings of the s
 (module and classes) and of the model modules it imports give the equations; the built
 modelDescription.xml gives the variables with their units, start values and bounds and the
 default experiment. The reference plot (`documentation/reference.png`) is a simulation of the
-built FMU with FMPy: the model's reference run (`REFERENCE_RUNS`: input signals, stop time
-and the variables to record; `harness.cross_check` publishes the same run as the FMI
-cross-check reference), or for a model without one its default experiment with the inputs at
-their start values.
+built FMU with FMPy: the model's reference run (`reference_run`, from the FMU's registration:
+input signals, stop time and the variables to record; `harness.cross_check` publishes the same
+run as the FMI cross-check reference), or for a model without one its default experiment with
+the inputs at their start values.
 """
 
 from __future__ import annotations
@@ -25,10 +25,13 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.model_description import ModelDescription, ModelVariable
 from matplotlib.figure import Figure
 
+from fmu_src.mechanism import DocumentedRun
+from harness import registry
+
 OUTPUT_INTERVAL = 0.01  # default spacing of the recorded reference result [s]
 RELATIVE_TOLERANCE = 1e-4  # passed to fmi2SetupExperiment; the FMUs step with fixed schemes
 # fmu_src modules that carry FMI plumbing, not model equations
-PLUMBING = ("fmi_base", "parameters")
+PLUMBING = ("fmi_base", "mechanism", "parameters")
 
 
 @dataclass(frozen=True)
@@ -52,72 +55,14 @@ def input_table(names: tuple[str, ...], rows: list[tuple[float, ...]]) -> np.nda
     return np.array(rows, dtype=[("time", np.float64)] + [(n, np.float64) for n in names])
 
 
-def rest_to_rest_move(efforts: dict[str, float], constants: dict[str, float],
-                      stop_time: float) -> np.ndarray:
-    """Each effort input at +amplitude over [0.5, 1.5) s and -amplitude over [1.5, 2.5) s, 0
-    otherwise (a rest-to-rest move of a balanced, frictionless joint); the others constant."""
-    names = (*efforts, *constants)
-    levels = ((0.0, 0.5, 0.0), (0.5, 1.5, 1.0), (1.5, 2.5, -1.0), (2.5, stop_time, 0.0))
-    rows = [(t, *(sign * a for a in efforts.values()), *constants.values())
-            for start, end, sign in levels for t in (start, end)]
-    return input_table(names, rows)
-
-
-MOVE = ("Rest-to-rest move: drive effort {} over 0.5-1.5 s, reversed over 1.5-2.5 s, then "
-        "zero{}.")
-REFERENCE_RUNS = {
-    "SelfRegulatingBalancer": ReferenceRun(
-        MOVE.format("tau_drive = 0.1 N m", "; no payload, slider and pulley locked"),
-        rest_to_rest_move({"tau_drive": 0.1}, {
-            "payload": 0.0, "counterweight_added": 0.0, "slider_locked": 1.0,
-            "pulley_locked": 1.0}, 5.0),
-        ("theta", "omega", "b", "tau_gravity", "balance_error", "E_p", "E_e", "E_t", "E_kin",
-         "slider_at_stop")),
-    "CiupituBalancer": ReferenceRun(
-        MOVE.format("tau_drive = 0.1 N m", "; no payload"),
-        rest_to_rest_move({"tau_drive": 0.1}, {"payload": 0.0}, 5.0),
-        ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar")),
-    "RockingCounterweightBalancer": ReferenceRun(
-        MOVE.format("tau_drive = 0.1 N m", "; no payload"),
-        rest_to_rest_move({"tau_drive": 0.1}, {"payload": 0.0}, 5.0),
-        ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi")),
-    "PrismaticCompensator": ReferenceRun(
-        MOVE.format("tau1 = 0.1 N m and f2 = 0.02 N", ""),
-        rest_to_rest_move({"tau1": 0.1, "f2": 0.02}, {}, 5.0),
-        ("q1", "q1_dot", "q2", "q2_dot", "tau1_gravity_residual", "f2_gravity_residual",
-         "T_wire", "f2_worm", "W_drive", "W_worm")),
-    "ActiveSpringBalancer": ReferenceRun(
-        MOVE.format("tau_drive = 0.1 N m and F_adjust = 0.5 N", "; no payload"),
-        rest_to_rest_move({"tau_drive": 0.1, "F_adjust": 0.5}, {"payload": 0.0}, 5.0),
-        ("theta", "omega", "q", "Y_B", "tau_gravity", "F_q", "F_lock", "balance_error",
-         "W_adjust", "E_loss")),
-    "DcMotorDrive": ReferenceRun(
-        "Voltage step 0 -> 3 V at 0.1 s on the standing drive (4.9 A); the joint speed then "
-        "ramps 0 -> 2 rad/s over 0.5-1.0 s (the back-EMF, 5.7 V, exceeds the voltage: the "
-        "drive regenerates); voltage 0 from 1.25 s (braking).",
-        input_table(("V", "omega"), [
-            (0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 3.0, 0.0), (0.5, 3.0, 0.0),
-            (1.0, 3.0, 2.0), (1.25, 3.0, 2.0), (1.25, 0.0, 2.0), (1.5, 0.0, 2.0)])),
-    "PositionController": ReferenceRun(
-        "Reference step 0 -> 0.5 rad at 0.1 s; the measured angle follows as a ramp over "
-        "0.1-0.6 s (the output saturates while the error is large, the integrator holds; "
-        "near the limit `saturated` toggles from step to step, so every step is recorded).",
-        input_table(("theta_ref", "theta"), [
-            (0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 0.5, 0.0), (0.6, 0.5, 0.5),
-            (1.0, 0.5, 0.5)]), output_interval=1e-3),
-    "ScenarioSequencer": ReferenceRun(
-        "The embedded scenario over its default experiment (its duration), played with the "
-        "default variant (the start value of `variant`); the sequencer has no inputs. "
-        "Recorded every 1/8 s (a binary fraction: the phase boundaries of the shipped "
-        "scenarios fall on it) and on both sides of every switch of a Boolean output.",
-        output_interval=0.125),
-}
-
-
 def reference_run(model: str) -> ReferenceRun:
-    """The model's reference run; the default experiment for a model without one."""
-    return REFERENCE_RUNS.get(model, ReferenceRun(
-        "Default experiment, inputs at their start values."))
+    """The reference run the model's registration declares (harness.registry); the default
+    experiment for a model without one."""
+    found = registry.registration(model)
+    run = DocumentedRun() if found is None else found.reference_run
+    return ReferenceRun(run.description,
+                        input_table(run.input_names, list(run.input_rows)) if run.input_rows
+                        else None, run.outputs, run.output_interval or OUTPUT_INTERVAL)
 
 
 def step_size(md: ModelDescription) -> float:

@@ -11,7 +11,8 @@ variable groups, so that an OspSystemStructure.xml can connect two FMUs port to 
   and a `Voltage` group on the controller's output that feeds it.
 
 The groups' units are the FMU's own (modelDescription.xml), repeated under UnitDefinitions
-with their SI base units. PORTS below is the one list of the groups; a DcMotorDrive set up as
+with their SI base units. The groups are the ports each FMU's registration declares
+(fmu_src.mechanism.Registration.ports, read by `model_groups`); a DcMotorDrive set up as
 a lead-screw drive still declares its shaft as angular (its variables are declared in N m and
 rad/s), so it meets the prismatic joint variable by variable.
 """
@@ -27,8 +28,16 @@ from xml.etree import ElementTree as ET
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
+from fmu_src.mechanism import Quantity
+from harness import registry
+
 NAMESPACE = "https://open-simulation-platform.com/OspModelDescription/1.0.1"
 SUFFIX = "_OspModelDescription.xml"
+# the variable group kinds of OSP-IS 1.0.1 that the FMUs use, in the order of the schema's
+# sequence (VariableGroupsType), which the groups of a model must follow
+SCHEMA_ORDER = ("Generic", "Force", "Torque", "Voltage", "Pressure", "LinearVelocity",
+                "AngularVelocity", "Current", "VolumeFlowRate", "LinearMechanicalPort",
+                "AngularMechanicalPort", "ElectromagneticPort", "HydraulicPort")
 # port kind -> the kinds of its two single-quantity groups (effort, flow), as the schema orders
 PORT_KINDS = {"AngularMechanicalPort": ("Torque", "AngularVelocity"),
               "LinearMechanicalPort": ("Force", "LinearVelocity"),
@@ -54,28 +63,24 @@ def port(kind: str, name: str, effort: str, flow: str) -> Group:
         for quantity, variable in ((effort_kind, effort), (flow_kind, flow))))
 
 
-PORTS: dict[str, tuple[Group, ...]] = {
-    "SelfRegulatingBalancer": (port("AngularMechanicalPort", "joint", "tau_drive", "omega"),),
-    "CiupituBalancer": (port("AngularMechanicalPort", "joint", "tau_drive", "omega"),),
-    "RockingCounterweightBalancer": (port("AngularMechanicalPort", "joint", "tau_drive",
-                                          "omega"),),
-    # the schema's sequence puts LinearMechanicalPort before AngularMechanicalPort
-    "PrismaticCompensator": (port("LinearMechanicalPort", "q2", "f2", "q2_dot"),
-                             port("AngularMechanicalPort", "q1", "tau1", "q1_dot")),
-    "ActiveSpringBalancer": (port("LinearMechanicalPort", "carriage", "F_adjust", "q_dot"),
-                             port("AngularMechanicalPort", "joint", "tau_drive", "omega")),
-    "DcMotorDrive": (port("AngularMechanicalPort", "shaft", "tau_drive", "omega"),
-                     port("ElectromagneticPort", "armature", "V", "i")),
-    "PositionController": (Group("Voltage", "command", ("V",)),),
-    "ScenarioSequencer": (),
-}
+def model_groups(model: str) -> tuple[Group, ...]:
+    """The variable groups of a model, from the ports of its registration (harness.registry;
+    none for a model without one), in the order the schema's sequence puts their kinds."""
+    found = registry.registration(model)
+    declared = () if found is None else found.ports
+    built = [Group(p.kind, p.name, p.variables) if isinstance(p, Quantity)
+             else port(p.kind, p.name, p.effort, p.flow) for p in declared]
+    unknown = [g.kind for g in built if g.kind not in SCHEMA_ORDER]
+    if unknown:
+        raise ValueError(f"{model}: OSP-IS has no variable group kind {', '.join(unknown)}")
+    return tuple(sorted(built, key=lambda g: SCHEMA_ORDER.index(g.kind)))
 
 
 def groups(model: str) -> list[Group]:
-    """Every variable group of a model (none for a model PORTS does not list), ports before
+    """Every variable group of a model (none for a model without ports), ports before
     the groups they hold."""
     found: list[Group] = []
-    pending = list(PORTS.get(model, ()))
+    pending = list(model_groups(model))
     while pending:
         group = pending.pop(0)
         found.append(group)
@@ -116,7 +121,7 @@ def model_description_tree(md: ModelDescription) -> ET.ElementTree:
             add(element, member)
 
     variable_groups = ET.SubElement(root, f"{ns}VariableGroups")  # libcosim needs it, even empty
-    for group in PORTS.get(md.modelName, ()):
+    for group in model_groups(md.modelName):
         add(variable_groups, group)
     ET.indent(root)
     return ET.ElementTree(root)

@@ -13,7 +13,6 @@ where the discrete inputs (locks) change; within a phase inputs are constant or 
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from types import ModuleType
@@ -22,17 +21,16 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from harness import registry
 from harness.controller import ControllerDesign, design_pid
 from harness.drive import MotorParameters, motors
 from harness.errors import UserError
 from harness.metrics import run_metrics
 from harness.scenarios import Scenario, Variant, ramp
 
-# model identifier -> its pure physics module in fmu_src
-PHYSICS = {"SelfRegulatingBalancer": "fmu_src.self_regulating",
-           "CiupituBalancer": "fmu_src.ciupitu",
-           "RockingCounterweightBalancer": "fmu_src.rocking_counterweight",
-           "PrismaticCompensator": "fmu_src.prismatic"}
+# model identifier -> its pure physics module in fmu_src, for the mechanisms it can solve
+PHYSICS = {model: r.physics.__name__ for model, r in registry.mechanisms().items()
+           if r.monolithic_reference}
 ENERGIES = ("E_in", "E_drawn", "E_copper", "E_mech", "W_link")
 DRIVE_STATES = 3  # per joint: armature current, PID integral, filtered error
 
@@ -48,12 +46,12 @@ class ReferenceResult:
 
 
 def physics_module(model: str) -> ModuleType:
-    """The pure physics module of an FMU model."""
-    try:
-        return importlib.import_module(PHYSICS[model])
-    except KeyError:
+    """The pure physics module of a mechanism the monolithic reference can solve."""
+    found = registry.registration(model)
+    if found is None or found.physics is None or not found.monolithic_reference:
         raise UserError(f"no monolithic reference for model {model}; "
-                        f"known: {', '.join(PHYSICS)}") from None
+                        f"known: {', '.join(PHYSICS)}")
+    return found.physics
 
 
 def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,

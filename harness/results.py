@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from harness import registry  # noqa: E402
 from harness.errors import UserError  # noqa: E402
 from harness.master import RunResult, suffix  # noqa: E402
 from harness.metrics import METRICS, efficaciousness  # noqa: E402
@@ -216,15 +217,6 @@ MECHANISM_PANELS = (
     ("(d) spring length x (l_s), counterweight distance OB or height Y_cw", "mm",
      [("x", _to_mm), ("OB", _to_mm), ("Y_cw", _to_mm), ("l_s", _to_mm)]),
 )
-# the mechanism panels of multi-joint models, after one tracking panel per joint
-MODEL_PANELS = {
-    "PrismaticCompensator": (
-        ("gravity residuals: efforts to hold the arm", "N m | N",
-         [("tau1_gravity_residual", None), ("f2_gravity_residual", None)]),
-        ("energies", "J", [("E_grav", None), ("E_springs", None), ("E_kin", None),
-                           ("W_worm", None)]),
-    ),
-}
 DRIVE_PANELS = (
     ("drive torque", "N m", "tau_drive"),
     ("motor current", "A", "i"),
@@ -236,8 +228,9 @@ STYLES = ("-", "--", ":", "-.")
 
 def panels(scenario: Scenario, model: str) -> tuple[tuple, tuple]:
     """(mechanism panels, drive panels) of a scenario's plot: Franchetti Figure 5's four
-    panels for one-joint scenarios; per joint tracking, MODEL_PANELS and per drive efforts,
-    total power and energy drawn for several joints."""
+    panels for one-joint scenarios; per joint tracking, the model's own panels (its
+    registration's plot_panels) and per drive efforts, total power and energy drawn for
+    several joints."""
     if len(scenario.joints) == 1:
         return MECHANISM_PANELS, DRIVE_PANELS
     tracking, efforts = [], []
@@ -248,7 +241,10 @@ def panels(scenario: Scenario, model: str) -> tuple[tuple, tuple]:
                                                        (f"{joint.position}_ref", convert)]))
         efforts.append((f"drive effort {joint.effort} ({joint.motor} motor)",
                         "N m" if revolute else "N", joint.effort))
-    return ((*tracking, *MODEL_PANELS.get(model, ())),
+    found = registry.registration(model)
+    own = () if found is None else tuple((title, unit, [(name, None) for name in names])
+                                         for title, unit, names in found.plot_panels)
+    return ((*tracking, *own),
             (*efforts, ("electrical power, all drives", "W", "P_elec"),
              ("energy drawn, all drives", "J", "E_drawn")))
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from fmu_src import scenario as core
 from fmu_src.scenario import RAMP_SHAPES, Joint, Phase, Ramp, Variant, ramp
+from harness import registry
 from harness.errors import UserError
 
 __all__ = ["EMBEDDED", "RAMP_SHAPES", "SCENARIO_DIR", "Joint", "Phase", "Ramp", "Scenario",
@@ -104,6 +105,8 @@ NAME = {name!r}
 TOML = "\\n".join((
 {lines})) + "\\n"
 DATA = {data}
+# the unit of each Real input the scenario drives: that of the mechanisms' input it feeds
+INPUT_UNITS = {units!r}
 '''
 # provenance of the committed module (a shipped scenario) and of a build's own copy (a file
 # outside harness/scenarios, see harness.fmu_build.build; never written into the source tree)
@@ -123,7 +126,7 @@ def embedded_source(name_or_path: str | Path = "franchetti2021") -> str:
     is, so the FMU parses exactly what `load` parses.
     """
     path = scenario_file(name_or_path)
-    load(path)
+    units = input_units(load(path))
     text = path.read_text()
     lines = "".join(f"    {line!r},\n" for line in text.splitlines())
     if path.resolve() == (SCENARIO_DIR / path.name).resolve():
@@ -133,7 +136,31 @@ def embedded_source(name_or_path: str | Path = "franchetti2021") -> str:
         origin, provenance = f"the file {path.resolve()}", FILE_PROVENANCE
     data = pprint.pformat(tomllib.loads(text), width=100, sort_dicts=False)
     return EMBEDDED_TEMPLATE.format(origin=origin, provenance=provenance, name=path.stem,
-                                    lines=lines, data=data)
+                                    lines=lines, data=data, units=units)
+
+
+def input_units(scenario: Scenario) -> dict[str, str]:
+    """The unit of each Real input the scenario drives, that of the input it feeds in the
+    mechanism FMUs its variants run (harness.registry); UserError naming an input none of
+    them has, or one they give different units."""
+    from fmu_src.ScenarioSequencer import scenario_inputs  # pythonfmu: only here
+
+    models = sorted({variant.model or scenario.model for variant in scenario.variants.values()})
+    unknown = [model for model in models if registry.registration(model) is None]
+    if unknown:
+        raise UserError(f"scenario {scenario.name}: unknown model {', '.join(unknown)}")
+    declared: dict[str, set[str]] = {}
+    for model in models:
+        for name, unit in registry.input_units(model).items():
+            declared.setdefault(name, set()).add(unit)
+    real = [name for name, value in scenario_inputs(scenario).items()
+            if not isinstance(value, bool)]
+    problems = [name for name in real if len(declared.get(name, ())) != 1]
+    if problems:
+        raise UserError(f"scenario {scenario.name} drives the Real input(s) "
+                        f"{', '.join(problems)}, which the models of its variants "
+                        f"({', '.join(models)}) do not have (or give different units)")
+    return {name: next(iter(declared[name])) for name in real}
 
 
 def embed(name: str = "franchetti2021") -> Path:

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import fmu_build, results
+from harness import fmu_build, registry, results
 from harness.compare import compare, read_result, report
 from harness.fmi import CoSimFMU, FMICallException
 from harness.master import RunResult
@@ -75,17 +75,8 @@ def play_sequencer(fmu: CoSimFMU, variant: str, steps: int,
 
 # each mechanism's energy ledger (docs/energy_ledger.md): its terms and their signs; the sum
 # stays constant over any input sequence
-LEDGER: dict[str, dict[str, float]] = {
-    "SelfRegulatingBalancer": {"E_t": 1, "E_cw": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1,
-                               "E_added": -1},
-    "CiupituBalancer": {"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
-    "RockingCounterweightBalancer": {"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1,
-                                     "E_added": -1},
-    "PrismaticCompensator": {"E_grav": 1, "E_springs": 1, "E_kin": 1, "E_loss": 1,
-                             "W_drive": -1, "W_worm": -1, "E_added": -1},
-    "ActiveSpringBalancer": {"E_t": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "W_adjust": -1,
-                             "E_added": -1},
-}
+LEDGER: dict[str, Mapping[str, int]] = {model: r.ledger
+                                         for model, r in registry.mechanisms().items()}
 
 
 def ledger_residual(model: str, out: Mapping[str, float]) -> float:

@@ -26,22 +26,15 @@ from conftest import FMI_FATAL, FMI_OK, open_fmu, run
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
-from harness import cli, fmu_build
+from harness import cli, fmu_build, registry
 from harness.fmi import CoSimFMU
 
 HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
 STEP_SIZE = 1e-3
 # per model: parameters and input start values that make every run move, and the stop time
-CASES = {
-    "SelfRegulatingBalancer": ({"k": 0.0}, 2.0),  # unbalanced link swinging from 60 deg
-    "CiupituBalancer": ({"payload": 2.0}, 2.0),
-    "PrismaticCompensator": ({"tau1": 0.5, "f2": 1.0}, 2.0),
-    "DcMotorDrive": ({"V": 12.0, "omega": 1.0}, 2.0),
-    "PositionController": ({"theta_ref": 0.002}, 2.0),  # unsaturated
-    "ScenarioSequencer": ({}, 5.0),  # 1 s into the move of phase II
-    "ActiveSpringBalancer": ({"tau_drive": 0.5, "F_adjust": 30.0, "payload": 0.5}, 2.0),
-    "RockingCounterweightBalancer": ({"payload": 2.0}, 2.0),
-}
+# (its registration's moving_run)
+CASES = {model: ({**r.moving_run.parameters, **r.moving_run.inputs}, r.moving_run.duration)
+         for model, r in ((m, registry.registration(m)) for m in fmu_build.MODELS)}
 # where shared-library CPythons live: distribution, /usr/local and pyenv installations
 LIBPYTHON_GLOBS = ("/usr/lib/x86_64-linux-gnu/libpython3.*.so.1.0",
                    "/usr/lib64/libpython3.*.so.1.0", "/usr/local/lib/libpython3.*.so.1.0",
@@ -267,8 +260,7 @@ def test_bench_times_each_mechanism_in_the_c_host_and_in_fmpy(tmp_path: Path) ->
     assert cli.main(["bench", "--steps", "200", "--repeats", "1", "--only", "native_step",
                      "--out", str(tmp_path)]) == 0
     table = pd.read_csv(tmp_path / "native_step.csv")
-    assert list(table["model"]) == ["SelfRegulatingBalancer", "CiupituBalancer",
-                                    "PrismaticCompensator"]
+    assert list(table["model"]) == list(registry.mechanisms())
     assert (table[["us_per_step_c_host", "us_per_step_fmpy"]] > 0).all().all()
     assert np.allclose(table["ratio_c_host_to_fmpy"],
                        table["us_per_step_c_host"] / table["us_per_step_fmpy"])

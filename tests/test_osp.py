@@ -51,7 +51,7 @@ def test_schema_rejects_a_port_without_its_flow(schema: etree.XMLSchema,
     assert not schema.validate(document)
 
 
-@pytest.mark.parametrize("model", [m for m in fmu_build.MODELS if osp.PORTS[m]])
+@pytest.mark.parametrize("model", [m for m in fmu_build.MODELS if osp.model_groups(m)])
 def test_groups_have_the_units_and_causalities_of_their_quantity(
         written: dict[str, Path], model: str) -> None:
     """Each quantity's unit has its SI dimension, and a port's two quantities flow opposite
@@ -68,7 +68,7 @@ def test_groups_have_the_units_and_causalities_of_their_quantity(
             variable = variables[element.get("ref")]
             declared = variable.declaredType.unit if variable.declaredType else variable.unit
             assert element.get("unit") == declared
-    for group in osp.PORTS[model]:
+    for group in osp.model_groups(model):
         if group.members:
             causalities = {variables[m.variables[0]].causality for m in group.members}
             assert causalities == {"input", "output"}, group.name
@@ -82,7 +82,8 @@ def test_every_scenario_joint_is_a_mechanical_port(name: str) -> None:
     kinds = {"revolute": "AngularMechanicalPort", "prismatic": "LinearMechanicalPort"}
     for variant in scenario.variants.values():
         model = variant.model or scenario.model
-        ports = {(g.kind, tuple(m.variables[0] for m in g.members)) for g in osp.PORTS[model]}
+        ports = {(g.kind, tuple(m.variables[0] for m in g.members))
+                 for g in osp.model_groups(model)}
         for joint in scenario.joints:
             assert (kinds[joint.kind], (joint.effort, joint.speed)) in ports, (model, joint)
 

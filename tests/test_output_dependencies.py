@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import zipfile
-from collections.abc import Mapping
 from graphlib import CycleError, TopologicalSorter
 from pathlib import Path
 
@@ -20,33 +19,14 @@ from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 from test_fmu_quality import TableRows
 
-from harness import fmu_build, scenarios, system
+from harness import fmu_build, registry, scenarios, system
 from harness.fmi import CoSimFMU
 
-Values = Mapping[str, float | bool]
-# per model: (parameters, inputs, steps of the default step size) of each probe state
-PROBES: dict[str, list[tuple[Values, Values, int]]] = {
-    "SelfRegulatingBalancer": [
-        # regulating away from theta = pi with the link driven: link, slider and
-        # counterweight move (E_kin and E_cw feel the counterweight and the locks)
-        ({}, {"tau_drive": 2.0, "payload": 0.5, "counterweight_added": 0.8,
-              "slider_locked": False, "pulley_locked": False}, 300),
-        # slider released with the pulley locked at theta = pi: the spring pulls it onto b_min
-        ({"theta0": math.pi}, {"tau_drive": 1.0, "slider_locked": False}, 1000),
-    ],
-    "CiupituBalancer": [({}, {"tau_drive": 1.0, "payload": 0.5}, 300)],
-    "RockingCounterweightBalancer": [({}, {"tau_drive": 1.0, "payload": 0.5}, 300)],
-    # carriage pushed up against the spring while the link swings: the screw's force acts
-    "ActiveSpringBalancer": [({}, {"tau_drive": 1.0, "F_adjust": 40.0, "payload": 0.5}, 300)],
-    "PrismaticCompensator": [({}, {"tau1": 1.0, "f2": 1.0}, 300)],
-    "DcMotorDrive": [({}, {"V": 5.0, "omega": 1.0}, 50)],
-    "PositionController": [({}, {"theta_ref": 0.05, "theta": 0.01}, 50)],  # unsaturated
-    "ScenarioSequencer": [({}, {}, 5000)],  # no inputs: a function of time alone
-}
-# initialisation probes: parameters giving every initial dependency something to act on
-INITIAL_PARAMETERS: dict[str, Values] = {"SelfRegulatingBalancer": {"omega0": 0.5},
-                                         "CiupituBalancer": {"omega0": 0.5},
-                                         "DcMotorDrive": {"i0": 0.5}}
+# per model: the probe states (parameters and inputs held for a time; its registration's
+# dependency_probes) and the initialisation probes' parameters
+PROBES = {model: registry.registration(model).dependency_probes for model in fmu_build.MODELS}
+INITIAL_PARAMETERS = {model: registry.registration(model).initial_parameters
+                      for model in fmu_build.MODELS}
 
 
 def perturbed(value: float | bool) -> float | bool:
@@ -117,11 +97,11 @@ def test_declared_dependencies_are_what_changes_the_outputs(model: tuple[str, Pa
     step = float(md.defaultExperiment.stepSize)
     actual: dict[str, set[str]] = {v.name: set() for v in md.modelVariables
                                    if v.causality == "output"}
-    for k, (parameters, inputs, steps) in enumerate(PROBES[name]):
+    for k, probe in enumerate(PROBES[name]):
         with CoSimFMU(path, f"probe{k}") as fmu:
-            fmu.set(inputs)
-            fmu.initialize(parameters)
-            for i in range(steps):
+            fmu.set(probe.inputs)
+            fmu.initialize(probe.parameters)
+            for i in range(round(probe.duration / step)):
                 fmu.step(i * step, step)
             if name == "SelfRegulatingBalancer" and k == 1:
                 assert fmu.get(["slider_at_stop"]) == {"slider_at_stop": True}
@@ -137,8 +117,8 @@ def test_declared_initial_dependencies_hold_at_initialisation(model: tuple[str, 
     from the inputs at the start) does change it."""
     name, path = model
     md = read_model_description(str(path))
-    parameters, inputs, _ = PROBES[name][0]
-    parameters = {**parameters, **INITIAL_PARAMETERS.get(name, {})}
+    inputs = PROBES[name][0].inputs
+    parameters = {**PROBES[name][0].parameters, **INITIAL_PARAMETERS[name]}
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
     initial = declared(md, "initialUnknowns")
     at_steps = declared(md, "outputs")
@@ -184,7 +164,7 @@ def test_reading_between_set_and_step_changes_no_result(name: str) -> None:
     """Outputs recomputed on a read are only read: a host that reads every output after
     setting the inputs of each step (as an iterating master does) gets the same run."""
     path = fmu_build.fmu_path(name)
-    parameters, inputs, _ = PROBES[name][0]
+    parameters, inputs = PROBES[name][0].parameters, PROBES[name][0].inputs
     effort = next(iter(inputs))  # the first probe input is the drive effort
     runs = []
     for read_between in (False, True):

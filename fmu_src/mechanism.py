@@ -1,0 +1,178 @@
+"""The one interface of the FMUs of fmu_src (standard library only; docs/adding_a_mechanism.md).
+
+`Physics` is the contract every mechanism's pure physics module meets: the slave
+(`fmi_base.MechanismSlave`), the monolithic reference (`harness.reference`) and the tests use
+a mechanism through it alone.
+
+`Registration` is what the harness knows of an FMU beyond its slave class, declared once,
+as `REGISTRATION`, in the FMU's slave script `fmu_src/<Model>.py`: the build finds the FMUs by
+it (`harness.registry`), and the OSP ports, the documented reference run, the monolithic
+reference, the bench's step loops, the plots and the tests' per-model cases are read from it.
+Everything in it is plain data, so the FMU carries it with the standard library only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Protocol, Union
+
+
+class Physics(Protocol):
+    """A mechanism's pure physics module (no FMI, no I/O). Units are SI.
+
+    Parameters is a frozen dataclass with a default per field; Inputs and State are
+    NamedTuples (Inputs with a default per field, State's cumulative energies last); Outputs
+    a NamedTuple named like the FMU's output variables.
+    """
+
+    Parameters: type
+    Inputs: type
+    State: type
+    Outputs: type
+    # inputs whose change at a communication point changes the state (a payload caught or
+    # released, a lock engaged): switch_inputs books it; () when there are none
+    EVENT_INPUTS: tuple[str, ...]
+
+    def validate(self, params: Any) -> None:
+        """ValueError naming the parameter and its allowed range."""
+
+    def initial_state(self, p: Any) -> Any:
+        """The State at the start time."""
+
+    def derivatives(self, p: Any, u: Any, s: Any, rates: Any = None) -> Any:
+        """ds/dt as a State, for inputs u held constant; rates (Inputs): d/dt of the inputs
+        that ramp (masses joining or leaving while the mechanism moves), None for none."""
+
+    def characteristic_rate(self, p: Any, u: Any, s: Any) -> float:
+        """The fastest rate of the local dynamics [1/s]: sets the integration sub-step."""
+
+    def advance(self, p: Any, u: Any, s: Any, dt: float) -> Any:
+        """The State after one communication step dt [s] with the inputs held."""
+
+    def switch_inputs(self, p: Any, before: Any, after: Any, s: Any) -> Any:
+        """The State just after the event inputs change from before to after."""
+
+    def outputs(self, p: Any, u: Any, s: Any) -> Any:
+        """The Outputs at the state s with the inputs u."""
+
+
+# OSP-IS port kinds (harness.osp): effort and flow of each
+ANGULAR = "AngularMechanicalPort"   # Torque [N.m], AngularVelocity [rad/s]
+LINEAR = "LinearMechanicalPort"     # Force [N], LinearVelocity [m/s]
+ELECTROMAGNETIC = "ElectromagneticPort"  # Voltage [V], Current [A]
+
+
+@dataclass(frozen=True)
+class Port:
+    """A power port of the FMU (an OSP-IS variable group of two): its effort and flow
+    variables; for a mechanism's joint also its position, the variables the co-simulation
+    master sets (the effort) and reads (position and flow) at every step."""
+
+    kind: str        # ANGULAR, LINEAR or ELECTROMAGNETIC
+    name: str        # the effort and flow groups are named <name>_<quantity>
+    effort: str
+    flow: str
+    position: str | None = None
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A single-quantity OSP-IS variable group (e.g. the Voltage a controller commands)."""
+
+    kind: str        # an OSP-IS quantity, e.g. "Voltage"
+    name: str
+    variables: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class DocumentedRun:
+    """The FMU's reference run, in its documentation and its FMI cross-check files.
+
+    input_rows: (time, value per input_names) in the cross-check input convention (linear
+    interpolation; a repeated time is a step), Booleans as 0/1; the run ends at the last
+    time (without inputs, at the default experiment's stop time). outputs: the variables to
+    record (None: all outputs), every output_interval [s] (at least every step; None: the
+    harness's default).
+    """
+
+    description: str = "Default experiment, inputs at their start values."
+    input_names: tuple[str, ...] = ()
+    input_rows: tuple[tuple[float, ...], ...] = ()
+    outputs: tuple[str, ...] | None = None
+    output_interval: float | None = None
+
+
+def rest_to_rest_move(efforts: Mapping[str, tuple[float, str]], constants: Mapping[str, float],
+                      outputs: tuple[str, ...], note: str = "",
+                      stop_time: float = 5.0) -> DocumentedRun:
+    """Each effort input (name -> (amplitude, unit)) at +amplitude over [0.5, 1.5) s and
+    -amplitude over [1.5, 2.5) s, 0 otherwise (a rest-to-rest move of a balanced,
+    frictionless joint); the constant inputs held; note ends the description."""
+    names = (*efforts, *constants)
+    levels = ((0.0, 0.5, 0.0), (0.5, 1.5, 1.0), (1.5, 2.5, -1.0), (2.5, stop_time, 0.0))
+    rows = tuple((t, *(sign * a for a, _ in efforts.values()), *constants.values())
+                 for start, end, sign in levels for t in (start, end))
+    moved = " and ".join(f"{name} = {a} {unit}" for name, (a, unit) in efforts.items())
+    return DocumentedRun(f"Rest-to-rest move: drive effort {moved} over 0.5-1.5 s, reversed "
+                         f"over 1.5-2.5 s, then zero{note}.", names, rows, outputs)
+
+
+Values = Mapping[str, Union[float, bool]]
+
+
+@dataclass(frozen=True)
+class Run:
+    """Parameters and inputs set before initialisation and held for duration [s]."""
+
+    parameters: Values = field(default_factory=dict)
+    inputs: Values = field(default_factory=dict)
+    duration: float = 1.0
+
+
+@dataclass(frozen=True)
+class Registration:
+    """An FMU of fmu_src as the harness knows it (module docstring).
+
+    physics, ledger and monolithic_reference are for mechanisms (physics not None).
+    """
+
+    # what the documentation and the cross-check show
+    reference_run: DocumentedRun = DocumentedRun()
+    # OSP-IS variable groups; a mechanism's joints in the master's order, each with position
+    ports: tuple[Port | Quantity, ...] = ()
+    # Real parameters and inputs that move every output: the native C host's run, compared
+    # with FMPy's (tests/test_native_host.py)
+    moving_run: Run = Run()
+    # states where every declared input dependency of an output acts, reached by holding
+    # the run's inputs (tests/test_output_dependencies.py); and parameters that give every
+    # initial dependency something to act on
+    dependency_probes: tuple[Run, ...] = ()
+    initial_parameters: Values = field(default_factory=dict)
+    physics: Any = None  # the mechanism's Physics module
+    # the energy ledger: output -> sign; the signed sum is constant (docs/energy_ledger.md)
+    ledger: Mapping[str, int] = field(default_factory=dict)
+    # the monolithic reference (harness.reference) can solve it as one ODE
+    monolithic_reference: bool = True
+    # plot panels of a multi-joint mechanism after its joints' tracking panels:
+    # (title, unit, output names)
+    plot_panels: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
+
+    def joints(self) -> tuple[Port, ...]:
+        """The mechanism's joints: its ports with a position, in the master's order."""
+        return tuple(p for p in self.ports if isinstance(p, Port) and p.position is not None)
+
+
+def payload_arm(physics: Any, reference_outputs: tuple[str, ...], **more: Any) -> Registration:
+    """The registration of a one-link arm with a drive torque and a payload at distance w
+    (`fmi_base.PayloadArmSlave`): its joint theta, the ledger E_p + E_kin + E_loss - W_drive
+    - E_added, a rest-to-rest move without payload recording reference_outputs, a payload of
+    2 kg that moves it, and a probe with both inputs acting; more: further fields."""
+    return Registration(
+        physics=physics,
+        ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
+        ledger={"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
+        reference_run=rest_to_rest_move({"tau_drive": (0.1, "N m")}, {"payload": 0.0},
+                                        reference_outputs, "; no payload"),
+        moving_run=Run({}, {"payload": 2.0}, 2.0),
+        dependency_probes=(Run({}, {"tau_drive": 1.0, "payload": 0.5}, 0.3),),
+        **more)

@@ -1,0 +1,49 @@
+"""FMI 2.0 Co-Simulation slave of the scratch mechanism (`fmu_src.pendulum`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pythonfmu.default_experiment import DefaultExperiment
+
+from fmu_src import pendulum as physics
+from fmu_src.fmi_base import MechanismSlave
+from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
+
+OUTPUTS = (
+    ("theta", "rad", "Angle from the downward vertical"),
+    ("omega", "rad/s", "Angular velocity"),
+    ("tau_gravity", "N.m", "Gravity torque about the pivot along theta"),
+    ("E_p", "J", "Gravitational potential energy (0 at the pivot's height)"),
+    ("E_kin", "J", "Kinetic energy of the bob and the drive rotor"),
+    ("W_drive", "J", "Cumulative work of tau_drive"),
+    ("E_loss", "J", "Cumulative energy dissipated by the pivot's friction"),
+)
+
+
+class ScratchPendulum(MechanismSlave):
+    """A damped pendulum driven at its pivot."""
+
+    physics = physics
+    parameters_type = physics.Parameters
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=5.0, step_size=1e-3)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = "Damped pendulum (scratch mechanism of the registry test)"
+        self.add_input("tau_drive", 0.0, "N.m", "Drive torque about the pivot")
+        for name, unit, description in OUTPUTS:
+            self.add_output(name, unit, description)
+
+    def inputs(self) -> physics.Inputs:
+        return physics.Inputs(float(self.tau_drive))
+
+
+REGISTRATION = Registration(
+    physics=physics,
+    ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
+    ledger={"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1},
+    reference_run=rest_to_rest_move({"tau_drive": (0.5, "N m")}, {}, ("theta", "omega", "E_p")),
+    moving_run=Run({"theta0": 1.0}, duration=2.0),
+    dependency_probes=(Run({}, {"tau_drive": 1.0}, 0.3),),
+)

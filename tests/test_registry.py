@@ -1,0 +1,213 @@
+"""One mechanism interface (docs/adding_a_mechanism.md): every physics module meets
+`fmu_src.mechanism.Physics`, no harness module names a mechanism but through the
+registrations, and a mechanism added as its own two files is found, built, documented and
+wired by the harness without any other edit."""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import math
+import shutil
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+from conftest import open_fmu, run
+from fmpy.validation import validate_fmu
+
+from fmu_src import mechanism, prismatic
+from harness import bench, fmu_build, fmu_docs, osp, reference, registry, scenarios
+
+HARNESS = Path(bench.__file__).resolve().parent
+# harness modules that design one mechanism, and so may name it
+DESIGN_TOOLS = ("ciupitu_design.py",)
+SCRATCH = Path(__file__).resolve().parent / "data" / "scratch_mechanism"
+SCRATCH_MODEL = "ScratchPendulum"
+POSITIONAL = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+
+
+def protocol_problems(physics: Any) -> list[str]:
+    """How a physics module falls short of mechanism.Physics: a missing attribute, or a
+    function that does not take the protocol's arguments in its order (further arguments
+    must be optional)."""
+    problems = [f"no {name}" for name in mechanism.Physics.__annotations__
+                if not hasattr(physics, name)]
+    for name, member in vars(mechanism.Physics).items():
+        if not inspect.isfunction(member) or name.startswith("_"):
+            continue
+        expected = list(inspect.signature(member).parameters.values())[1:]  # without self
+        function = getattr(physics, name, None)
+        if not callable(function):
+            problems.append(f"no function {name}")
+            continue
+        actual = list(inspect.signature(function).parameters.values())
+        if (len(actual) < len(expected)
+                or any(a.kind not in POSITIONAL or (a.default is a.empty) != (e.default is e.empty)
+                       for a, e in zip(actual, expected))
+                or any(a.default is a.empty for a in actual[len(expected):])):
+            problems.append(f"{name}{inspect.signature(function)} does not take "
+                            f"({', '.join(str(e) for e in expected)})")
+    return problems
+
+
+MECHANISMS = registry.mechanisms()
+
+
+@pytest.mark.parametrize("model", MECHANISMS)
+def test_every_physics_module_meets_the_protocol(model: str) -> None:
+    assert protocol_problems(MECHANISMS[model].physics) == []
+
+
+def test_the_protocol_check_refuses_a_drifted_signature() -> None:
+    """The signatures the modules had drifted to: characteristic_rate(p, s) and
+    derivatives(p, u, s, direction) with direction required."""
+    def rate_without_inputs(p: Any, s: Any) -> float:
+        return 1.0
+
+    def derivatives_with_a_required_extra(p: Any, u: Any, s: Any, direction: float) -> Any:
+        return s
+
+    assert protocol_problems(prismatic) == []
+    drifted = SimpleNamespace(**vars(prismatic))
+    drifted.characteristic_rate = rate_without_inputs
+    drifted.derivatives = derivatives_with_a_required_extra
+    del drifted.EVENT_INPUTS
+    problems = protocol_problems(drifted)
+    assert problems[0] == "no EVENT_INPUTS"
+    assert [p.split("(")[0] for p in problems[1:]] == ["derivatives", "characteristic_rate"]
+
+
+def _signed_sum(ledger: dict[str, int], values: Any) -> float:
+    return sum(sign * getattr(values, name) for name, sign in ledger.items())
+
+
+@pytest.mark.parametrize("model", MECHANISMS)
+def test_every_physics_module_behaves_as_the_protocol_says(model: str) -> None:
+    """From the registration's moving run: derivatives is a State, the rate positive, advance
+    and switch_inputs give States, the ledger's terms are outputs and their signed sum stays
+    constant (1e-9 of the work moved) over 0.5 s while the mechanism moves."""
+    found = MECHANISMS[model]
+    physics = found.physics
+    p = physics.Parameters(**found.moving_run.parameters)
+    physics.validate(p)
+    u = physics.Inputs(**{k: v for k, v in found.moving_run.inputs.items()
+                          if k in physics.Inputs._fields})
+    assert set(physics.EVENT_INPUTS) <= set(physics.Inputs._fields)
+    s = physics.initial_state(p)
+    assert type(physics.derivatives(p, u, s)) is physics.State
+    rate = physics.characteristic_rate(p, u, s)
+    assert math.isfinite(rate) and rate > 0.0
+    assert type(physics.switch_inputs(p, u, u, s)) is physics.State
+    assert set(found.ledger) <= set(physics.Outputs._fields) and found.ledger
+    start = physics.outputs(p, u, s)
+    for _ in range(500):
+        s = physics.advance(p, u, s, 1e-3)
+    assert type(s) is physics.State
+    end = physics.outputs(p, u, s)
+    moved = sum(abs(getattr(end, n) - getattr(start, n)) for n in found.ledger)
+    assert moved > 0.01
+    assert _signed_sum(found.ledger, end) == pytest.approx(_signed_sum(found.ledger, start),
+                                                           abs=1e-9 * moved)
+
+
+@pytest.mark.parametrize("model", fmu_build.MODELS)
+def test_every_registration_is_complete(model: str) -> None:
+    """Every FMU has dependency probes and a moving run the C host can set (Reals only); a
+    mechanism has joints, each a port with its position."""
+    found = registry.registration(model)
+    assert found.dependency_probes
+    values = {**found.moving_run.parameters, **found.moving_run.inputs}
+    assert not any(isinstance(v, bool) for v in values.values())
+    assert bool(found.joints()) == (found.physics is not None)
+
+
+def _string_constants(path: Path) -> set[str]:
+    return {node.value for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.Constant) and isinstance(node.value, str)}
+
+
+def test_no_harness_or_shared_module_names_a_mechanism() -> None:
+    """The harness and the FMUs' shared modules reach the mechanisms through their
+    registrations alone: no string constant of a harness module (its design tools aside) or
+    of an fmu_src module that belongs to no mechanism is a mechanism's model name. (The
+    generated sequencer_scenario.py is a scenario file's data.)"""
+    names = set(MECHANISMS)
+    assert len(names) >= 5
+    own = {*names, *(r.physics.__name__.rsplit(".", 1)[1] for r in MECHANISMS.values()),
+           "sequencer_scenario"}
+    shared = [p for p in sorted(registry.SOURCE_DIR.glob("*.py")) if p.stem not in own]
+    assert {"fmi_base", "ScenarioSequencer", "integration"} <= {p.stem for p in shared}
+    for path in [*sorted(HARNESS.glob("*.py")), *shared]:
+        if path.name not in DESIGN_TOOLS:
+            assert not _string_constants(path) & names, path.name
+
+
+@pytest.fixture
+def scratch_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """A copy of fmu_src with the scratch mechanism's physics module and slave script added,
+    first on the import path."""
+    registry.mechanisms()  # the real modules imported first, from the source tree
+    source = tmp_path / "src" / "fmu_src"
+    shutil.copytree(registry.SOURCE_DIR, source, ignore=shutil.ignore_patterns("__pycache__"))
+    for path in SCRATCH.glob("*.py"):
+        shutil.copy(path, source)
+    monkeypatch.syspath_prepend(str(source.parent))
+    yield source
+    for name, module in list(sys.modules.items()):
+        if str(getattr(module, "__file__", "")).startswith(str(tmp_path)):
+            del sys.modules[name]
+
+
+def test_a_mechanism_added_as_its_own_files_is_wired_by_the_harness(
+        scratch_source: Path) -> None:
+    """Discovery, the monolithic reference, the OSP ports, the documented run, the bench's
+    step loop and the FMU's modules of the scratch mechanism, with no edit elsewhere."""
+    models = registry.models(scratch_source)
+    assert set(models) == {*fmu_build.MODELS, SCRATCH_MODEL}
+    assert SCRATCH_MODEL in registry.mechanisms(scratch_source)
+    assert reference.physics_module(SCRATCH_MODEL).__name__ == "fmu_src.pendulum"
+    (joint,) = osp.model_groups(SCRATCH_MODEL)
+    assert (joint.kind, [m.variables for m in joint.members]) == (
+        "AngularMechanicalPort", [("tau_drive",), ("omega",)])
+    run_ = fmu_docs.reference_run(SCRATCH_MODEL)
+    assert run_.inputs.dtype.names == ("time", "tau_drive")
+    assert max(run_.inputs["tau_drive"]) == 0.5 and run_.inputs["time"][-1] == 5.0
+    loop = bench.mechanism_loop(SCRATCH_MODEL, registry.registration(SCRATCH_MODEL).joints())
+    assert (loop.input, loop.outputs) == ("tau_drive", ("theta", "omega"))
+    assert {p.name for p in fmu_build.dependencies(SCRATCH_MODEL, scratch_source)} == {
+        "pendulum.py", "fmi_base.py", "integration.py", "mechanism.py", "parameters.py"}
+
+
+def test_the_monolithic_reference_runs_the_added_mechanism(scratch_source: Path) -> None:
+    """The scratch scenario (the frictionless pendulum lifted from hanging to horizontal and
+    held) in the monolithic reference: the drive's work on the link is the potential energy
+    it gained, m g l (1 - cos theta_end), and it ends at the target."""
+    scenario = scenarios.load(SCRATCH / "scratch_swing.toml")
+    result = reference.simulate(scenario, scenario.variant("pendulum"))
+    theta_end = result.positions[0, -1]
+    assert theta_end == pytest.approx(math.pi / 2, abs=1e-8)
+    lifted = 1.0 * 9.81 * 0.5 * (1.0 - math.cos(theta_end))
+    assert result.metrics["W_link"] == pytest.approx(lifted, rel=1e-9)
+
+
+def test_the_added_mechanism_builds_into_a_valid_fmu(scratch_source: Path,
+                                                     tmp_path: Path) -> None:
+    """The build of the scratch mechanism passes FMPy's validation, writes its OSP interface,
+    and the FMU swings as a pendulum from 1 rad with its ledger closed (E_p + E_kin + E_loss
+    - W_drive stays at E_p at the start)."""
+    fmu = fmu_build.build(SCRATCH_MODEL, tmp_path / "fmus", source_dir=scratch_source)
+    assert validate_fmu(str(fmu)) == []
+    assert (fmu.parent / f"{SCRATCH_MODEL}{osp.SUFFIX}").is_file()
+    ledger = registry.registration(SCRATCH_MODEL).ledger
+    with open_fmu(fmu, {"theta0": 1.0}) as instance:
+        names = ("theta", *ledger)
+        rows = run(instance, 2000, 1e-3, names)
+    theta = rows[:, 0]
+    residual = rows[:, 1:] @ [ledger[n] for n in names[1:]]
+    start = -1.0 * 9.81 * 0.5 * math.cos(1.0)  # E_p at theta0, E_kin 0
+    assert theta.min() < -0.9 and theta.max() <= 1.0
+    assert residual == pytest.approx(start, abs=1e-9)
