@@ -43,7 +43,8 @@ from fmpy import read_model_description
 from harness import fmu_build, master, reference, scenarios
 from harness.errors import UserError
 from harness.fmi import CoSimFMU
-from harness.results import RESULTS_DIR, write_csv
+from harness.io import write_csv
+from harness.results import RESULTS_DIR
 from harness.sweep import sweep_benchmark
 
 BENCH_DIR = RESULTS_DIR / "bench"

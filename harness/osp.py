@@ -27,6 +27,8 @@ from xml.etree import ElementTree as ET
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
+from harness.io import write_atomic
+
 NAMESPACE = "https://open-simulation-platform.com/OspModelDescription/1.0.1"
 SUFFIX = "_OspModelDescription.xml"
 # port kind -> the kinds of its two single-quantity groups (effort, flow), as the schema orders
@@ -125,8 +127,6 @@ def model_description_tree(md: ModelDescription) -> ET.ElementTree:
 def write_model_description(fmu: Path, folder: Path | None = None) -> Path:
     """Write <Model>_OspModelDescription.xml for the FMU into folder (default: beside the
     FMU), atomically, and return its path."""
-    from harness.results import write_atomic  # harness.results imports pandas: only here
-
     md = read_model_description(str(fmu))
     path = (folder or fmu.parent) / f"{md.modelName}{SUFFIX}"
     return write_atomic(path, lambda tmp: model_description_tree(md).write(
