@@ -251,8 +251,13 @@ values = [981.0, 500.0]
     ('name = "tiny"', 'name = "tiny"\nstep_size = inf', "step_size"),
     ('name = "tiny"', 'name = "../../x"', "../../x"),
     ('set = "parameters.k"', 'set = "parameters.no_such"', "no parameter no_such"),
+    ('variants = ["balanced"]', 'variants = "balanced"', "variants = 'balanced'"),
+    ('name = "tiny"', 'name = "tiny"\nmetrics = 5', "metrics = 5"),
+    ("values = [981.0, 500.0]", 'values = [981.0, 500.0]\n[plots.saving]\nx = "k"\n'
+     'baseline = "nope"', "baseline = 'nope'"),
 ], ids=["set=5", "nested", "range=string", "num=1e12", "num=2.7", "duplicates", "nan",
-        "step=inf", "name=../../x", "unknown-parameter"])
+        "step=inf", "name=../../x", "unknown-parameter", "variants=string", "metrics=5",
+        "plot-baseline"])
 def test_bad_sweep_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                     old: str, new: str, named: str) -> None:
     scenario_file(tmp_path)

@@ -177,11 +177,16 @@ def load(path: str | Path) -> Sweep:
         raise UserError(f"{where}: no scenario")
     scenario = scenarios.load(path.parent / scenario_ref if Path(scenario_ref).suffix
                               else scenario_ref)
-    variants = tuple(data.get("variants", scenario.variants))
+    variants = data.get("variants", list(scenario.variants))
+    if not isinstance(variants, list) or not variants or not all(
+            isinstance(v, str) for v in variants):
+        raise UserError(f"{where}: variants = {variants!r} is not a non-empty list of "
+                        "variant names")
+    variants = tuple(variants)
     unknown = [v for v in variants if v not in scenario.variants]
     if unknown:
         raise UserError(f"{where}: scenario {scenario.name} has no variant "
-                        f"{', '.join(map(str, unknown))} (its variants: "
+                        f"{', '.join(unknown)} (its variants: "
                         f"{', '.join(scenario.variants)})")
     if not data.get("axes") or not isinstance(data["axes"], list):
         raise UserError(f"{where}: no [[axes]]")
@@ -192,7 +197,10 @@ def load(path: str | Path) -> Sweep:
     # bad paths stop the sweep here (no value set); bad values are runs that fail
     configure(scenario, [(p, None) for axis in axes for p in axis.paths])
     _check_first_point(scenario, variants, axes)
-    metrics = tuple(data.get("metrics", RUN_METRICS))
+    metrics = data.get("metrics", list(RUN_METRICS))
+    if not isinstance(metrics, list) or not all(isinstance(m, str) for m in metrics):
+        raise UserError(f"{where}: metrics = {metrics!r} is not a list of metric names")
+    metrics = tuple(metrics)
     unknown = sorted(set(metrics) - set(RUN_METRICS))
     if unknown:
         raise UserError(f"{where}: unknown metrics {', '.join(unknown)} "
@@ -263,7 +271,7 @@ def _plots(raw: Any, axes: Sequence[str], variants: Sequence[str], metrics: Sequ
         compared = {"variant": spec.get("variant", variants[0]),
                     "baseline": spec.get("baseline", variants[1] if len(variants) > 1 else None)}
         if ("E_drawn" not in metrics or compared["variant"] == compared["baseline"]
-                or set(compared.values()) - set(variants)):
+                or not all(name in variants for name in compared.values())):
             raise UserError(f"{where}: plot {kind} compares variant = "
                             f"{compared['variant']!r} with baseline = "
                             f"{compared['baseline']!r} on the metric E_drawn: it needs that "
