@@ -33,7 +33,7 @@ import subprocess
 import tempfile
 import time
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,8 +44,10 @@ from fmu_src.mechanism import Port
 from harness import fmu_build, master, reference, registry, scenarios
 from harness.errors import UserError
 from harness.fmi import CoSimFMU
-from harness.results import RESULTS_DIR, write_csv
-from harness.sweep import sweep_benchmark
+from harness.io import write_csv
+from harness.results import RESULTS_DIR
+from harness.sweep import definition as sweep_definition
+from harness.sweep import execution as sweep_execution
 
 BENCH_DIR = RESULTS_DIR / "bench"
 FLOOR_SOURCE_DIR = Path(__file__).resolve().parent / "bench_fmus"
@@ -221,6 +223,48 @@ def convergence(steps: int = 0, repeats: int = 0,
             rows.append({"scenario": scenario_name, "variant": variant.name, "step_size": step,
                          **errors, "max_rel_err": max(errors.values())})
     return pd.DataFrame(rows)
+
+
+BENCH_SWEEP = """
+name = "bench"
+scenario = "franchetti2021"
+variants = ["self_regulating"]
+[[axes]]
+name = "payload"
+set = ['phases["III regulate"].inputs.payload',
+       'phases["III regulate"].inputs.counterweight_added']
+range = {{ start = 0.0, stop = 8.0, num = {runs} }}
+"""
+
+
+def sweep_benchmark(runs: int = 12, workers: Sequence[int] = (1, 2)) -> pd.DataFrame:
+    """Runs per second of a franchetti2021 payload sweep (35 s task at 1 ms) with each number
+    of worker processes, one run per task, results stored as in a sweep. Start-up (cluster,
+    imports, one FMU instance per worker) is not timed. speed_up is against the first row."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="sweep_bench_") as tmp:
+        path = Path(tmp) / "bench.toml"
+        path.write_text(BENCH_SWEEP.format(runs=runs))
+        sweep = sweep_definition.load(path)
+        fmu_build.fmu_path(sweep.scenario.model)
+        for n in workers:
+            out = Path(tmp) / f"workers_{n}"
+            client = sweep_execution.local_client(n)
+            try:
+                client.run(sweep_execution.warm_up, sweep.scenario.model)
+                start = time.perf_counter()
+                done, failed = sweep_execution.execute(sweep, sweep_definition.plan(sweep), out,
+                                                       client, 1, quiet=True)
+                seconds = time.perf_counter() - start
+            finally:
+                sweep_execution.close_client(client)
+            if failed:
+                raise RuntimeError(f"{failed} of {done} benchmark runs failed")
+            rows.append({"workers": n, "runs": done, "seconds": seconds,
+                        "runs_per_s": done / seconds})
+    table = pd.DataFrame(rows)
+    table["speed_up"] = table.runs_per_s / table.runs_per_s.iloc[0]
+    return table
 
 
 BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {

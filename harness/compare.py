@@ -113,9 +113,12 @@ def report(comparisons: list[SignalComparison]) -> str:
 def plot(reference: pd.DataFrame, result: pd.DataFrame, comparisons: list[SignalComparison],
          path: Path) -> Path:
     """Reference, result and tolerance band per signal, written atomically as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, no window
     import matplotlib.pyplot as plt  # imported here: only a plot needs it
 
-    from harness.results import save_figure
+    from harness.io import save_figure
 
     fig, axes = plt.subplots(len(comparisons), 1, figsize=(9, 2.2 * len(comparisons)),
                              sharex=True, squeeze=False)

@@ -41,7 +41,7 @@ from fmpy.cross_check.validate_vendor_repo import validate_repo
 from fmpy.model_description import ModelDescription
 
 from harness import fmu_build, fmu_docs
-from harness.results import write_atomic, write_csv
+from harness.io import write_atomic, write_csv
 
 __all__ = ["export", "importer_inputs", "model_dir"]
 

@@ -43,7 +43,6 @@ import ast
 import functools
 import hashlib
 import importlib.metadata
-import os
 import platform
 import shutil
 import subprocess
@@ -58,6 +57,7 @@ from pythonfmu.builder import FmuBuilder
 
 from harness import fmu_docs, osp, registry, scenarios
 from harness.errors import UserError
+from harness.io import write_atomic
 
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "fmu_src"
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
@@ -119,19 +119,10 @@ def sequencer_module(scenario: str | Path) -> str:
 def zig_cc(source: Path, output: Path, *options: str) -> Path:
     """Compile a C file with `python -m ziglang cc` (a registry package, no system compiler)
     for LOADER_TARGET, FMPy's FMI 2.0 headers on the include path; written atomically."""
-    output.parent.mkdir(parents=True, exist_ok=True)
-    fd, partial = tempfile.mkstemp(dir=output.parent, prefix=f".{output.name}.")
-    os.close(fd)
-    try:
-        subprocess.run([sys.executable, "-m", "ziglang", "cc", "-target", LOADER_TARGET,
-                        "-O2", "-Wall", f"-I{Path(fmpy.__file__).parent / 'c-code'}", *options,
-                        str(source), "-o", partial], check=True)
-        os.chmod(partial, 0o755)
-        os.replace(partial, output)
-    except BaseException:
-        Path(partial).unlink(missing_ok=True)
-        raise
-    return output
+    return write_atomic(output, lambda partial: subprocess.run(
+        [sys.executable, "-m", "ziglang", "cc", "-target", LOADER_TARGET, "-O2", "-Wall",
+         f"-I{Path(fmpy.__file__).parent / 'c-code'}", *options, str(source), "-o",
+         str(partial)], check=True), mode=0o755)
 
 
 def digest(*parts: Path | str) -> str:
@@ -244,10 +235,8 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     script = source_dir / f"{model}.py"
     modules = dependencies(model, source_dir)
     fmu = dest / f"{model}.fmu"
-    # pythonfmu takes a destination ending in .fmu as the file to write
-    fd, partial = tempfile.mkstemp(dir=dest, prefix=f".{model}.", suffix=".fmu")
-    os.close(fd)
-    try:
+
+    def write_fmu(partial: Path) -> None:
         with tempfile.TemporaryDirectory(prefix=f"build_{model}_") as tmp:
             stage = Path(tmp)
             package = stage / "fmu_src"
@@ -261,15 +250,12 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
                 project_files=[package] if modules else [],
                 canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 canHandleVariableCommunicationStepSize=True)
-            install_loader(Path(partial), model, inputs)
+            install_loader(partial, model, inputs)
             # the documentation reads the staged modules: those the FMU carries
-            fmu_docs.add_documentation(Path(partial), script,
+            fmu_docs.add_documentation(partial, script,
                                        [package / module.name for module in modules])
-        os.chmod(partial, 0o644)  # mkstemp creates 0600; FMUs are meant to be shared
-        os.replace(partial, fmu)
-    except BaseException:
-        Path(partial).unlink(missing_ok=True)
-        raise
+    # pythonfmu takes a destination ending in .fmu as the file to write
+    write_atomic(fmu, write_fmu, suffix=".fmu")
     osp.write_model_description(fmu)  # <Model>_OspModelDescription.xml beside it, for OSP
     return fmu
 

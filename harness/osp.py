@@ -30,6 +30,7 @@ from fmpy.model_description import ModelDescription
 
 from fmu_src.mechanism import Quantity
 from harness import registry
+from harness.io import write_atomic
 
 NAMESPACE = "https://open-simulation-platform.com/OspModelDescription/1.0.1"
 SUFFIX = "_OspModelDescription.xml"
@@ -130,8 +131,6 @@ def model_description_tree(md: ModelDescription) -> ET.ElementTree:
 def write_model_description(fmu: Path, folder: Path | None = None) -> Path:
     """Write <Model>_OspModelDescription.xml for the FMU into folder (default: beside the
     FMU), atomically, and return its path."""
-    from harness.results import write_atomic  # harness.results imports pandas: only here
-
     md = read_model_description(str(fmu))
     path = (folder or fmu.parent) / f"{md.modelName}{SUFFIX}"
     return write_atomic(path, lambda tmp: model_description_tree(md).write(

@@ -2,8 +2,8 @@
 
 CSVs follow the FMI cross-check conventions (as fmpy.util.write_csv): quoted header,
 `time` first, one column per quantity named after the FMU variable or drive signal, SI units,
-booleans as 0/1. Every file is written to a temporary file in the target folder and renamed
-over the old one, so a crash never leaves a half-written result.
+booleans as 0/1. Every file is written atomically (harness.io), so a crash never leaves a
+half-written result.
 
 A scenario's folder is one result set: `write_run` merges the variants just run into it
 (their CSVs replaced, the other variants' rows and curves kept), makes every file in a
@@ -15,10 +15,9 @@ instead of overwriting each other's rows.
 from __future__ import annotations
 
 import contextlib
-import csv
 import os
 import tempfile
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +31,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 
 from harness import registry  # noqa: E402
 from harness.errors import UserError  # noqa: E402
+from harness.io import save_figure, write_csv  # noqa: E402
 from harness.master import RunResult, suffix  # noqa: E402
 from harness.metrics import METRICS, efficaciousness  # noqa: E402
 from harness.scenarios import Scenario  # noqa: E402
@@ -41,30 +41,6 @@ SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size
 # mechanism outputs a summary reports at the end of the run, where a variant's model has them
 # (NaN, an empty cell, for the others): W_adjust, the cumulative work of an adjusting actuator
 SUMMARY_OUTPUTS = ("W_adjust",)
-
-
-def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
-    """Call write(temporary path) in path's folder, then rename the file onto path."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; results are meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def write_csv(frame: pd.DataFrame, path: Path) -> Path:
-    """Write a table with a quoted header and full-precision numbers, atomically."""
-    def write(tmp: Path) -> None:
-        with tmp.open("w", newline="") as f:
-            csv.writer(f, quoting=csv.QUOTE_ALL).writerow(frame.columns)
-            frame.to_csv(f, header=False, index=False, float_format="%.10g")
-    return write_atomic(path, write)
 
 
 def summary_columns(results: list[RunResult]) -> list[str]:
@@ -304,15 +280,6 @@ def _decorate(ax: plt.Axes, title: str, unit: str) -> None:
     ax.set_title(title, loc="left", fontsize=10)
     ax.set_ylabel(unit)
     ax.grid(alpha=0.3)
-
-
-def save_figure(fig: plt.Figure, path: Path) -> Path:
-    """Write a figure as PNG atomically and close it."""
-    def write(tmp: Path) -> None:
-        fig.savefig(tmp, dpi=110, format="png")
-    write_atomic(path, write)
-    plt.close(fig)
-    return path
 
 
 def summary_text(path: Path, scenario: Scenario) -> str:

@@ -19,6 +19,7 @@ from fmu_src import scenario as core
 from fmu_src.scenario import RAMP_SHAPES, Joint, Phase, Ramp, Variant, ramp
 from harness import registry
 from harness.errors import UserError
+from harness.io import write_atomic
 
 __all__ = ["EMBEDDED", "RAMP_SHAPES", "SCENARIO_DIR", "Joint", "Phase", "Ramp", "Scenario",
            "Variant", "available", "embed", "load", "ramp"]
@@ -168,7 +169,5 @@ def embed(name: str = "franchetti2021") -> Path:
     `make fmu` builds into the ScenarioSequencer FMU (rebuild the FMU). To build a sequencer
     for another scenario use `build-fmus --sequencer-scenario` (`harness.fmu_build.build`),
     which embeds it in the build's own copy of the module and leaves EMBEDDED as it is."""
-    from harness.results import write_atomic  # here: harness.results imports this module
-
     source = embedded_source(name)
     return write_atomic(EMBEDDED, lambda tmp: tmp.write_text(source))

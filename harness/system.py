@@ -55,6 +55,7 @@ from harness.controller import ControllerDesign, PIDGains
 from harness.drive import motors
 from harness.errors import UserError
 from harness.fmi import CoSimFMU
+from harness.io import write_atomic
 
 ENGINES = ("libcosim", "fmpy-ssp")
 SEQUENCER, CONTROLLER, DRIVE, MECHANISM = "sequencer", "controller", "drive", "mechanism"
@@ -275,7 +276,7 @@ def write_ssp(system: System, path: Path) -> Path:
                                          xml_declaration=True))
             for model in sorted(set(system.models.values())):
                 archive.write(system.fmus[model], f"resources/{model}.fmu")
-    return results.write_atomic(path, write)
+    return write_atomic(path, write)
 
 
 def write_osp(system: System, folder: Path, by_group: bool = True) -> Path:
@@ -285,7 +286,7 @@ def write_osp(system: System, folder: Path, by_group: bool = True) -> Path:
     for model in set(system.models.values()):
         fmu = shutil.copy2(system.fmus[model], folder / f"{model}.fmu")
         osp.write_model_description(Path(fmu))
-    return results.write_atomic(
+    return write_atomic(
         folder / "OspSystemStructure.xml",
         lambda tmp: osp_tree(system, by_group).write(tmp, encoding="utf-8",
                                                      xml_declaration=True))

@@ -15,8 +15,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import cli, results, scenarios, sweep
+from harness import cli, results, scenarios
 from harness.errors import UserError
+from harness.sweep import definition, execution
 
 SHORT = '''
 name = "short"
@@ -250,15 +251,20 @@ values = [981.0, 500.0]
     ('name = "tiny"', 'name = "tiny"\nstep_size = inf', "step_size"),
     ('name = "tiny"', 'name = "../../x"', "../../x"),
     ('set = "parameters.k"', 'set = "parameters.no_such"', "no parameter no_such"),
+    ('variants = ["balanced"]', 'variants = "balanced"', "variants = 'balanced'"),
+    ('name = "tiny"', 'name = "tiny"\nmetrics = 5', "metrics = 5"),
+    ("values = [981.0, 500.0]", 'values = [981.0, 500.0]\n[plots.saving]\nx = "k"\n'
+     'baseline = "nope"', "baseline = 'nope'"),
 ], ids=["set=5", "nested", "range=string", "num=1e12", "num=2.7", "duplicates", "nan",
-        "step=inf", "name=../../x", "unknown-parameter"])
+        "step=inf", "name=../../x", "unknown-parameter", "variants=string", "metrics=5",
+        "plot-baseline"])
 def test_bad_sweep_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                     old: str, new: str, named: str) -> None:
     scenario_file(tmp_path)
     path = tmp_path / "sweep.toml"
     path.write_text(SWEEP.replace(old, new, 1))
     with pytest.raises(UserError, match=None) as failure:
-        sweep.load(path)
+        definition.load(path)
     assert named in str(failure.value)
     refused(["sweep", str(path), "--out", str(tmp_path / "out")], capsys, named)
     assert not (tmp_path / "out").exists()
@@ -308,22 +314,22 @@ def test_sweep_tables_are_replaced_together(tmp_path: Path,
     scenario_file(tmp_path)
     path = tmp_path / "sweep.toml"
     path.write_text(SWEEP)
-    definition = sweep.load(path)
+    loaded = definition.load(path)
     out = tmp_path / "out"
-    runs = sweep.plan(definition)
+    runs = definition.plan(loaded)
     row = {"status": "failed", "error": "test"}
-    sweep._write_part(definition, out, [{"run_id": runs[0].run_id, "point": runs[0].point,
+    execution.write_part(loaded, out, [{"run_id": runs[0].run_id, "point": runs[0].point,
                                          "variant": runs[0].variant, **runs[0].values, **row}])
-    sweep.consolidate(definition, out)
-    sweep._write_part(definition, out, [{"run_id": runs[1].run_id, "point": runs[1].point,
+    execution.consolidate(loaded, out)
+    execution.write_part(loaded, out, [{"run_id": runs[1].run_id, "point": runs[1].point,
                                          "variant": runs[1].variant, **runs[1].values, **row}])
 
     def killed(*_args: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(results, "write_csv", killed)
+    monkeypatch.setattr(execution, "write_csv", killed)
     with pytest.raises(KeyboardInterrupt):
-        sweep.consolidate(definition, out)
+        execution.consolidate(loaded, out)
     parquet = pd.read_parquet(out / "tiny.parquet")
     csv = pd.read_csv(out / "tiny.csv")
     assert len(parquet) == len(csv) == 1
@@ -341,4 +347,4 @@ def test_closing_a_cluster_whose_workers_are_gone_is_quiet() -> None:
         def close(self) -> None:
             raise CommClosedError("in <TCP (closed)>: Stream is closed")
 
-    sweep._close(GoneClient())  # type: ignore[arg-type]
+    execution.close_client(GoneClient())  # type: ignore[arg-type]

@@ -1,5 +1,6 @@
 """Parameter sweeps (harness.sweep): configuration paths, plans, equality with runs made one
-by one, failed runs, and a sweep killed half way and restarted."""
+by one, failed runs and defects, a sweep killed half way and restarted, and the plots drawn
+from a result table of known numbers."""
 
 from __future__ import annotations
 
@@ -11,12 +12,18 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pandas as pd
 import pytest
+from matplotlib.axes import Axes
 
 from harness import master, scenarios, sweep
+from harness.controller import ControllerDesign
+from harness.errors import UserError
 from harness.scenarios import Ramp
+from harness.sweep import definition, execution, plots
 
 DATA = Path(__file__).resolve().parent / "data"
 SMALL = DATA / "sweep_small.toml"    # 2 payloads x k in (981, -1) x 2 variants
@@ -25,7 +32,7 @@ FRANCHETTI = scenarios.load("franchetti2021")
 
 
 def test_configure_sets_paths_without_touching_the_scenario() -> None:
-    scenario, motor, design = sweep.configure(FRANCHETTI, [
+    scenario, motor, design = definition.configure(FRANCHETTI, [
         ('phases["III regulate"].inputs.payload', 3.0),
         ('phases["II move", "III regulate", "IV settle and lock"].target_deg', 150.0),
         ("parameters.L0", 0.02), ("motor.N", 80.0), ("duration_scale", 0.5)])
@@ -36,7 +43,7 @@ def test_configure_sets_paths_without_touching_the_scenario() -> None:
         [60.0, 150.0, 150.0, 150.0, 340.0, 340.0])
     assert scenario.duration == pytest.approx(17.5)
     assert scenario.parameters["L0"] == 0.02 and motor.N == 80.0
-    assert design == sweep.ControllerDesign()
+    assert design == ControllerDesign()
     # the loaded scenario is unchanged
     assert FRANCHETTI.duration == 35.0 and "L0" not in FRANCHETTI.parameters
     assert FRANCHETTI.phases[2].inputs["payload"] == Ramp(1.0)
@@ -45,11 +52,11 @@ def test_configure_sets_paths_without_touching_the_scenario() -> None:
 def test_a_factor_scales_the_value_and_variant_paths_reach_its_joints() -> None:
     """regulation.toml's payload axis: the payload ramps (the scenario's and
     active_relocation's own quintic) and the anchor's travel, 58.3 mm per kg."""
-    definition = sweep.load("regulation")
-    assert len(sweep.plan(definition)) == 84
-    assert definition.outputs == ("E_cw", "W_adjust", "E_e", "balance_error")
-    scenario, _, _ = sweep.configure(FRANCHETTI, sweep.assignments(
-        definition, {"payload": 3.0, "regulation_angle": 90.0}))
+    loaded = definition.load("regulation")
+    assert len(definition.plan(loaded)) == 84
+    assert loaded.outputs == ("E_cw", "W_adjust", "E_e", "balance_error")
+    scenario, _, _ = definition.configure(FRANCHETTI, definition.assignments(
+        loaded, {"payload": 3.0, "regulation_angle": 90.0}))
     variant = scenario.variant("active_relocation")
     assert variant.phase_inputs["III regulate"]["payload"] == Ramp(3.0, "quintic")
     assert variant.phase_targets["III regulate"]["q"] == pytest.approx(
@@ -58,15 +65,17 @@ def test_a_factor_scales_the_value_and_variant_paths_reach_its_joints() -> None:
     assert resolved.reference_at(17.0) == pytest.approx((math.pi / 2, 0.175), rel=1e-12)
     assert FRANCHETTI.variant("active_relocation").phase_targets["III regulate"]["q"] == (
         pytest.approx(0.0583333, rel=1e-6))
-    with pytest.raises(sweep.PathError, match="'two' is not a number"):
-        sweep.configure(FRANCHETTI, [("two * parameters.k", 1.0)])
+    with pytest.raises(definition.PathError, match="'two' is not a number"):
+        definition.configure(FRANCHETTI, [("two * parameters.k", 1.0)])
 
 
 @pytest.mark.parametrize("path", ['phases["III regulte"].target_deg', "parameters.L0.x",
                                   "motor.Nx", 'phases["I hold"].inputs[1]', "phases.target"])
 def test_configure_rejects_bad_paths(path: str) -> None:
-    with pytest.raises(ValueError, match="set path"):
-        sweep.configure(FRANCHETTI, [(path, 1.0)])
+    with pytest.raises(definition.PathError, match="set path"):
+        definition.configure(FRANCHETTI, [(path, 1.0)])
+    with pytest.raises(definition.PathError, match="set path"):  # checked without a value
+        definition.configure(FRANCHETTI, [(path, None)])
 
 
 def test_bad_values_fail_runs_but_bad_paths_stop_the_sweep(tmp_path: Path) -> None:
@@ -75,13 +84,14 @@ def test_bad_values_fail_runs_but_bad_paths_stop_the_sweep(tmp_path: Path) -> No
                                       f"'{DATA / 'short_regulation.toml'}'")
             .replace('"parameters.k"', '"motor.N"').replace("[981.0, -1.0]", "[-1.0, 80.0]"))
     path.write_text(text)
-    definition = sweep.load(path)
-    row = sweep.run_one(definition, sweep.plan(definition)[0])
+    loaded = definition.load(path)
+    row = execution.run_one(loaded, definition.plan(loaded)[0])
     assert row["status"] == "failed"
-    assert row["error"].startswith("ValueError: ") and "N = -1.0" in row["error"]
+    assert row["error"].startswith("RefusedValueError: set path 'motor.N': ")
+    assert "N = -1.0" in row["error"]
     path.write_text(text.replace('"motor.N"', '"motor.n"'))
-    with pytest.raises(sweep.PathError, match="MotorParameters has no 'n'"):
-        sweep.load(path)
+    with pytest.raises(definition.PathError, match="MotorParameters has no 'n'"):
+        definition.load(path)
 
 
 def test_latin_hypercube_plan_is_stratified_and_stable(tmp_path: Path) -> None:
@@ -89,13 +99,13 @@ def test_latin_hypercube_plan_is_stratified_and_stable(tmp_path: Path) -> None:
     path.write_text(SMALL.read_text().replace('chunk_size = 3', 'sample = "lhs"\nsamples = 10')
                     .replace("values = [0.5, 1.5]", "range = { start = 0.0, stop = 10.0 }")
                     .replace('"short_regulation.toml"', f"'{DATA / 'short_regulation.toml'}'"))
-    definition = sweep.load(path)
-    runs = sweep.plan(definition)
+    loaded = definition.load(path)
+    runs = definition.plan(loaded)
     assert len(runs) == 20 and len({r.run_id for r in runs}) == 20
     payloads = sorted(r.values["payload"] for r in runs[::2])
     assert [math.floor(p) for p in payloads] == list(range(10))  # one per stratum
     assert {r.values["k"] for r in runs} <= {981.0, -1.0}
-    assert [r.run_id for r in sweep.plan(sweep.load(path))] == [r.run_id for r in runs]
+    assert [r.run_id for r in definition.plan(definition.load(path))] == [r.run_id for r in runs]
 
 
 def by_hand(payload: float, k: float) -> scenarios.Scenario:
@@ -108,11 +118,17 @@ def by_hand(payload: float, k: float) -> scenarios.Scenario:
 
 
 def test_sweep_equals_runs_one_by_one_and_records_failures(tmp_path: Path) -> None:
-    definition = sweep.load(SMALL)
+    loaded = definition.load(SMALL)
     table = sweep.run_sweep(SMALL, tmp_path, workers=2, quiet=True)
-    assert list(table.run_id) == [r.run_id for r in sweep.plan(definition)]
-    assert (tmp_path / "small.csv").exists()
+    assert list(table.run_id) == [r.run_id for r in definition.plan(loaded)]
     assert pd.read_parquet(tmp_path / "small.parquet").equals(table)
+    written = pd.read_csv(tmp_path / "small.csv")
+    assert list(written.columns) == list(table.columns)
+    assert list(written.run_id) == list(table.run_id)
+    assert list(written.status) == list(table.status) == ["ok", "ok", "failed", "failed"] * 2
+    for metric in (*loaded.metrics, "payload", "k"):  # the CSV keeps 10 significant digits
+        assert written[metric].to_numpy() == pytest.approx(table[metric].to_numpy(), rel=1e-9,
+                                                           nan_ok=True), metric
     for row in table.itertuples():
         scenario = by_hand(row.payload, row.k)
         if row.k < 0.0:  # bad parameter: recorded, with the FMU's message
@@ -123,14 +139,14 @@ def test_sweep_equals_runs_one_by_one_and_records_failures(tmp_path: Path) -> No
             continue
         assert row.status == "ok" and row.error == ""
         expected = master.run(scenario, scenario.variant(row.variant)).metrics
-        for metric in definition.metrics:
+        for metric in loaded.metrics:
             assert getattr(row, metric) == expected[metric], (row.run_id, metric)
         assert row.payload_max == pytest.approx(8.2857, abs=1e-4)
 
 
 def test_killed_sweep_resumes_without_losing_or_repeating_runs(tmp_path: Path) -> None:
-    definition = sweep.load(RESUME)
-    parts = sweep.parts_dir(definition, tmp_path)
+    loaded = definition.load(RESUME)
+    parts = execution.parts_dir(loaded, tmp_path)
     command = [sys.executable, "-m", "harness", "sweep", str(RESUME), "--out", str(tmp_path),
                "--workers", "1", "--quiet"]
     process = subprocess.Popen(command, start_new_session=True, stderr=subprocess.DEVNULL)
@@ -142,15 +158,170 @@ def test_killed_sweep_resumes_without_losing_or_repeating_runs(tmp_path: Path) -
     finally:  # the sweep, its scheduler and worker processes: one process group
         os.killpg(process.pid, signal.SIGKILL)
         process.wait()
-    before = sweep.stored(definition, tmp_path)
+    before = execution.stored(loaded, tmp_path)
     assert 3 <= len(before) < 12
     assert not (tmp_path / "resume.parquet").exists()
 
     table = sweep.run_sweep(RESUME, tmp_path, workers=2, quiet=True)
-    planned = [r.run_id for r in sweep.plan(definition)]
+    planned = [r.run_id for r in definition.plan(loaded)]
     assert list(table.run_id) == planned and (table.status == "ok").all()
     stored_rows = pd.concat([pd.read_parquet(p) for p in parts.glob("part-*.parquet")])
     assert sorted(stored_rows.run_id) == sorted(planned)  # nothing computed twice
     kept = table.set_index("run_id").loc[before.run_id]
     assert list(kept.seconds) == list(before.seconds)  # the first session's rows, unchanged
-    assert sweep.pending(definition, tmp_path) == []
+    assert execution.pending(loaded, tmp_path) == []
+
+
+def test_a_defect_in_a_run_propagates_but_a_refused_value_is_a_failed_row(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only a UserError (a value the configuration or the FMU refuses) becomes a failed
+    row; any other exception is a defect of the harness and must not be hidden in a row."""
+    loaded = definition.load(SMALL)
+    run = definition.plan(loaded)[0]
+    monkeypatch.setattr(execution, "_instance", lambda model: SimpleNamespace(messages=[]))
+
+    def defect(*_args: object, **_kwargs: object) -> None:
+        raise TypeError("a bug")
+
+    monkeypatch.setattr(master, "run", defect)
+    with pytest.raises(TypeError, match="a bug"):
+        execution.run_one(loaded, run)
+
+    def refused(*_args: object, **_kwargs: object) -> None:
+        raise UserError("k = -1.0 N/m is outside [0.0, inf)")
+
+    monkeypatch.setattr(master, "run", refused)
+    row = execution.run_one(loaded, run)
+    assert row["status"] == "failed"
+    assert row["error"] == "UserError: k = -1.0 N/m is outside [0.0, inf)"
+
+
+# ---- plots: drawn from a made-up result table of known numbers
+PLOTTED = '''
+name = "plotted"
+scenario = "SCENARIO"
+variants = ["self_regulating", "unregulated"]
+metrics = ["E_drawn"]
+[[axes]]
+name = "payload"
+unit = "kg"
+set = ['phases["regulate"].inputs.payload']
+values = [0.5, 1.5, 2.5]
+[[axes]]
+name = "k"
+unit = "N/m"
+set = ["parameters.k"]
+values = [981.0, 500.0]
+[plots.saving]
+x = "payload"
+lines = "k"
+mark = "payload_max"
+variant = "unregulated"
+baseline = "self_regulating"
+[plots.map]
+x = "payload"
+y = "k"
+[plots.lines]
+x = "payload"
+lines = "k"
+y = ["E_drawn"]
+'''
+
+
+def drawn(variant: str, payload: float, k: float) -> float:
+    """The made-up E_drawn [J]: self_regulating grows with k, unregulated with the payload."""
+    return 1.0 + k / 1000.0 if variant == "self_regulating" else 1.0 + payload
+
+
+@pytest.fixture(scope="module")
+def plotted(tmp_path_factory: pytest.TempPathFactory) -> tuple[definition.Sweep, pd.DataFrame]:
+    """The sweep file above and its result table, the run at payload 2.5, k 500 and
+    variant unregulated failed."""
+    path = tmp_path_factory.mktemp("plotted") / "plotted.toml"
+    path.write_text(PLOTTED.replace("SCENARIO", str(DATA / "short_regulation.toml")))
+    loaded = definition.load(path)
+    rows = [{"point": r.point, "variant": r.variant, **r.values, "status": "ok",
+             "E_drawn": drawn(r.variant, **r.values), "payload_max": 2.0}
+            for r in definition.plan(loaded)]
+    rows[-1].update(status="failed", E_drawn=math.nan)
+    return loaded, pd.DataFrame(rows)
+
+
+def lines_of(ax: Axes) -> dict[str, tuple[list[float], list[float]]]:
+    """The labelled lines of a panel: label -> (x data, y data)."""
+    return {line.get_label(): (list(line.get_xdata()), list(line.get_ydata()))
+            for line in ax.get_lines() if not line.get_label().startswith("_")}
+
+
+def test_every_plot_kind_of_a_sweep_file_has_a_figure() -> None:
+    assert tuple(plots.FIGURES) == definition.PLOT_KINDS
+
+
+def test_saving_compares_the_variants_the_sweep_file_names(
+        plotted: tuple[definition.Sweep, pd.DataFrame]) -> None:
+    loaded, table = plotted
+    assert loaded.plots["map"] | {} == {"x": "payload", "y": "k", "variant": "self_regulating",
+                                        "baseline": "unregulated"}  # the default: first two
+    fig = plots.saving_figure(loaded, table, loaded.plots["saving"])
+    top, bottom = fig.axes[:2]
+    # top: 100 (1 - E_drawn(unregulated) / E_drawn(self_regulating)) per k, against payload
+    expected = {k: [100.0 * (1.0 - (1.0 + p) / (1.0 + k / 1000.0)) for p in (0.5, 1.5, 2.5)]
+                for k in (500.0, 981.0)}
+    shown = lines_of(top)
+    assert set(shown) == {"k [N/m] = 500", "k [N/m] = 981"}
+    assert shown["k [N/m] = 981"][0] == [0.5, 1.5, 2.5]
+    assert shown["k [N/m] = 981"][1] == pytest.approx(expected[981.0])
+    assert shown["k [N/m] = 500"][1][:2] == pytest.approx(expected[500.0][:2])
+    assert math.isnan(shown["k [N/m] = 500"][1][2])  # the failed run
+    assert top.get_ylabel() == "saving 1 - E_drawn(unregulated) / E_drawn(self_regulating) [%]"
+    # the mark: a vertical line at payload_max
+    assert any(list(line.get_xdata()) == [2.0, 2.0] for line in top.get_lines())
+    # bottom: E_drawn of both variants (solid the variant, dashed the baseline), log scale
+    assert bottom.get_yscale() == "log" and bottom.get_xlabel() == "payload [kg]"
+    curves = [(line.get_linestyle(), list(line.get_ydata())) for line in bottom.get_lines()
+              if len(line.get_xdata())]
+    assert curves[:4] == [("-", pytest.approx([1.5, 2.5, math.nan], nan_ok=True)),  # k = 500
+                          ("--", pytest.approx([1.5] * 3)),
+                          ("-", pytest.approx([1.5, 2.5, 3.5])),
+                          ("--", pytest.approx([1.981] * 3))]
+    assert [t.get_text() for t in bottom.get_legend().get_texts()] == [
+        "unregulated", "self_regulating"]
+    assert "unregulated against self_regulating" in fig.get_suptitle()
+
+
+def test_map_shows_the_saving_of_each_point(
+        plotted: tuple[definition.Sweep, pd.DataFrame]) -> None:
+    loaded, table = plotted
+    fig = plots.map_figure(loaded, table, loaded.plots["map"])
+    ax = fig.axes[0]
+    # rows k (500, 981), columns payload; the failed run's cell empty
+    cells = np.ma.filled(ax.collections[0].get_array(), np.nan).reshape(2, 3)
+    expected = [[100.0 * (1.0 - (1.0 + k / 1000.0) / (1.0 + p)) for p in (0.5, 1.5, 2.5)]
+                for k in (500.0, 981.0)]
+    assert list(cells[0]) == pytest.approx([*expected[0][:2], math.nan], nan_ok=True)
+    assert list(cells[1]) == pytest.approx(expected[1])
+    assert [t.get_text() for t in ax.texts] == [f"{v:.0f}" for v in
+                                                (*expected[0][:2], *expected[1])]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["0.5", "1.5", "2.5"]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("payload [kg]", "k [N/m]")
+
+
+def test_lines_draw_each_column_per_variant(
+        plotted: tuple[definition.Sweep, pd.DataFrame]) -> None:
+    loaded, table = plotted
+    fig = plots.lines_figure(loaded, table, loaded.plots["lines"])
+    for ax, variant in zip(fig.axes, loaded.variants, strict=True):
+        assert ax.get_title() == variant and ax.get_ylabel() == "E_drawn"
+        for k in (500.0, 981.0):
+            x, y = lines_of(ax)[f"k [N/m] = {k:g}"]
+            ok = [p for p in (0.5, 1.5, 2.5) if variant != "unregulated" or (p, k) != (2.5, 500.0)]
+            assert x == ok and y == pytest.approx([drawn(variant, p, k) for p in ok])
+
+
+def test_plot_writes_one_png_per_plot_of_the_file(
+        plotted: tuple[definition.Sweep, pd.DataFrame], tmp_path: Path) -> None:
+    loaded, table = plotted
+    written = plots.plot(loaded, table, tmp_path)
+    assert written == [tmp_path / f"plotted_{kind}.png" for kind in ("saving", "map", "lines")]
+    assert all(p.read_bytes().startswith(b"\x89PNG\r\n\x1a\n") for p in written)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in written)

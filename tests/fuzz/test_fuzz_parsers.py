@@ -19,8 +19,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fmu_src import scenario as core
-from harness import scenarios, sweep
+from harness import scenarios
 from harness.errors import UserError
+from harness.sweep import definition
 
 BASE = tomllib.loads((scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text())
 
@@ -98,11 +99,11 @@ def test_sweep_parser_names_the_field_or_loads(tmp_path_factory: pytest.TempPath
     path.write_text(SWEEP.replace(field, f"{key} = {literal}", 1))
     start = time.perf_counter()
     try:
-        definition = sweep.load(path)
-        runs = len(sweep.plan(definition))
+        loaded = definition.load(path)
+        runs = len(definition.plan(loaded))
     except UserError as error:
         assert key in str(error) or literal.strip('"') in str(error), (field, literal, error)
         return
     finally:
         assert time.perf_counter() - start < 5.0
-    assert 1 <= runs <= sweep.MAX_RUNS
+    assert 1 <= runs <= definition.MAX_RUNS

@@ -1,0 +1,73 @@
+"""The harness's modules import each other without a cycle: every import statement, at the
+top of a file or inside a function, read from the source (a function-level import hides a
+cycle from a plain `import`, it does not remove it). Imports under
+`if __name__ == "__main__":` do not count: that code runs only when the module is the
+program, and is then a module of its own (`__main__`)."""
+
+from __future__ import annotations
+
+import ast
+import graphlib
+from pathlib import Path
+
+import pytest
+
+HARNESS = Path(__file__).resolve().parent.parent / "harness"
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(HARNESS.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for p in sorted(HARNESS.rglob("*.py"))}
+
+
+def imported(name: str, path: Path) -> set[str]:
+    """The harness modules the file imports: `import harness.a`, `from harness import a`
+    (a module), `from harness.a import b` (harness.a, and harness.a.b if that is a module),
+    relative imports resolved against the file's package."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    tree = ast.parse(path.read_text(), str(path))
+    tree.body = [node for node in tree.body if not is_main_block(node)]
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, *([base] if base else [])])
+            found.add(base)
+            found.update(f"{base}.{alias.name}" for alias in node.names)
+    return {m for m in found if m in MODULES and m != "harness" and m != name}
+
+
+def is_main_block(node: ast.stmt) -> bool:
+    return isinstance(node, ast.If) and ast.unparse(node.test).replace("'", '"') == (
+        '__name__ == "__main__"')
+
+
+GRAPH = {name: imported(name, path) for name, path in MODULES.items()}
+
+
+def test_the_graph_sees_the_imports_it_must() -> None:
+    """The walk finds top-level, function-level and package imports (else a cycle could
+    hide from the test below)."""
+    assert "harness.master" in GRAPH["harness.results"]         # from harness.master import
+    assert "harness.io" in GRAPH["harness.scenarios"]           # from harness.io import
+    assert "harness.fmu_build" in GRAPH["harness.master"]       # from harness import fmu_build
+    assert "harness.sweep.definition" in GRAPH["harness.sweep"]
+    assert "harness.io" in GRAPH["harness.compare"]             # inside plot()
+    assert GRAPH["harness.io"] == set()
+
+
+def test_harness_imports_are_acyclic() -> None:
+    try:
+        order = list(graphlib.TopologicalSorter(GRAPH).static_order())
+    except graphlib.CycleError as error:
+        # the cycle lists each module before one that imports it: reversed, each imports
+        # the next
+        pytest.fail(f"import cycle: {' -> '.join(reversed(error.args[1]))}")
+    assert set(order) == set(MODULES)
