@@ -92,26 +92,21 @@ def start_currents(motor: MotorParameters, dt: float, voltage: np.ndarray, omega
 
 @dataclass(frozen=True)
 class DriveTrace:
-    """One joint's drive over a run of n communication steps of step_size [s].
-
-    Over step k (k < n) the drive held `voltage[k]` [V] and the joint speed `speed[k]`
-    [rad/s or m/s] (its back-EMF), its armature current averaged `current[k]` [A] and the
-    mechanism received `effort[k]` [N m or N]. `start_current`, `position`, `speed` and
-    `reference` hold n + 1 values, at t_k = k step_size for k = 0..n: the armature current
-    [A] (the last value is the current at the end), the joint's position and its reference
-    [rad or m] and speed.
-    """
+    """One joint's drive over a run of n communication steps of step_size [s]: per step k < n
+    what it held and carried (n values), and at t_k = k step_size, k = 0..n, the armature
+    current and the joint (n + 1 values). Efforts in N m and positions in rad for a revolute
+    joint, N and m for a prismatic one."""
 
     joint: Joint
     motor: MotorParameters
     step_size: float
-    voltage: np.ndarray
-    current: np.ndarray
-    effort: np.ndarray
-    start_current: np.ndarray
-    position: np.ndarray
-    speed: np.ndarray
-    reference: np.ndarray
+    voltage: np.ndarray        # held over step k [V]
+    current: np.ndarray        # armature current, average over step k [A]
+    effort: np.ndarray         # effort the mechanism received over step k
+    start_current: np.ndarray  # armature current at t_k [A]; the last, at the end of the run
+    position: np.ndarray       # joint position at t_k
+    speed: np.ndarray          # joint speed at t_k, which the drive holds over step k
+    reference: np.ndarray      # position reference at t_k
 
     @property
     def final_current(self) -> float:
