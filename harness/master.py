@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from fmpy import read_model_description
-from fmpy.fmi2 import fmi2True, fmi2ValueReference, fmi2Warning
+from fmpy.fmi2 import fmi2Boolean, fmi2False, fmi2True, fmi2ValueReference, fmi2Warning
 
 from fmu_src.dc_motor import DriveEnergies, armature_voltage
 from fmu_src.pid import DiscretePID
@@ -122,18 +122,14 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
             loops.append(DriveLoop(pid, sampled_motor(drive_motor, step_size, hold_current),
                                    references[j].tolist()))
 
-        outputs = fmu.names("output")
-        record_names = outputs + list(inputs)
-        real_names = [n for n in record_names if fmu.variables[n].type == "Real"]
-        other_names = [n for n in record_names if n not in real_names]
-        calls = _FMICalls(fmu, [joint.effort for joint in joints], state_names, real_names)
+        calls = _FMICalls(fmu, [joint.effort for joint in joints], state_names,
+                          fmu.names("output") + list(inputs))
         changes = _input_changes(fmu, inputs)
-        efforts, state_values, recorded = calls.inputs, calls.states, calls.recorded
+        efforts, state_values = calls.inputs, calls.states
         set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
         step_times = times.tolist()
         states = [state]
         calls.record()
-        real_rows, other_rows = [recorded[:]], [fmu.get(other_names)]
         for k in range(n_steps):
             for j, loop in enumerate(loops):
                 efforts[j] = loop.step(k, state[2 * j], state[2 * j + 1])
@@ -152,20 +148,17 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
             states.append(state)
             if (k + 1) % record_every == 0:
                 calls.record()
-                real_rows.append(recorded[:])
-                other_rows.append(fmu.get(other_names))
                 if progress is not None:
                     progress(record_every)
         messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
-    series = pd.concat([pd.DataFrame(real_rows, columns=real_names),
-                        pd.DataFrame(other_rows, columns=other_names)], axis=1)[record_names]
     states = np.asarray(states)
     traces = [loop.trace(joint, drive_motor, step_size, states[:, 2 * j],
                          states[:, 2 * j + 1], reference)
               for j, (loop, joint, drive_motor, reference)
               in enumerate(zip(loops, joints, drive_motors, references, strict=True))]
-    return assemble(scenario, variant, model, series, traces, gains, parameters, messages)
+    return assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
+                    messages)
 
 
 class DriveLoop:
@@ -199,7 +192,8 @@ class _FMICalls:
     """The loop's FMI calls on ctypes arrays made once: set the joints' efforts, doStep and
     get the joints' states call the FMU's C functions directly and return their status
     (FMPy's wrappers build the arrays anew at each call); `record()` reads the recorded
-    Reals into `recorded`."""
+    variables (through FMPy's checked fmi2GetReal and fmi2GetBoolean) and `recorded()` is
+    the table of what it read."""
 
     def __init__(self, fmu: CoSimFMU, input_names: list[str], state_names: list[str],
                  record_names: list[str]) -> None:
@@ -207,7 +201,6 @@ class _FMICalls:
         component, dll = slave.component, slave.dll
         self.inputs = (ctypes.c_double * len(input_names))()
         self.states = (ctypes.c_double * len(state_names))()
-        self.recorded = (ctypes.c_double * len(record_names))()
         self.set_inputs = functools.partial(dll.fmi2SetReal, component,
                                             _references(fmu, input_names), len(input_names),
                                             self.inputs)
@@ -215,10 +208,37 @@ class _FMICalls:
                                             _references(fmu, state_names), len(state_names),
                                             self.states)
         self.do_step = functools.partial(dll.fmi2DoStep, component)
-        # FMPy's fmi2GetReal, which raises on a failed status
-        self.record = functools.partial(slave.fmi2GetReal, component,
-                                        _references(fmu, record_names), len(record_names),
-                                        self.recorded)
+        kinds = {name: fmu.variables[name].type for name in record_names}
+        self._record_names = record_names
+        self._reals = [name for name in record_names if kinds[name] == "Real"]
+        self._booleans = [name for name in record_names if kinds[name] == "Boolean"]
+        self._others = [name for name in record_names if name not in self._reals + self._booleans]
+        self._real_values = (ctypes.c_double * len(self._reals))()
+        self._boolean_values = (fmi2Boolean * len(self._booleans))()
+        self._get_reals = functools.partial(slave.fmi2GetReal, component,
+                                            _references(fmu, self._reals), len(self._reals),
+                                            self._real_values)
+        self._get_booleans = functools.partial(
+            slave.fmi2GetBoolean, component, _references(fmu, self._booleans),
+            len(self._booleans), self._boolean_values)
+        self._fmu = fmu
+        self._rows: list[list] = []
+
+    def record(self) -> None:
+        """Read the recorded variables' current values."""
+        self._get_reals()
+        row = self._real_values[:]
+        if self._booleans:
+            self._get_booleans()
+            row += [value != fmi2False for value in self._boolean_values]
+        if self._others:
+            row += self._fmu.get(self._others).values()
+        self._rows.append(row)
+
+    def recorded(self) -> pd.DataFrame:
+        """One row per `record()`, one column per recorded variable."""
+        return pd.DataFrame(self._rows, columns=self._reals + self._booleans
+                            + self._others)[self._record_names]
 
 
 def _references(fmu: CoSimFMU, names: list[str]) -> ctypes.Array:
