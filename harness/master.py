@@ -35,7 +35,7 @@ from harness import fmu_build, metrics
 from harness.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
 from harness.drive import DriveTrace, MotorParameters, SampledMotor, motors, sampled_motor
 from harness.errors import UserError
-from harness.fmi import CoSimFMU, FMICallException
+from harness.fmi import FATAL, CoSimFMU, FMICallException, FMUCallError
 from harness.scenarios import Joint, Scenario, Variant
 
 DEFAULT_STEP = 1e-3       # communication step [s]
@@ -135,15 +135,15 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                 efforts[j] = loop.step(k, state[2 * j], state[2 * j + 1])
             status = set_efforts()
             if status > fmi2Warning:
-                raise FMICallException("fmi2SetReal", status)
+                raise _refused(fmu, "fmi2SetReal", status, first_message)
             for setter, refs, value in changes.get(k, ()):
                 setter(refs, [value])
             status = do_step(step_times[k], step_size, fmi2True)
             if status > fmi2Warning:
-                raise FMICallException("fmi2DoStep", status)
+                raise _refused(fmu, "fmi2DoStep", status, first_message)
             status = get_states()
             if status > fmi2Warning:
-                raise FMICallException("fmi2GetReal", status)
+                raise _refused(fmu, "fmi2GetReal", status, first_message)
             state = state_values[:]
             states.append(state)
             if (k + 1) % record_every == 0:
@@ -239,6 +239,14 @@ class _FMICalls:
         """One row per `record()`, one column per recorded variable."""
         return pd.DataFrame(self._rows, columns=self._reals + self._booleans
                             + self._others)[self._record_names]
+
+
+def _refused(fmu: CoSimFMU, function: str, status: int, first_message: int) -> FMUCallError:
+    """The error of an FMI call the FMU refused, with the messages it logged since the run's
+    first (noting a Fatal status, after which the FMU is not called again)."""
+    fmu.fatal = fmu.fatal or status == FATAL
+    return FMUCallError(FMICallException(function, status), fmu.model_description.modelName,
+                        fmu.messages[first_message:])
 
 
 def _references(fmu: CoSimFMU, names: list[str]) -> ctypes.Array:
