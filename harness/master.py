@@ -128,21 +128,20 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         efforts, state_values = calls.inputs, calls.states
         set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
         step_times = times.tolist()
+        drive_steps = [(j, loop.step, 2 * j) for j, loop in enumerate(loops)]
         states = [state]
         calls.record()
         for k in range(n_steps):
-            for j, loop in enumerate(loops):
-                efforts[j] = loop.step(k, state[2 * j], state[2 * j + 1])
-            status = set_efforts()
-            if status > fmi2Warning:
+            for j, drive_step, index in drive_steps:
+                efforts[j] = drive_step(k, state[index], state[index + 1])
+            if (status := set_efforts()) > fmi2Warning:
                 raise _refused(fmu, "fmi2SetReal", status, first_message)
-            for setter, refs, value in changes.get(k, ()):
-                setter(refs, [value])
-            status = do_step(step_times[k], step_size, fmi2True)
-            if status > fmi2Warning:
+            if k in changes:
+                for setter, refs, value in changes[k]:
+                    setter(refs, [value])
+            if (status := do_step(step_times[k], step_size, fmi2True)) > fmi2Warning:
                 raise _refused(fmu, "fmi2DoStep", status, first_message)
-            status = get_states()
-            if status > fmi2Warning:
+            if (status := get_states()) > fmi2Warning:
                 raise _refused(fmu, "fmi2GetReal", status, first_message)
             state = state_values[:]
             states.append(state)
