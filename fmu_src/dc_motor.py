@@ -114,6 +114,7 @@ class StepCoefficients(NamedTuple):
         omega held over it (elementwise on numpy arrays): the inverse of the average."""
         return (average - self.avg_b_v * voltage - self.avg_b_w * omega) / self.avg_a
 
+
 def zoh_coefficients(p: MotorParameters, dt: float) -> StepCoefficients:
     """Exact zero-order-hold discretisation of the armature over dt [s], in closed form.
 
@@ -227,9 +228,9 @@ def step_energies(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_sta
     armature current starts at i_start [A] and averages i_average [A], and the joint travels
     `travel` [rad or m].
 
-    V i and tau omega are linear in the step's averages, so their integrals (E_in, E_mech,
-    W_link) are exact; E_copper, quadratic in the current, is the exact `copper_energy`;
-    E_drawn is exact while V i keeps its sign within the step.
+    V i and tau omega are linear in the step's averages, so their integrals E_in and W_link
+    are exact; E_copper, quadratic in the current, is the exact `copper_energy`; E_drawn and
+    E_mech are exact while V i and tau omega keep their signs within the step.
     """
     powers = drive_powers(p, voltage, i_average, effort, travel / dt)
     return DriveEnergies(powers.E_in * dt, powers.E_drawn * dt,
