@@ -6,7 +6,9 @@ Per communication step k (time t = k dt), with the FMU's outputs at t, for each 
   2. motor: V_j and the joint speed held over the step -> step-average current and effort;
 then the FMU: set every joint's effort and the scenario inputs of t, doStep(t, dt), read the
 joints' positions and speeds. Every output of the FMU is read at the recording rate only
-(100 Hz by default).
+(100 Hz by default). The loop calls the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal on
+C arrays made once (`_FMICalls`), and each joint's drive records what it held and carried
+per step (`DriveLoop`), from which its `DriveTrace`, metrics and CSV columns are made.
 
 The run starts in equilibrium: the mechanism at rest at the initial positions and each
 joint's PID integrator and motor current holding the static effort the FMU reports for that
