@@ -11,10 +11,11 @@ and P_elec = V i its average electrical power (so P_elec h is the step's exact e
 energy). A master that steps this FMU before the mechanism over the same interval and
 passes tau_drive on (Gauss-Seidel) reproduces the harness's co-simulation.
 
-Energies from the start: E_in = integral of V i dt (regeneration credited); E_drawn, the
-energy from a supply that cannot take energy back, sums max(P_elec, 0) h per step, as the
-harness's metrics do (exact while the current keeps its sign within a step); E_copper =
-R_a integral of i^2 dt, exact (`copper_energy`).
+Energies from the start, summed over the steps as the harness's metrics sum them (both take
+each step's energies from `fmu_src.dc_motor.step_energies`): E_in = integral of V i dt
+(regeneration credited); E_drawn, the energy from a supply that cannot take energy back,
+max(P_elec, 0) h per step (exact while the current keeps its sign within a step); E_copper =
+R_a integral of i^2 dt, exact.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Any
 
 from pythonfmu.default_experiment import DefaultExperiment
 
-from fmu_src.dc_motor import MotorParameters, SampledMotor, copper_energy, zoh_coefficients
+from fmu_src.dc_motor import MotorParameters, SampledMotor, step_energies, zoh_coefficients
 from fmu_src.fmi_base import ModelSlave
 from fmu_src.mechanism import ANGULAR, ELECTROMAGNETIC, DocumentedRun, Port, Registration, Run
 from fmu_src.parameters import parameter
@@ -86,9 +87,11 @@ class DcMotorDrive(ModelSlave):
         voltage, omega, i_start = self.voltage(), float(self.omega), motor.current
         self.i, self.tau_drive = motor.step(voltage, omega)
         self.P_elec = voltage * self.i
-        self.E_in += self.P_elec * dt
-        self.E_drawn += max(self.P_elec, 0.0) * dt
-        self.E_copper += copper_energy(p, dt, voltage, omega, i_start)
+        # the drive does not see the joint's travel: its mechanical work is not an output
+        energies = step_energies(p, dt, voltage, omega, i_start, self.i, self.tau_drive, 0.0)
+        self.E_in += energies.E_in
+        self.E_drawn += energies.E_drawn
+        self.E_copper += energies.E_copper
 
     @property
     def armature(self) -> tuple[float, float]:

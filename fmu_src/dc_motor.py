@@ -1,7 +1,12 @@
 """DC motor with gearbox: the one definition of the drive model (standard library only).
 
 Armature: L_a di/dt = V - R_a i - K_e N omega; joint-side effort tau_drive = eta N K_t i
-(docs/drive_and_controller.md). Inputs (V, omega), outputs (tau_drive, i), state i. N is the
+(docs/drive_and_controller.md), written once in `armature_voltage` and `armature_rate`, from
+which the state-space matrices, the zero-order-hold step and the steady state derive. The
+drive's energies (E_in, E_drawn, E_copper, E_mech, W_link) are defined once too, as powers in
+`drive_powers` and over a zero-order-hold step in `step_energies`, for the FMU, the harness's
+metrics and CSV columns and the monolithic reference alike; both work elementwise on floats
+and on numpy arrays. Inputs (V, omega), outputs (tau_drive, i), state i. N is the
 transmission ratio, motor radians per joint radian (a gearbox) or per joint metre (a lead
 screw, N = 2 pi / lead): the same equations then give a force and a reflected mass.
 
@@ -28,7 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from fmu_src.parameters import check_ranges, parameter
 
@@ -68,10 +73,26 @@ class MotorParameters:
         return self.K_t * self.N
 
 
+def armature_voltage(p: MotorParameters, current: Any, omega: Any) -> Any:
+    """The armature's resistive drop plus its back-EMF, R_a i + K_e N omega [V], at current
+    i [A] and joint speed omega [rad/s or m/s]: the voltage that holds i steady."""
+    return p.R_a * current + p.back_emf_per_link_speed * omega
+
+
+def armature_rate(p: MotorParameters, voltage: Any, current: Any, omega: Any) -> Any:
+    """The armature equation, di/dt = (V - R_a i - K_e N omega) / L_a [A/s]."""
+    return (voltage - armature_voltage(p, current, omega)) / p.L_a
+
+
+def steady_current(p: MotorParameters, voltage: Any, omega: Any) -> Any:
+    """The current [A] the armature settles at with V [V] and omega held: di/dt = 0."""
+    return (voltage - armature_voltage(p, 0.0, omega)) / p.R_a
+
+
 def armature_matrices(p: MotorParameters) -> tuple[list, list, list, list]:
     """(A, B, C, D) of the motor: state i; inputs (V, omega); outputs (tau_drive, i)."""
-    A = [[-p.R_a / p.L_a]]
-    B = [[1.0 / p.L_a, -p.back_emf_per_link_speed / p.L_a]]
+    A = [[armature_rate(p, 0.0, 1.0, 0.0)]]
+    B = [[armature_rate(p, 1.0, 0.0, 0.0), armature_rate(p, 0.0, 0.0, 1.0)]]
     C = [[p.torque_per_amp], [1.0]]
     D = [[0.0, 0.0], [0.0, 0.0]]
     return A, B, C, D
@@ -88,6 +109,11 @@ class StepCoefficients(NamedTuple):
     avg_b_v: float
     avg_b_w: float
 
+    def start_current(self, average: Any, voltage: Any, omega: Any) -> Any:
+        """The current [A] at the start of a step from its average [A] and the V [V] and
+        omega held over it (elementwise on numpy arrays): the inverse of the average."""
+        return (average - self.avg_b_v * voltage - self.avg_b_w * omega) / self.avg_a
+
 
 def zoh_coefficients(p: MotorParameters, dt: float) -> StepCoefficients:
     """Exact zero-order-hold discretisation of the armature over dt [s], in closed form.
@@ -97,11 +123,10 @@ def zoh_coefficients(p: MotorParameters, dt: float) -> StepCoefficients:
     """
     x = p.R_a / p.L_a * dt
     rise, _ = relaxation_integrals(x)        # step-average of 1 - exp(-t R_a/L_a)
-    settle = -math.expm1(-x) / p.R_a          # current per volt after dt
-    average_settle = rise / p.R_a
-    emf = p.back_emf_per_link_speed
-    return StepCoefficients(math.exp(-x), settle, -emf * settle, 1.0 - rise, average_settle,
-                            -emf * average_settle)
+    settle = -math.expm1(-x)                  # 1 - exp(-dt R_a/L_a)
+    per_volt, per_speed = steady_current(p, 1.0, 0.0), steady_current(p, 0.0, 1.0)
+    return StepCoefficients(math.exp(-x), settle * per_volt, settle * per_speed, 1.0 - rise,
+                            rise * per_volt, rise * per_speed)
 
 
 @lru_cache(maxsize=8)  # one step size at a time, in practice
@@ -149,9 +174,9 @@ class SampledMotor:
         return average, self.motor.torque_per_amp * average
 
 
-def copper_energy(p: MotorParameters, dt: float, voltage: float, omega: float,
-                  i_start: float) -> float:
-    """Armature copper loss R_a * integral of i^2 dt [J] over one zero-order-hold step of dt [s].
+def copper_energy(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_start: Any) -> Any:
+    """Armature copper loss R_a * integral of i^2 dt [J] over one zero-order-hold step of dt [s]
+    (elementwise over steps given as numpy arrays).
 
     Exact for the step's solution i(t) = i_start + (i_end_of_settling - i_start) psi(t), with
     psi = 1 - exp(-t R_a/L_a), V [V] and omega [rad/s] held: the integral of i^2 is
@@ -159,10 +184,58 @@ def copper_energy(p: MotorParameters, dt: float, voltage: float, omega: float,
     (`relaxation_integrals`), a sum of non-negative terms where the energy balance over the
     step would cancel catastrophically for steps far below L_a/R_a.
     """
-    delta = (voltage - p.back_emf_per_link_speed * omega) / p.R_a - i_start
+    delta = steady_current(p, voltage, omega) - i_start
     g, q = relaxation_integrals(p.R_a / p.L_a * dt)
-    return p.R_a * dt * max(i_start * i_start + 2.0 * i_start * delta * g + delta * delta * q,
-                            0.0)
+    return p.R_a * dt * positive_part(i_start * i_start + 2.0 * i_start * delta * g
+                                      + delta * delta * q)
+
+
+def inductor_energy(p: MotorParameters, current: Any) -> Any:
+    """Magnetic energy of the armature at current i [A], L_a i^2 / 2 [J]."""
+    return 0.5 * p.L_a * current * current
+
+
+def positive_part(x: Any) -> Any:
+    """max(x, 0), elementwise on floats and numpy arrays alike: (x + |x|) / 2."""
+    return (x + abs(x)) * 0.5
+
+
+class DriveEnergies(NamedTuple):
+    """A drive's energies [J] (as returned by `step_energies`), or their rates [W] (as
+    returned by `drive_powers`); floats or numpy arrays."""
+
+    E_in: Any       # net electrical energy, V i (regeneration credited)
+    E_drawn: Any    # from a supply that cannot take energy back, max(V i, 0)
+    E_copper: Any   # armature copper loss, R_a i^2
+    E_mech: Any     # mechanical work in either direction, |tau omega|
+    W_link: Any     # net mechanical work of the drive on the joint, tau omega
+
+
+def drive_powers(p: MotorParameters, voltage: Any, current: Any, effort: Any,
+                 speed: Any) -> DriveEnergies:
+    """The definition of the drive's energies, as their rates [W]: at voltage V [V], armature
+    current i [A], effort tau [N m or N] and joint speed omega [rad/s or m/s], V i,
+    max(V i, 0), R_a i^2, |tau omega| and tau omega."""
+    electrical, mechanical = voltage * current, effort * speed
+    return DriveEnergies(electrical, positive_part(electrical), p.R_a * current * current,
+                         abs(mechanical), mechanical)
+
+
+def step_energies(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_start: Any,
+                  i_average: Any, effort: Any, travel: Any) -> DriveEnergies:
+    """The energies [J] of zero-order-hold steps of dt [s]: `drive_powers` integrated over
+    each step in which V [V], omega [rad/s or m/s] and the effort [N m or N] are held, the
+    armature current starts at i_start [A] and averages i_average [A], and the joint travels
+    `travel` [rad or m].
+
+    V i and tau omega are linear in the step's averages, so their integrals E_in and W_link
+    are exact; E_copper, quadratic in the current, is the exact `copper_energy`; E_drawn and
+    E_mech are exact while V i and tau omega keep their signs within the step.
+    """
+    powers = drive_powers(p, voltage, i_average, effort, travel / dt)
+    return DriveEnergies(powers.E_in * dt, powers.E_drawn * dt,
+                         copper_energy(p, dt, voltage, omega, i_start), powers.E_mech * dt,
+                         powers.W_link * dt)
 
 
 # The drive of a prismatic joint: the default motor (same RE 30 data, one motor type for both

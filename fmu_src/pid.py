@@ -71,12 +71,15 @@ class DiscretePID:
     def update(self, error: float) -> float:
         """Output for the position error at this sample, limited to +-limit."""
         b0, b1, a1, half_ki_dt = self.coefficients
-        self._derivative = -a1 * self._derivative + b0 * error + b1 * self._previous_error
-        candidate = self.integral + half_ki_dt * (error + self._previous_error)
-        unclamped = self.gains.Kp * error + candidate + self._derivative
-        output = min(max(unclamped, -self.limit), self.limit)
-        self.saturated = output != unclamped
-        if not self.saturated or (unclamped > 0) != (error > 0):
+        previous, limit = self._previous_error, self.limit
+        derivative = self._derivative = -a1 * self._derivative + b0 * error + b1 * previous
+        candidate = self.integral + half_ki_dt * (error + previous)
+        unclamped = self.gains.Kp * error + candidate + derivative
+        # min(max(unclamped, -limit), limit), without two calls: the master's loop runs this
+        # at every step of every joint
+        output = limit if unclamped > limit else -limit if unclamped < -limit else unclamped
+        saturated = self.saturated = output != unclamped
+        if not saturated or (unclamped > 0) != (error > 0):
             self.integral = candidate
         self._previous_error = error
         return output

@@ -10,8 +10,9 @@ Objective: E_drawn [J], the energy the drive takes from a supply that cannot tak
 back (docs/results.md, the quantity eps is computed on), predicted along the task's reference
 by inverse dynamics: perfect tracking; the FMU's equation of motion (fmu_src.ciupitu)
 solved for the drive torque; the motor's armature equation without its inductance
-(L/R_a = 0.19 ms) for current and voltage; P = V i integrated where positive (10 ms samples,
-trapezoid). At the chosen design it predicts 8.547 J; the co-simulation draws 8.546 J.
+(L/R_a = 0.19 ms) for current and voltage (`fmu_src.dc_motor.armature_voltage`); the drawn
+power of `fmu_src.dc_motor.drive_powers` integrated (10 ms samples, trapezoid). At the chosen
+design it predicts 8.547 J; the co-simulation draws 8.546 J.
 
 Scale: the counterweight's static moments, m2 g OB cos phi and m2 g (dOB/dphi) sin phi, are
 unchanged by (m2, OA, AB) -> (m2/l, l OA, l AB); only its inertia m2 (OB^2 + OB'^2) tells these
@@ -36,6 +37,7 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from fmu_src import ciupitu
+from fmu_src.dc_motor import armature_voltage, drive_powers
 from harness import reference, scenarios
 from harness.drive import MotorParameters
 from harness.errors import UserError
@@ -96,9 +98,11 @@ class TaskEnergy:
     def __call__(self, m2: float, OA: float, AB: float) -> float:
         """Predicted E_drawn [J] for counterweight m2 [kg] and bar OA, AB [m]."""
         motor = self.motor
-        current = self.torque(m2, OA, AB) / motor.torque_per_amp
-        power = (motor.R_a * current + motor.back_emf_per_link_speed * self.omega) * current
-        return float(np.trapezoid(np.maximum(power, 0.0), dx=self.sample))
+        torque = self.torque(m2, OA, AB)
+        current = torque / motor.torque_per_amp
+        voltage = armature_voltage(motor, current, self.omega)
+        drawn = drive_powers(motor, voltage, current, torque, self.omega).E_drawn
+        return float(np.trapezoid(drawn, dx=self.sample))
 
 
 def task_energy(scenario: str = SCENARIO, variant: str = VARIANT,

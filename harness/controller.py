@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
+from fmu_src.dc_motor import steady_current
 from fmu_src.pid import DiscretePID, PIDCoefficients, PIDGains
 from harness.drive import MotorParameters, motor_system
 from harness.errors import UserError
@@ -54,9 +55,10 @@ def reduced_plant(motor: MotorParameters, inertia: float, d_link: float) -> tupl
     inertia: joint-side inertia [kg m^2], or mass [kg] for a lead-screw joint; d_link: its
     viscous friction [N m s/rad] or [N s/m].
     """
+    # without inductance the armature carries its steady current: tau = K_tau i(V, omega)
     k_tau = motor.torque_per_amp
-    alpha = (motor.R_a * d_link + k_tau * motor.back_emf_per_link_speed) / (inertia * motor.R_a)
-    return alpha, k_tau / (inertia * motor.R_a)
+    per_volt, per_speed = steady_current(motor, 1.0, 0.0), steady_current(motor, 0.0, 1.0)
+    return (d_link - k_tau * per_speed) / inertia, k_tau * per_volt / inertia
 
 
 def design_pid(motor: MotorParameters, inertia: float, d_link: float,

@@ -6,7 +6,9 @@ Per communication step k (time t = k dt), with the FMU's outputs at t, for each 
   2. motor: V_j and the joint speed held over the step -> step-average current and effort;
 then the FMU: set every joint's effort and the scenario inputs of t, doStep(t, dt), read the
 joints' positions and speeds. Every output of the FMU is read at the recording rate only
-(100 Hz by default).
+(100 Hz by default). The loop calls the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal on
+C arrays made once (`_FMICalls`), and each joint's drive records what it held and carried
+per step (`DriveLoop`), from which its `DriveTrace`, metrics and CSV columns are made.
 
 The run starts in equilibrium: the mechanism at rest at the initial positions and each
 joint's PID integrator and motor current holding the static effort the FMU reports for that
@@ -17,6 +19,7 @@ an initial condition, not a feedforward: during the task each drive gets only it
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import functools
 import math
 import zipfile
@@ -26,12 +29,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from fmpy import read_model_description
+from fmpy.fmi2 import fmi2Boolean, fmi2False, fmi2True, fmi2ValueReference, fmi2Warning
 
+from fmu_src.dc_motor import DriveEnergies, armature_voltage
+from fmu_src.pid import DiscretePID
 from harness import fmu_build, metrics
 from harness.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
-from harness.drive import MotorParameters, motors, sampled_motor
+from harness.drive import DriveTrace, MotorParameters, SampledMotor, motors, sampled_motor
 from harness.errors import UserError
-from harness.fmi import CoSimFMU
+from harness.fmi import FATAL, CoSimFMU, FMICallException, FMUCallError
 from harness.scenarios import Joint, Scenario, Variant
 
 DEFAULT_STEP = 1e-3       # communication step [s]
@@ -109,85 +115,168 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         # equilibrium (holding the static effort at the initial position)
         state_names = [name for joint in joints for name in (joint.position, joint.speed)]
         state = fmu.slave.getReal(fmu.references(state_names))
-        gains, pids, drives = {}, [], []
+        gains, loops = {}, []
         for j, (joint, drive_motor) in enumerate(zip(joints, drive_motors, strict=True)):
             gains[joint.name], hold_current = joint_drive(fmu, joint, drive_motor, design)
-            drives.append(sampled_motor(drive_motor, step_size, current=hold_current))
             pid = discrete_pid(gains[joint.name], step_size, drive_motor.V_supply)
-            pid.reset(references[j][0] - state[2 * j], integral=hold_current * drive_motor.R_a)
-            pids.append(pid)
+            pid.reset(references[j][0] - state[2 * j],
+                      integral=armature_voltage(drive_motor, hold_current, 0.0))
+            loops.append(DriveLoop(pid, sampled_motor(drive_motor, step_size, hold_current),
+                                   references[j].tolist()))
 
-        outputs = fmu.names("output")
-        record_names = outputs + list(inputs)
-        state_refs = fmu.references(state_names)
-        effort_refs = fmu.references([joint.effort for joint in joints])
-        slave = fmu.slave
+        calls = _FMICalls(fmu, [joint.effort for joint in joints], state_names,
+                          fmu.names("output") + list(inputs))
         changes = _input_changes(fmu, inputs)
-        records = [([], [], []) for _ in joints]  # per joint: voltage, current, effort
-        channels = [(pid.update, drive.step, reference.tolist(), 2 * j, voltage.append,
-                     current.append, effort.append)
-                    for j, (pid, drive, reference, (voltage, current, effort))
-                    in enumerate(zip(pids, drives, references, records, strict=True))]
+        efforts, state_values = calls.inputs, calls.states
+        set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
+        step_times = times.tolist()
+        drive_steps = [(j, loop.step, 2 * j) for j, loop in enumerate(loops)]
         states = [state]
-        rows = [fmu.get(record_names)]
+        calls.record()
         for k in range(n_steps):
-            efforts = []
-            for update, step, reference, index, add_v, add_i, add_effort in channels:
-                v = update(reference[k] - state[index])
-                i_avg, effort = step(v, state[index + 1])
-                add_v(v)
-                add_i(i_avg)
-                add_effort(effort)
-                efforts.append(effort)
-            slave.setReal(effort_refs, efforts)
-            for setter, refs, value in changes.get(k, ()):
-                setter(refs, [value])
-            slave.doStep(times[k], step_size)
-            state = slave.getReal(state_refs)
+            for j, drive_step, index in drive_steps:
+                efforts[j] = drive_step(k, state[index], state[index + 1])
+            if (status := set_efforts()) > fmi2Warning:
+                raise _refused(fmu, "fmi2SetReal", status, first_message)
+            if k in changes:
+                for setter, refs, value in changes[k]:
+                    setter(refs, [value])
+            if (status := do_step(step_times[k], step_size, fmi2True)) > fmi2Warning:
+                raise _refused(fmu, "fmi2DoStep", status, first_message)
+            if (status := get_states()) > fmi2Warning:
+                raise _refused(fmu, "fmi2GetReal", status, first_message)
+            state = state_values[:]
             states.append(state)
             if (k + 1) % record_every == 0:
-                rows.append(fmu.get(record_names))
+                calls.record()
                 if progress is not None:
                     progress(record_every)
         messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
-    return assemble(scenario, variant, model, step_size, rows, np.asarray(states)[:, 0::2],
-                    references, records, drive_motors, [drive.current for drive in drives],
-                    gains, parameters, messages)
+    states = np.asarray(states)
+    traces = [loop.trace(joint, drive_motor, step_size, states[:, 2 * j],
+                         states[:, 2 * j + 1], reference)
+              for j, (loop, joint, drive_motor, reference)
+              in enumerate(zip(loops, joints, drive_motors, references, strict=True))]
+    return assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
+                    messages)
 
 
-def assemble(scenario: Scenario, variant: Variant, model: str, step_size: float,
-             rows: list[dict], positions: np.ndarray, references: list[np.ndarray],
-             records: list[tuple], drive_motors: list[MotorParameters],
-             final_currents: list[float], gains: dict[str, PIDGains],
+class DriveLoop:
+    """One joint's discrete PID and sampled motor in the master's loop, with a record of
+    each step: (voltage [V], armature current at the step's start [A], its step average [A],
+    effort [N m or N])."""
+
+    __slots__ = ("update", "motor", "reference", "record")
+
+    def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: list[float]) -> None:
+        self.update, self.motor, self.reference = pid.update, motor, reference
+        self.record: list[tuple[float, float, float, float]] = []
+
+    def step(self, k: int, position: float, speed: float) -> float:
+        """Step k from the joint's position and speed at its start: the effort over it."""
+        motor = self.motor
+        voltage, start = self.update(self.reference[k] - position), motor.current
+        current, effort = motor.step(voltage, speed)
+        self.record.append((voltage, start, current, effort))
+        return effort
+
+    def trace(self, joint: Joint, motor: MotorParameters, step_size: float,
+              position: np.ndarray, speed: np.ndarray, reference: np.ndarray) -> DriveTrace:
+        """The drive's trace of the run, from the joint's position and speed at every step."""
+        voltage, start, current, effort = np.asarray(self.record).reshape(-1, 4).T
+        return DriveTrace(joint, motor, step_size, voltage, current, effort,
+                          np.append(start, self.motor.current), position, speed, reference)
+
+
+class _FMICalls:
+    """The loop's FMI calls on ctypes arrays made once: set the joints' efforts, doStep and
+    get the joints' states call the FMU's C functions directly and return their status
+    (FMPy's wrappers build the arrays anew at each call); `record()` reads the recorded
+    variables (through FMPy's checked fmi2GetReal and fmi2GetBoolean) and `recorded()` is
+    the table of what it read."""
+
+    def __init__(self, fmu: CoSimFMU, input_names: list[str], state_names: list[str],
+                 record_names: list[str]) -> None:
+        slave = fmu.slave
+        component, dll = slave.component, slave.dll
+        self.inputs = (ctypes.c_double * len(input_names))()
+        self.states = (ctypes.c_double * len(state_names))()
+        self.set_inputs = functools.partial(dll.fmi2SetReal, component,
+                                            _references(fmu, input_names), len(input_names),
+                                            self.inputs)
+        self.get_states = functools.partial(dll.fmi2GetReal, component,
+                                            _references(fmu, state_names), len(state_names),
+                                            self.states)
+        self.do_step = functools.partial(dll.fmi2DoStep, component)
+        kinds = {name: fmu.variables[name].type for name in record_names}
+        self._record_names = record_names
+        self._reals = [name for name in record_names if kinds[name] == "Real"]
+        self._booleans = [name for name in record_names if kinds[name] == "Boolean"]
+        self._others = [name for name in record_names if name not in self._reals + self._booleans]
+        self._real_values = (ctypes.c_double * len(self._reals))()
+        self._boolean_values = (fmi2Boolean * len(self._booleans))()
+        self._get_reals = functools.partial(slave.fmi2GetReal, component,
+                                            _references(fmu, self._reals), len(self._reals),
+                                            self._real_values)
+        self._get_booleans = functools.partial(
+            slave.fmi2GetBoolean, component, _references(fmu, self._booleans),
+            len(self._booleans), self._boolean_values)
+        self._fmu = fmu
+        self._rows: list[list] = []
+
+    def record(self) -> None:
+        """Read the recorded variables' current values."""
+        self._get_reals()
+        row = self._real_values[:]
+        if self._booleans:
+            self._get_booleans()
+            row += [value != fmi2False for value in self._boolean_values]
+        if self._others:
+            row += self._fmu.get(self._others).values()
+        self._rows.append(row)
+
+    def recorded(self) -> pd.DataFrame:
+        """One row per `record()`, one column per recorded variable."""
+        return pd.DataFrame(self._rows, columns=self._reals + self._booleans
+                            + self._others)[self._record_names]
+
+
+def _refused(fmu: CoSimFMU, function: str, status: int, first_message: int) -> FMUCallError:
+    """The error of an FMI call the FMU refused, with the messages it logged since the run's
+    first (noting a Fatal status, after which the FMU is not called again)."""
+    fmu.fatal = fmu.fatal or status == FATAL
+    return FMUCallError(FMICallException(function, status), fmu.model_description.modelName,
+                        fmu.messages[first_message:])
+
+
+def _references(fmu: CoSimFMU, names: list[str]) -> ctypes.Array:
+    """The value references of the named variables as a C array."""
+    references = fmu.references(names)
+    return (fmi2ValueReference * len(references))(*references)
+
+
+def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.DataFrame,
+             traces: list[DriveTrace], gains: dict[str, PIDGains],
              parameters: dict[str, float | bool], messages: list[str]) -> RunResult:
     """A RunResult from a run's records, whatever master produced them.
 
-    rows: the recorded FMU variables every RECORD_INTERVAL from t = 0; positions[k, j]: joint
-    j at t_k (k = 0..n); references[j]: its reference at t_k; records[j]: per step k < n the
-    voltage the drive held, its average current and the effort the mechanism received.
+    recorded: the FMU variables recorded every RECORD_INTERVAL from t = 0, one row each;
+    traces: each joint's drive over the run, in the scenario's joint order.
     """
-    n_steps = len(positions) - 1
+    step_size = traces[0].step_size
     record_every = max(1, round(RECORD_INTERVAL / step_size))
-    times = np.arange(n_steps + 1) * step_size
-    series = pd.DataFrame(rows)
+    times = np.arange(len(traces[0].position)) * step_size
+    series = recorded.reset_index(drop=True)
     series.insert(0, "time", times[::record_every][:len(series)])
     per_joint, joint_phase_work = {}, {}
-    for j, (joint, drive_motor, final_current, reference, (voltage, current, effort)) in \
-            enumerate(zip(scenario.joints, drive_motors, final_currents, references, records,
-                          strict=True)):
-        voltage, current, effort = map(np.asarray, (voltage, current, effort))
-        position = positions[:, j]
-        travel = np.diff(position)
-        per_joint[joint.name] = metrics.drive_metrics(
-            step_size, voltage, current, effort, travel, reference[:n_steps] - position[:n_steps],
-            drive_motor.R_a, drive_motor.L_a, final_current)
-        work = effort * travel
+    for joint, trace in zip(scenario.joints, traces, strict=True):
+        energies = trace.energies()
+        per_joint[joint.name] = metrics.drive_metrics(trace)
         joint_phase_work[joint.name] = {
-            name: float(np.sum(work[round(t0 / step_size):round(t1 / step_size)]))
+            name: float(np.sum(energies.W_link[round(t0 / step_size):round(t1 / step_size)]))
             for name, t0, t1 in scenario.phase_times()}
-        _add_drive_columns(series, joint, suffix(scenario, joint), reference[::record_every],
-                           voltage, current, effort, record_every, step_size)
+        _add_drive_columns(series, trace, energies, suffix(scenario, joint), record_every)
     if len(scenario.joints) > 1:
         _add_total_columns(series, [suffix(scenario, joint) for joint in scenario.joints])
     for column in series.columns:
@@ -277,27 +366,26 @@ def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, li
     return changes
 
 
-def _add_drive_columns(frame: pd.DataFrame, joint: Joint, suffix: str, reference: np.ndarray,
-                       voltage: np.ndarray, current: np.ndarray, effort: np.ndarray,
-                       every: int, dt: float) -> None:
+def _add_drive_columns(frame: pd.DataFrame, trace: DriveTrace, energies: DriveEnergies,
+                       suffix: str, every: int) -> None:
     """One drive's columns at the recording instants: `<position>_ref`, then V, i, the effort
-    (named after the FMU input), P_elec, E_in and E_drawn with the joint's suffix.
+    (named after the FMU input), P_elec, E_in and E_drawn with the joint's suffix; energies:
+    the trace's per-step energies.
 
     The drive columns at time t_j hold the values of the step that starts at t_j (the last
-    row holds those of the final step); cumulative energies are integrated up to t_j.
+    row holds those of the final step); cumulative energies are summed up to t_j.
     """
     rows = len(frame)
-    power = voltage * current
+    voltage, current = trace.voltage, trace.current
     index = np.minimum(np.arange(rows) * every, len(voltage) - 1)
-    frame[f"{joint.position}_ref"] = reference[:rows]
+    frame[f"{trace.joint.position}_ref"] = trace.reference[::every][:rows]
     frame[f"V{suffix}"] = voltage[index]
     frame[f"i{suffix}"] = current[index]
-    frame[joint.effort] = effort[index]
-    frame[f"P_elec{suffix}"] = power[index]
-    cumulative = np.concatenate([[0.0], np.cumsum(power) * dt])
-    drawn = np.concatenate([[0.0], np.cumsum(np.maximum(power, 0.0)) * dt])
-    frame[f"E_in{suffix}"] = cumulative[np.arange(rows) * every]
-    frame[f"E_drawn{suffix}"] = drawn[np.arange(rows) * every]
+    frame[trace.joint.effort] = trace.effort[index]
+    frame[f"P_elec{suffix}"] = (voltage * current)[index]
+    for name in ("E_in", "E_drawn"):
+        cumulative = np.concatenate([[0.0], np.cumsum(getattr(energies, name))])
+        frame[f"{name}{suffix}"] = cumulative[np.arange(rows) * every]
 
 
 def _add_total_columns(frame: pd.DataFrame, suffixes: list[str]) -> None:

@@ -1,47 +1,52 @@
-"""Drive metrics (defined in docs/results.md), from per-step records of a run.
+"""Drive metrics (defined in docs/results.md), from a drive's record of a run (`DriveTrace`).
 
 The drive's signals are held over each communication step k of length dt: voltage V[k],
-step-average current i[k] and torque tau[k] (fmu_src.dc_motor.SampledMotor); the link turns by
-dtheta[k] over the step. So V i dt is the step's exact electrical energy and tau dtheta its
-exact mechanical work on the link. For a prismatic joint read force [N] for torque, metres for
-radians.
+step-average current i[k] and effort tau[k] (fmu_src.dc_motor.SampledMotor); the joint
+travels dq[k] over the step. Each step's energies are `fmu_src.dc_motor.step_energies`, the
+one definition the FMU, the CSV columns and the monolithic reference share; here they are
+summed.
 
-A run with several joints (one drive each) reports each drive's metrics with the joint's name
-as suffix (`tau_peak_q1`, `E_drawn_q2`) and the energies of TOTALS summed over the drives under
-the plain names: each drive has its own supply, so E_drawn is the sum of what each draws.
+Effort metrics are named for what they are: a revolute joint's torque `tau_peak`, `tau_rms`
+[N m], a prismatic joint's force `F_peak`, `F_rms` [N]. A run with several joints (one drive
+each) reports each drive's metrics with the joint's name as suffix (`tau_peak_q1`,
+`F_peak_q2`, `E_drawn_q2`) and the energies of TOTALS summed over the drives under the plain
+names: each drive has its own supply, so E_drawn is the sum of what each draws.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-METRICS = ("E_in", "E_drawn", "E_copper", "E_mech", "W_link", "E_inductor", "tau_peak",
-           "tau_rms", "i_rms", "V_peak", "track_err_max", "track_err_rms", "eps")
-TOTALS = ("E_in", "E_drawn", "E_copper", "E_mech", "W_link", "E_inductor")
+from fmu_src.dc_motor import DriveEnergies, inductor_energy
+from harness.drive import DriveTrace
+
+# by joint kind: the names of the effort's peak and RMS
+EFFORT_METRICS = {"revolute": ("tau_peak", "tau_rms"), "prismatic": ("F_peak", "F_rms")}
+ENERGIES = DriveEnergies._fields
+METRICS = (*ENERGIES, "E_inductor", *(name for names in EFFORT_METRICS.values() for name in names),
+           "i_rms", "V_peak", "track_err_max", "track_err_rms", "eps")
+TOTALS = (*ENERGIES, "E_inductor")
 
 
-def drive_metrics(dt: float, voltage: np.ndarray, current: np.ndarray, torque: np.ndarray,
-                  dtheta: np.ndarray, error: np.ndarray, R_a: float, L_a: float,
-                  final_current: float) -> dict[str, float]:
-    """Energies [J], torques [N m], currents [A], voltage [V] and tracking errors [rad].
+def drive_metrics(trace: DriveTrace) -> dict[str, float]:
+    """Energies [J], effort [N m or N], current [A], voltage [V] and tracking errors [rad or m].
 
     E_in: net electrical energy (regeneration credited); E_drawn: energy from a supply that
     cannot take energy back; E_copper: armature losses; E_mech: integral of |tau omega|;
-    W_link: net mechanical work on the link; E_inductor: magnetic energy left at the end,
+    W_link: net mechanical work on the joint; E_inductor: magnetic energy left at the end,
     so that E_in = E_copper + W_link / eta ... (eta = 1 by default) + E_inductor.
     """
-    power = voltage * current
+    n = len(trace.voltage)
+    effort, current = trace.effort, trace.current
+    error = trace.reference[:n] - trace.position[:n]
+    peak, rms = EFFORT_METRICS[trace.joint.kind]
     return {
-        "E_in": float(np.sum(power) * dt),
-        "E_drawn": float(np.sum(np.maximum(power, 0.0)) * dt),
-        "E_copper": float(R_a * np.sum(current ** 2) * dt),
-        "E_mech": float(np.sum(np.abs(torque * dtheta))),
-        "W_link": float(np.sum(torque * dtheta)),
-        "E_inductor": 0.5 * L_a * final_current ** 2,
-        "tau_peak": float(np.max(np.abs(torque))),
-        "tau_rms": float(np.sqrt(np.mean(torque ** 2))),
+        **{name: float(np.sum(energy)) for name, energy in trace.energies()._asdict().items()},
+        "E_inductor": float(inductor_energy(trace.motor, trace.final_current)),
+        peak: float(np.max(np.abs(effort))),
+        rms: float(np.sqrt(np.mean(effort ** 2))),
         "i_rms": float(np.sqrt(np.mean(current ** 2))),
-        "V_peak": float(np.max(np.abs(voltage))),
+        "V_peak": float(np.max(np.abs(trace.voltage))),
         "track_err_max": float(np.max(np.abs(error))),
         "track_err_rms": float(np.sqrt(np.mean(error ** 2))),
     }

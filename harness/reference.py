@@ -7,8 +7,10 @@ With the continuous controllers and no zero-order holds, this is the limit the
 co-simulation converges to as the communication step shrinks; `harness bench` and the tests
 measure that.
 
-The drives' energies are integrated as extra states. The run is split at phase boundaries,
-where the discrete inputs (locks) change; within a phase inputs are constant or ramps.
+The drives' energies are integrated as extra states, their rates those of
+`fmu_src.dc_motor.drive_powers`, the definition the co-simulation's metrics share. The run is
+split at phase boundaries, where the discrete inputs (locks) change; within a phase inputs
+are constant or ramps.
 """
 
 from __future__ import annotations
@@ -21,17 +23,17 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from fmu_src.dc_motor import armature_rate, armature_voltage, drive_powers
 from harness import registry
 from harness.controller import ControllerDesign, design_pid
 from harness.drive import MotorParameters, motors
 from harness.errors import UserError
-from harness.metrics import run_metrics
+from harness.metrics import ENERGIES, run_metrics
 from harness.scenarios import Scenario, Variant, ramp
 
 # model identifier -> its pure physics module in fmu_src, for the mechanisms it can solve
 PHYSICS = {model: r.physics.__name__ for model, r in registry.mechanisms().items()
            if r.monolithic_reference}
-ENERGIES = ("E_in", "E_drawn", "E_copper", "E_mech", "W_link")
 DRIVE_STATES = 3  # per joint: armature current, PID integral, filtered error
 
 
@@ -97,7 +99,7 @@ def simulate(scenario: Scenario, variant: Variant,
     for joint, m, i, initial in zip(joints, drives, position_index, scenario.initial_angle,
                                     strict=True):
         current = joint.hold_effort(getattr(out0, joint.static_output)) / m.torque_per_amp
-        x += [current, current * m.R_a, initial - mech0[i]]
+        x += [current, armature_voltage(m, current, 0.0), initial - mech0[i]]
     x = np.array(x + [0.0] * (len(ENERGIES) * n_joints))
     times, positions = [0.0], [[mech0[i] for i in position_index]]
 
@@ -118,12 +120,10 @@ def simulate(scenario: Scenario, variant: Variant,
                 voltage = min(max(voltage, -m.V_supply), m.V_supply)
                 speed = mech[speed_index[j]]
                 effort = m.torque_per_amp * current
-                power = voltage * current
                 efforts.append(effort)
-                d_drive += [(voltage - m.R_a * current - m.back_emf_per_link_speed * speed)
-                            / m.L_a, g.Ki * error, (error - filtered) / g.T_f]
-                d_energy += [power, max(power, 0.0), m.R_a * current ** 2,
-                             abs(effort * speed), effort * speed]
+                d_drive += [armature_rate(m, voltage, current, speed), g.Ki * error,
+                            (error - filtered) / g.T_f]
+                d_energy += drive_powers(m, voltage, current, effort, speed)
             u = _inputs(physics, joints, segment, s, efforts)
             rates = _input_rates(physics, segment, s, t1 - t0)
             return np.array([*physics.derivatives(p, u, physics.State(*mech), rates),

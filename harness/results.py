@@ -287,7 +287,8 @@ def summary_text(path: Path, scenario: Scenario) -> str:
     in deg (revolute joints) or mm (prismatic joints)."""
     table = pd.read_csv(path)
     shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech"]
-    per_drive = ["tau_peak", "tau_rms", "i_rms", "V_peak", "track_err_max", "track_err_rms"]
+    per_drive = ["tau_peak", "tau_rms", "F_peak", "F_rms", "i_rms", "V_peak", "track_err_max",
+                 "track_err_rms"]
     suffixes = {}
     for variant in scenario.variants.values():  # the joints of every variant
         resolved = scenario.for_variant(variant)

@@ -50,9 +50,10 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from fmu_src.dc_motor import armature_voltage
 from harness import cosim, fmu_build, master, osp, results, scenarios
 from harness.controller import ControllerDesign, PIDGains
-from harness.drive import motors
+from harness.drive import DriveTrace, motors, start_currents
 from harness.errors import UserError
 from harness.fmi import CoSimFMU
 from harness.io import write_atomic
@@ -125,7 +126,7 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
             control, power = controller(scenario, joint), drive(scenario, joint)
             models |= {control: "PositionController", power: "DcMotorDrive"}
             parameters[control] = {**gains._asdict(), "V_supply": motor.V_supply,
-                                   "integral0": hold_current * motor.R_a}
+                                   "integral0": armature_voltage(motor, hold_current, 0.0)}
             parameters[power] = {**asdict(motor), "i0": hold_current}
             connections += [(SEQUENCER, f"{joint.position}_ref", control, "theta_ref"),
                             (MECHANISM, joint.position, control, "theta"),
@@ -320,24 +321,25 @@ def _result(system: System, frame: pd.DataFrame, booleans: pd.DataFrame,
     table = pd.DataFrame({n: (booleans[n].to_numpy()[:len(rows)] if n in booleans
                               else rows[f"{MECHANISM}.{n}"].to_numpy())
                           for n in mechanism_columns})
-    # Jacobi: over step k the drive holds the controller's V(t_k) and the mechanism gets the
-    # drive's effort of step k - 1, i.e. its output at t_k
-    records, gains = [], {}
+    # Jacobi: over step k the drive holds the controller's V(t_k) and the speed omega(t_k),
+    # and the mechanism gets the drive's effort of step k - 1, i.e. its output at t_k
+    traces, gains = [], {}
     for joint in scenario.joints:
         control, power = controller(scenario, joint), drive(scenario, joint)
-        records.append((frame[f"{control}.V"].to_numpy()[:-1],
-                        frame[f"{power}.i"].to_numpy()[1:],
-                        frame[f"{power}.tau_drive"].to_numpy()[:-1]))
+        motor = motors()[joint.motor]
+        voltage = frame[f"{control}.V"].to_numpy()
+        speed = frame[f"{MECHANISM}.{joint.speed}"].to_numpy()
+        current = frame[f"{power}.i"].to_numpy()[1:]
+        traces.append(DriveTrace(
+            joint, motor, system.step_size, voltage[:-1], current,
+            frame[f"{power}.tau_drive"].to_numpy()[:-1],
+            start_currents(motor, system.step_size, voltage[:-1], speed[:-1], current),
+            frame[f"{MECHANISM}.{joint.position}"].to_numpy(), speed,
+            frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy()))
         gains[joint.name] = PIDGains(*(float(system.parameters[control][n])
                                        for n in PIDGains._fields))
-    return master.assemble(
-        scenario, system.variant, system.models[MECHANISM], system.step_size,
-        table.to_dict("records"),
-        frame[[f"{MECHANISM}.{joint.position}" for joint in scenario.joints]].to_numpy(),
-        [frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy() for joint in scenario.joints],
-        records, [motors()[joint.motor] for joint in scenario.joints],
-        [float(current[-1]) for _, current, _ in records], gains,
-        dict(system.parameters[MECHANISM]), messages)
+    return master.assemble(scenario, system.variant, system.models[MECHANISM], table, traces,
+                           gains, dict(system.parameters[MECHANISM]), messages)
 
 
 def _time_series(observer, slave: int, reference: int, steps: int) -> np.ndarray:

@@ -127,8 +127,8 @@ def test_compensation_saves_the_drive_energy(runs: dict[str, master.RunResult]) 
     # the static efforts dominate the peaks: (m1 lc1 + m2 lc2) g cos q1 <= 6.13 N m plus
     # about 0.4 N m of acceleration and speed terms; m2 g sin 0.7 = 3.16 N plus about 0.1 N
     assert 6.13 < uncompensated["tau_peak_q1"] < 6.6
-    assert M2 * G * math.sin(Q1) < uncompensated["tau_peak_q2"] < M2 * G * math.sin(Q1) + 0.2
-    assert runs["compensated"].metrics["tau_peak_q2"] < 0.3  # no static load on q2
+    assert M2 * G * math.sin(Q1) < uncompensated["F_peak_q2"] < M2 * G * math.sin(Q1) + 0.2
+    assert runs["compensated"].metrics["F_peak_q2"] < 0.3  # no static load on q2
 
 
 @pytest.fixture(scope="module")

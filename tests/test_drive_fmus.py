@@ -19,12 +19,16 @@ from fmpy import read_model_description
 
 from fmu_src import self_regulating
 from fmu_src.PositionController import ControllerParameters
+from fmu_src.scenario import Joint
 from harness import fmu_build
 from harness.controller import design_pid, discrete_pid, discretise
-from harness.drive import MotorParameters, sampled_motor
+from harness.drive import DriveTrace, MotorParameters, sampled_motor
 from harness.fmi import CoSimFMU, FMICallException
+from harness.metrics import drive_metrics
 
 MOTOR = MotorParameters()
+JOINT = Joint("theta", "theta", "omega", "tau_drive", "theta0", "J_link", "d_link", "J_drive",
+              "tau_gravity", True)
 LINK = self_regulating.Parameters()
 GAINS = design_pid(MOTOR, LINK.J_link + MOTOR.J_drive, LINK.d_link)
 DT = 1e-3
@@ -55,8 +59,8 @@ def drive_fmu(fmu: CoSimFMU, inputs: Mapping[str, Sequence[float]], steps: Seque
 
 def test_motor_fmu_gives_the_harness_sampled_motor(motor_fmu: Path) -> None:
     """Voltage and speed sequences within the limits (steps, ramps, noise), from a current
-    that holds a load: tau_drive and i as harness.drive.sampled_motor to rounding, E_in and
-    E_drawn as harness.metrics sums them."""
+    that holds a load: tau_drive and i as harness.drive.sampled_motor to rounding, E_in,
+    E_drawn and E_copper as harness.metrics sums them from the drive's trace."""
     rng = np.random.default_rng(6)
     n, i0 = 3000, 1.5
     t = np.arange(n) * DT
@@ -64,16 +68,28 @@ def test_motor_fmu_gives_the_harness_sampled_motor(motor_fmu: Path) -> None:
                       + rng.normal(0.0, 3.0, n), -MOTOR.V_supply, MOTOR.V_supply)
     omega = 4.0 * np.sin(2.0 * t) + rng.normal(0.0, 0.5, n)
     drive = sampled_motor(MOTOR, DT, current=i0)
-    current, torque = np.array([drive.step(v, w) for v, w in zip(voltage, omega)]).T
+    starts, steps = [], []
+    for v, w in zip(voltage, omega):
+        starts.append(drive.current)
+        steps.append(drive.step(v, w))
+    starts.append(drive.current)
+    current, torque = np.array(steps).T
     with open_fmu(motor_fmu, {"i0": i0}) as fmu:
         out = drive_fmu(fmu, {"V": voltage, "omega": omega}, [DT] * n,
-                        ["tau_drive", "i", "E_in", "E_drawn"])
+                        ["tau_drive", "i", "E_in", "E_drawn", "E_copper"])
     assert np.ptp(torque) > 50.0 and (current < 0).any()  # motoring and regenerating
     np.testing.assert_allclose(out[:, 0], torque, rtol=0, atol=1e-12 * np.abs(torque).max())
     np.testing.assert_allclose(out[:, 1], current, rtol=0, atol=1e-12 * np.abs(current).max())
     power = voltage * current
     assert out[-1, 2] == pytest.approx(power.sum() * DT, rel=1e-11)
     assert out[-1, 3] == pytest.approx(np.maximum(power, 0.0).sum() * DT, rel=1e-11)
+    still = np.zeros(n + 1)
+    speed = np.append(omega, 0.0)
+    trace = DriveTrace(JOINT, MOTOR, DT, voltage, current, torque, np.array(starts), still,
+                       speed, still)
+    expected = drive_metrics(trace)
+    for column, name in enumerate(("E_in", "E_drawn", "E_copper"), start=2):
+        assert out[-1, column] == pytest.approx(expected[name], rel=1e-11), name
 
 
 def test_motor_fmu_recomputes_the_hold_when_the_step_size_changes(motor_fmu: Path) -> None:

@@ -193,7 +193,7 @@ def test_libcosim_runs_active_relocation_with_the_variants_own_drive(tmp_path: P
     # the energies of both drives; the carriage's tracking error peaks within 1.2 % (the
     # loop's two steps of delay), outside the 1 % band of the other summary metrics
     for name in ("E_drawn", "E_in", "E_copper", "E_mech", "E_drawn_theta", "E_drawn_q",
-                 "tau_rms_q", "W_adjust"):
+                 "F_rms_q", "W_adjust"):
         expected = (harness_run.metrics[name] if name in harness_run.metrics
                     else harness_run.series[name].iloc[-1])
         assert summary.loc["active_relocation", name] == pytest.approx(
@@ -226,7 +226,7 @@ def test_libcosim_runs_the_two_drive_demian2022_system_like_the_harness(
     run = system.run_libcosim(described, tmp_path / "osp" / "OspSystemStructure.xml")
     expected = master.run(demian, variant)
     assert list(run.series.columns) == list(expected.series.columns)
-    for name in ("E_drawn", "E_in", "E_copper", "E_mech", "tau_rms_q1", "tau_rms_q2",
+    for name in ("E_drawn", "E_in", "E_copper", "E_mech", "tau_rms_q1", "F_rms_q2",
                  "i_rms_q1", "i_rms_q2", "V_peak_q1", "V_peak_q2", "track_err_rms_q1",
                  "track_err_rms_q2"):
         assert run.metrics[name] == pytest.approx(expected.metrics[name], rel=METRIC_RTOL), name
