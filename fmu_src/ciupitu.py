@@ -71,7 +71,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import integrate
+from fmu_src.integration import integrate_arm
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -345,12 +345,20 @@ def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
 def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
-    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega,
-    with one geometry() evaluation (this runs four times per RK4 sub-step)."""
+    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega."""
+    return _arm_rates(p, payload, tau_drive, theta, omega)[0]
+
+
+def _arm_rates(p: Parameters, payload: float, tau_drive: float, theta: float, omega: float
+               ) -> tuple[float, float]:
+    """The angular acceleration [rad/s^2] (`acceleration`) and the friction loss
+    d(theta) omega^2 [W], with one geometry() evaluation (this runs four times per RK4
+    sub-step)."""
     OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
     J, dJ = _inertia(p, payload, OB, dOB, d2OB)
-    return (tau_drive + _gravity(p, payload, theta, OB, dOB) - _damping(p, dOB) * omega
-            - 0.5 * dJ * omega * omega) / J
+    damping = _damping(p, dOB)
+    return ((tau_drive + _gravity(p, payload, theta, OB, dOB) - damping * omega
+             - 0.5 * dJ * omega * omega) / J, damping * omega * omega)
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
@@ -360,10 +368,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     arm, J omega' gains -payload_rate w^2 omega and E_loss 1/2 payload_rate w^2 omega^2; a
     payload leaving takes its kinetic energy (E_added)."""
     theta, omega = s[0], s[1]
-    omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
-    loss = p.d_link * omega * omega
-    if p.d_cw:
-        loss = _damping(p, geometry(p.OA, p.AB, HALF_PI - theta).dOB) * omega * omega
+    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive, theta, omega)
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
     flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
@@ -384,7 +389,11 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
+    payload, tau = u.payload, u.tau_drive
+    theta, omega, W_drive, E_loss = integrate_arm(
+        lambda theta, omega: _arm_rates(p, payload, tau, theta, omega), s.theta, s.omega,
+        s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
+    return State(theta, omega, W_drive, E_loss, s.E_added)
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:

@@ -55,7 +55,7 @@ from dataclasses import dataclass, fields
 from typing import Any, NamedTuple
 
 from fmu_src import ciupitu, ledger
-from fmu_src.integration import integrate
+from fmu_src.integration import integrate_arm
 from fmu_src.parameters import check_ranges, parameter
 
 HALF_PI = 0.5 * math.pi
@@ -304,10 +304,18 @@ def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
     J theta'' + 1/2 (dJ/dtheta) omega^2 = tau_drive + tau_gravity - d_link omega."""
-    q = geometry(Linkage.of(p), HALF_PI - theta)
+    return _arm_rates(p, Linkage.of(p), payload, tau_drive, theta, omega)[0]
+
+
+def _arm_rates(p: Parameters, k: Linkage, payload: float, tau_drive: float, theta: float,
+               omega: float) -> tuple[float, float]:
+    """The angular acceleration [rad/s^2] (`acceleration`, for the linkage k of p) and the
+    pivot's friction loss d_link omega^2 [W]."""
+    q = geometry(k, HALF_PI - theta)
     J, dJ = _inertia(p, payload, q)
     gravity = p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
-    return (tau_drive + gravity - p.d_link * omega - 0.5 * dJ * omega * omega) / J
+    return ((tau_drive + gravity - p.d_link * omega - 0.5 * dJ * omega * omega) / J,
+            p.d_link * omega * omega)
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
@@ -317,8 +325,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     arm (J omega' gains -payload_rate w^2 omega, E_loss 1/2 payload_rate w^2 omega^2); a
     payload leaving takes its kinetic energy with it (E_added)."""
     theta, omega = s[0], s[1]
-    omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
-    loss = p.d_link * omega * omega
+    omega_dot, loss = _arm_rates(p, Linkage.of(p), u.payload, u.tau_drive, theta, omega)
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
     flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
@@ -338,7 +345,11 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
+    k, payload, tau = Linkage.of(p), u.payload, u.tau_drive
+    theta, omega, W_drive, E_loss = integrate_arm(
+        lambda theta, omega: _arm_rates(p, k, payload, tau, theta, omega), s.theta, s.omega,
+        s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
+    return State(theta, omega, W_drive, E_loss, s.E_added)
 
 
 def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
