@@ -38,9 +38,6 @@ class ActiveSpringBalancer(MechanismSlave):
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.compression_reported = False   # once per spell of F_s < 0
 
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau_drive), float(self.F_adjust), float(self.payload))
-
     def initialise(self, params: physics.Parameters) -> None:
         self.compression_reported = False
         super().initialise(params)

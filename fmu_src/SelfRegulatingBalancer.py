@@ -57,11 +57,6 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.stop_reported = False
         self.off_angle_reported = False     # once per regulation (slider and pulley free)
 
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau_drive), float(self.payload),
-                              float(self.counterweight_added), bool(self.slider_locked),
-                              bool(self.pulley_locked))
-
     def initialise(self, params: physics.Parameters) -> None:
         self.M0 = params.M0
         self.b_design = params.b_design

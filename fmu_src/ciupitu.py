@@ -94,11 +94,16 @@ class Geometry(NamedTuple):
 
 def geometry(OA: float, AB: float, phi: float) -> Geometry:
     """OB(phi) of eq. 13 and its first two derivatives; phi from the horizontal [rad]."""
+    return Geometry._make(_geometry(OA, AB, phi))
+
+
+def _geometry(OA: float, AB: float, phi: float) -> tuple[float, float, float]:
+    """geometry() as a plain tuple (the dynamics evaluate it four times per RK4 sub-step)."""
     sin_p, cos_p = math.sin(phi), math.cos(phi)
     root = math.sqrt(AB * AB - (OA * cos_p) ** 2)
     d_root = OA * OA * sin_p * cos_p / root
     d2_root = (OA * OA * math.cos(2.0 * phi) - d_root * d_root) / root
-    return Geometry(root - OA * sin_p, d_root - OA * cos_p, d2_root + OA * sin_p)
+    return root - OA * sin_p, d_root - OA * cos_p, d2_root + OA * sin_p
 
 
 class Moments(NamedTuple):
@@ -333,12 +338,12 @@ def _damping(p: Parameters, dOB: float) -> float:
 
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
-    return _inertia(p, payload, *geometry(p.OA, p.AB, HALF_PI - theta))
+    return _inertia(p, payload, *_geometry(p.OA, p.AB, HALF_PI - theta))
 
 
 def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
     """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
-    OB, dOB, _ = geometry(p.OA, p.AB, HALF_PI - theta)
+    OB, dOB, _ = _geometry(p.OA, p.AB, HALF_PI - theta)
     return _gravity(p, payload, theta, OB, dOB)
 
 
@@ -354,7 +359,7 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float, theta: float, om
     """The angular acceleration [rad/s^2] (`acceleration`) and the friction loss
     d(theta) omega^2 [W], with one geometry() evaluation (this runs four times per RK4
     sub-step)."""
-    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - theta)
     J, dJ = _inertia(p, payload, OB, dOB, d2OB)
     damping = _damping(p, dOB)
     return ((tau_drive + _gravity(p, payload, theta, OB, dOB) - damping * omega
@@ -379,7 +384,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - s.theta)
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - s.theta)
     J, dJ = _inertia(p, u.payload, OB, dOB, d2OB)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
@@ -424,7 +429,7 @@ class Outputs(NamedTuple):
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
     phi = HALF_PI - s.theta
-    OB, dOB, d2OB = geometry(p.OA, p.AB, phi)
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, phi)
     M = _moments(u.payload * p.g, p.w, p.m2 * p.g, OB, math.sin(s.theta))  # cos(phi)
     return Outputs(
         theta=s.theta, omega=s.omega, OB=OB,

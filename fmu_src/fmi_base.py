@@ -431,9 +431,10 @@ class ModelSlave(Fmi2Slave):
     def _input_problem(self) -> str | None:
         """Error message naming the first Real input that is not finite, outside its range or
         its magnitudes, else None."""
+        values = self.__dict__
         for name, lowest, highest in self.real_input_bounds:
-            value = getattr(self, name)
-            if lowest <= value <= highest and not 0.0 < abs(value) < SMALLEST:
+            value = values[name]
+            if lowest <= value <= highest and (value == 0.0 or not -SMALLEST < value < SMALLEST):
                 continue
             info = self.info[name]
             if not math.isfinite(value):
@@ -549,7 +550,8 @@ class MechanismSlave(ModelSlave):
     the state at a communication point (a payload caught or released, a lock engaged),
     EVENT_INPUTS (the names of those inputs) and switch_inputs(p, before, after, s), called
     only when one of them changes (the drive effort changes at every step and is no event).
-    Subclasses register the variables and map them to physics.Inputs in `inputs()`.
+    Subclasses register the variables: one input per field of physics.Inputs, of the same
+    name, and one output per field of the Outputs, in their order.
     """
 
     physics: Any
@@ -563,12 +565,15 @@ class MechanismSlave(ModelSlave):
         # the event inputs of an Inputs tuple, as one comparable value (None: no events)
         self.event_values = (itemgetter(*(self.physics.Inputs._fields.index(n) for n in names))
                              if names else None)
+        # the input variables' values in physics.Inputs order, from the instance's __dict__
+        self.input_values = _tuple_getter(itemgetter, self.physics.Inputs._fields)
 
     def validate(self, params: Any) -> None:
         self.physics.validate(params)
 
     def inputs(self) -> Any:
-        raise NotImplementedError
+        """The current inputs as a physics.Inputs."""
+        return self.physics.Inputs._make(self.input_values(self.__dict__))
 
     def initialise(self, params: Any) -> None:
         self.state = self.physics.initial_state(params)
@@ -620,8 +625,6 @@ class PayloadArmSlave(MechanismSlave):
         for name, unit, description in self.output_table:
             self.add_output(name, unit, description, self.input_dependencies.get(name, ()))
 
-    def inputs(self) -> Any:
-        return self.physics.Inputs(float(self.tau_drive), float(self.payload))
 
 
 def _indices(indices: Any) -> str:

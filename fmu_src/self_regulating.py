@@ -345,11 +345,17 @@ def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float
     return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
+def _link_rate(p: Parameters, moment: float, J: float, b: float, omega: float) -> float:
+    """Fastest rate of the link's own dynamics [1/s], for its gravity_moment and
+    link_inertia J with the slider at b."""
+    stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
+    return max(math.sqrt(stiffness / J), p.d_link / J, abs(omega))
+
+
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    J = link_inertia(p, u.payload, s.b)
-    stiffness = abs(gravity_moment(p, u.payload, s.b)) + p.k * p.a * (abs(s.b) + p.a)
-    rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
+    rate = _link_rate(p, gravity_moment(p, u.payload, s.b), link_inertia(p, u.payload, s.b),
+                      s.b, s.omega)
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
@@ -400,7 +406,6 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    rate = characteristic_rate(p, u, s)
     if u.slider_locked:
         # A clamped slider leaves a 1-DOF link: b and s_cw stay put and v = 0. RK4 over the
         # link (and its ledger) alone gives the same numbers as over the full state, whose
@@ -408,18 +413,20 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         # computed once (as _link_acceleration computes them, so the numbers stay the same).
         b, tau, d = s.b, u.tau_drive, p.d_link
         moment, J = gravity_moment(p, u.payload, b), link_inertia(p, u.payload, b)
-        spring = p.k * p.a * b
+        spring, real_spring = p.k * p.a * b, p.L0 > 0.0
 
         def link(theta: float, omega: float) -> tuple[float, float]:
             sin_t = math.sin(theta)
             spring_torque = spring * sin_t
-            if p.L0 > 0.0:
+            if real_spring:
                 spring_torque *= _free_length_factor(p, theta, b)
             return (tau + moment * sin_t - spring_torque - d * omega) / J, d * omega * omega
 
-        theta, omega, W_drive, E_loss = integrate_arm(link, s.theta, s.omega, s.W_drive,
-                                                      s.E_loss, tau, dt, rate)
+        theta, omega, W_drive, E_loss = integrate_arm(
+            link, s.theta, s.omega, s.W_drive, s.E_loss, tau, dt,
+            _link_rate(p, moment, J, b, s.omega))
         return State(theta, omega, b, 0.0, s.s_cw, W_drive, E_loss, s.E_added)
+    rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
         return integrate(lambda state: derivatives(p, u, state), s, dt, rate,
                          lambda state: _apply_constraints(p, u, state))
