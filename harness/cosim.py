@@ -2,8 +2,9 @@
 
 The runs (every selected variant of every selected scenario) are independent: with
 `--workers N` above 1 they run in N worker processes (pythonfmu embeds one interpreter per
-process, so processes, not threads), longest first, and each scenario's files are written as
-soon as its last run is done. A run's numbers do not depend on the process it ran in.
+process, so processes, not threads), longest first, and each scenario's files are written
+(by a worker as well: its plots cost as much as a run) as soon as its last run is done. A
+run's numbers do not depend on the process it ran in.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import argparse
 import os
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
 from tqdm import tqdm
@@ -53,45 +54,58 @@ def run_variant(scenario: scenarios.Scenario, name: str, step: float,
 
 def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out: Path,
             workers: int = 1, quiet: bool = False) -> None:
-    """Run every planned variant, in `workers` processes, and write each scenario's result
-    files (and print its summary) once its runs are done."""
+    """Run every planned variant and write each scenario's result files (and print its
+    summary) once its runs are done; with workers above 1 both in that many processes."""
     jobs = [(index, scenario, name) for index, (scenario, names) in enumerate(plans)
             for name in names]
     remaining = {index: len(names) for index, (_, names) in enumerate(plans)}
     runs: dict[tuple[int, str], master.RunResult] = {}
     total = sum(round(scenario.duration / step) for _, scenario, _ in jobs)
 
-    def finished(index: int, name: str, run: master.RunResult) -> None:
+    def finished(index: int, name: str, run: master.RunResult) -> tuple | None:
+        """Book a run; the arguments of write_scenario when it was its scenario's last."""
         runs[index, name] = run
         remaining[index] -= 1
-        if remaining[index] == 0:
-            scenario, names = plans[index]
-            write_scenario(scenario, [runs[index, n] for n in names], out)
+        if remaining[index]:
+            return None
+        scenario, names = plans[index]
+        return scenario, [runs.pop((index, n)) for n in names], out
 
     with tqdm(total=total, unit="step", unit_scale=True, disable=quiet) as bar:
         if workers == 1 or len(jobs) == 1:
             for index, scenario, name in jobs:
                 bar.set_postfix_str(f"{scenario.name}.{name}")
-                finished(index, name, run_variant(scenario, name, step, bar.update))
+                write = finished(index, name, run_variant(scenario, name, step, bar.update))
+                if write is not None:
+                    tqdm.write(write_scenario(*write))
             return
-        # longest runs first, so that the last ones to start are short
+        # longest runs first, so that the last ones to start are short; a scenario's files
+        # are written by a worker too, while the others still run
         jobs.sort(key=lambda job: -job[1].duration)
         with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            futures = {pool.submit(run_variant, scenario, name, step): (index, scenario, name)
+            pending = {pool.submit(run_variant, scenario, name, step): (index, scenario, name)
                        for index, scenario, name in jobs}
-            for future in as_completed(futures):
-                index, scenario, name = futures[future]
-                bar.update(round(scenario.duration / step))
-                bar.set_postfix_str(f"{scenario.name}.{name} done")
-                finished(index, name, future.result())
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    job = pending.pop(future)
+                    if job is None:  # a scenario's files written
+                        tqdm.write(future.result())
+                        continue
+                    index, scenario, name = job
+                    bar.update(round(scenario.duration / step))
+                    bar.set_postfix_str(f"{scenario.name}.{name} done")
+                    write = finished(index, name, future.result())
+                    if write is not None:
+                        pending[pool.submit(write_scenario, *write)] = None
 
 
 def write_scenario(scenario: scenarios.Scenario, runs: list[master.RunResult],
-                   out: Path) -> None:
-    """Write one scenario's result files and print their paths and its summary."""
-    for path in results.write_run(runs, scenario, out / scenario.name):
-        tqdm.write(str(path))
-    tqdm.write(results.summary_text(out / scenario.name / "summary.csv", scenario))
+                   out: Path) -> str:
+    """Write one scenario's result files; their paths and its summary, to print."""
+    paths = results.write_run(runs, scenario, out / scenario.name)
+    return "\n".join([*map(str, paths),
+                      results.summary_text(out / scenario.name / "summary.csv", scenario)])
 
 
 MAX_STEPS = 10_000_000  # communication steps per run: the series stay well inside memory
