@@ -487,8 +487,14 @@ class ModelSlave(Fmi2Slave):
             raise self._state_problem(f"invalid parameter: {error}") from None
         self.params = params
         self.restore_hidden_state(hidden)
-        if self.refreshes_outputs:
-            self.refresh_outputs()  # what the saved state read: the same inputs and state
+        if self.refreshes_outputs:  # what the saved state read: the same inputs and state
+            try:
+                self.refresh_outputs()
+                problem = self._non_finite_output()
+            except (ArithmeticError, ValueError) as error:
+                problem = _arithmetic_problem(error)
+            if problem is not None:
+                raise self._state_problem(problem)
 
     def _state_problem(self, problem: str) -> ValueError:
         self.fail(f"FMU state refused: {problem}")
