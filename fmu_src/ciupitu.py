@@ -68,6 +68,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import NamedTuple
 
 from fmu_src import ledger
@@ -396,7 +397,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
     payload, tau = u.payload, u.tau_drive
     theta, omega, W_drive, E_loss = integrate_arm(
-        lambda theta, omega: _arm_rates(p, payload, tau, theta, omega), s.theta, s.omega,
+        partial(_arm_rates, p, payload, tau), s.theta, s.omega,
         s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
     return State(theta, omega, W_drive, E_loss, s.E_added)
 

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from functools import cached_property
+from functools import cached_property, partial
 from typing import Any, NamedTuple
 
 from fmu_src import ciupitu, ledger
@@ -354,7 +354,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
     k, payload, tau = p.linkage, u.payload, u.tau_drive
     theta, omega, W_drive, E_loss = integrate_arm(
-        lambda theta, omega: _arm_rates(p, k, payload, tau, theta, omega), s.theta, s.omega,
+        partial(_arm_rates, p, k, payload, tau), s.theta, s.omega,
         s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
     return State(theta, omega, W_drive, E_loss, s.E_added)
 
