@@ -16,8 +16,9 @@ their ratio.
 `cosim`: wall time of every variant of every shipped scenario at 1 ms, as a real-time
 factor (simulated / wall time), next to the cost of the FMU's own steps in it (steps times
 the fmu_step cost): what the master, drive and controller add. `us_per_step` is the CPU time
-of one closed-loop step (controller, motor, setReal, doStep, getReal; the run's set-up and
-result assembly spread over its steps) and `ratio_to_floor` its ratio to the BenchFloor step
+of one closed-loop step in the thread that runs it (controller, motor, setReal, doStep,
+getReal; the run's set-up and result assembly spread over its steps; not the spinning of
+numerical libraries' helper threads) and `ratio_to_floor` its ratio to the BenchFloor step
 measured in the same benchmark run, a figure that the machine's load moves much less than the
 real-time factor. The last row is the sum, what `make cosim` spends in simulation on one
 core.
@@ -186,9 +187,9 @@ def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
     for name in scenarios.available():
         scenario = scenarios.load(name)
         for variant in scenario.variants.values():
-            start, cpu_start = time.perf_counter(), time.process_time()
+            start, cpu_start = time.perf_counter(), time.thread_time()
             run = master.run(scenario, variant, STEP_SIZE)
-            wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+            wall, cpu = time.perf_counter() - start, time.thread_time() - cpu_start
             n_steps = round(scenario.duration / STEP_SIZE)
             rows.append({"scenario": name, "variant": variant.name, "model": run.model,
                          "simulated_s": scenario.duration, "steps": n_steps, "wall_s": wall,
