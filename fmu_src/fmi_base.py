@@ -582,6 +582,10 @@ class MechanismSlave(ModelSlave):
         return self.physics.Inputs._make(self.input_values(self.__dict__))
 
     def initialise(self, params: Any) -> None:
+        missing = [n for n in self.physics.Inputs._fields if n not in self.info]
+        if missing:
+            raise TypeError(f"{type(self).__name__} has no input variable for "
+                            f"{self.physics.__name__}.Inputs field(s) {', '.join(missing)}")
         self.state = self.physics.initial_state(params)
         self.previous_inputs = self.inputs()
         outputs = self.physics.outputs(params, self.previous_inputs, self.state)
