@@ -42,23 +42,17 @@ def test_integrate_arm_is_integrate_over_the_arm_state(rate: float) -> None:
     assert integrate_arm(pendulum, *start, TAU, 1e-3, rate) == tuple(expected)
 
 
-def test_ciupitu_advance_is_rk4_over_its_derivatives() -> None:
-    p = dataclasses.replace(ciupitu.Parameters(), d_cw=0.3, theta0=1.1, omega0=0.4)
-    u = ciupitu.Inputs(tau_drive=0.2, payload=0.6)
-    fast = full = ciupitu.initial_state(p)
+@pytest.mark.parametrize(("physics", "changes", "inputs"), [
+    (ciupitu, {"d_cw": 0.3, "theta0": 1.1, "omega0": 0.4}, (0.2, 0.6)),
+    (rocking, {"d_link": 0.05, "theta0": 0.3, "omega0": -0.8}, (-0.4, 0.5)),
+], ids=["ciupitu", "rocking"])
+def test_arm_advance_is_rk4_over_its_derivatives(physics, changes, inputs) -> None:
+    """advance() of the arms (integrate_arm) against integrate() over their derivatives."""
+    p = dataclasses.replace(physics.Parameters(), **changes)
+    u = physics.Inputs(*inputs)
+    fast = full = physics.initial_state(p)
     for dt in (1e-3, 1e-2, 0.1) * 5:
-        fast = ciupitu.advance(p, u, fast, dt)
-        full = integrate(lambda s: ciupitu.derivatives(p, u, s), full, dt,
-                         ciupitu.characteristic_rate(p, u, full))
-        assert fast == full and type(fast) is ciupitu.State
-
-
-def test_rocking_advance_is_rk4_over_its_derivatives() -> None:
-    p = dataclasses.replace(rocking.Parameters(), theta0=0.3, omega0=-0.8, d_link=0.05)
-    u = rocking.Inputs(tau_drive=-0.4, payload=0.5)
-    fast = full = rocking.initial_state(p)
-    for dt in (1e-3, 1e-2, 0.1) * 5:
-        fast = rocking.advance(p, u, fast, dt)
-        full = integrate(lambda s: rocking.derivatives(p, u, s), full, dt,
-                         rocking.characteristic_rate(p, u, full))
-        assert fast == full and type(fast) is rocking.State
+        fast = physics.advance(p, u, fast, dt)
+        full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
+                         physics.characteristic_rate(p, u, full))
+        assert fast == full and type(fast) is physics.State
