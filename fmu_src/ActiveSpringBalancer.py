@@ -39,20 +39,18 @@ class ActiveSpringBalancer(MechanismSlave):
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.compression_reported = False   # once per spell of F_s < 0
 
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau_drive), float(self.F_adjust), float(self.payload))
-
     def initialise(self, params: physics.Parameters) -> None:
         self.compression_reported = False
         super().initialise(params)
 
     def step(self, dt: float) -> None:
         super().step(dt)
-        if self.F_s < 0.0 and not self.compression_reported:
-            self.warn(f"spring in compression (F_s = {self.F_s:.4g} N at l_s = {self.l_s:.4g} "
-                      f"m, free length {self.params.free_length:.4g} m): the model's linear law "
-                      "pushes, an extension spring would go slack")
-        self.compression_reported = self.F_s < 0.0
+        spring = self.output_values
+        if spring.F_s < 0.0 and not self.compression_reported:
+            self.warn(f"spring in compression (F_s = {spring.F_s:.4g} N at l_s = "
+                      f"{spring.l_s:.4g} m, free length {self.params.free_length:.4g} m): the "
+                      "model's linear law pushes, an extension spring would go slack")
+        self.compression_reported = spring.F_s < 0.0
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         super().restore_hidden_state(hidden)

@@ -39,9 +39,6 @@ class PrismaticCompensator(MechanismSlave):
             setattr(self, name, getattr(params, name))
         super().initialise(params)
 
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau1), float(self.f2))
-
 
 CALCULATED_PARAMETERS = (
     ("J1", "kg.m2", "Inertia of link 1 about O, I1 + m1 lc1^2"),

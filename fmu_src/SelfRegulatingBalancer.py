@@ -58,11 +58,6 @@ class SelfRegulatingBalancer(MechanismSlave):
         self.stop_reported = False
         self.off_angle_reported = False     # once per regulation (slider and pulley free)
 
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau_drive), float(self.payload),
-                              float(self.counterweight_added), bool(self.slider_locked),
-                              bool(self.pulley_locked))
-
     def initialise(self, params: physics.Parameters) -> None:
         self.M0 = params.M0
         self.b_design = params.b_design
@@ -75,12 +70,12 @@ class SelfRegulatingBalancer(MechanismSlave):
         if u.counterweight_added < -p.M0:
             raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
-        super().step(dt)
-        if self.slider_at_stop and not self.stop_reported:
+        self.step_with(u, dt)
+        if self.output_values.slider_at_stop and not self.stop_reported:
             stop = "b_min" if self.state.b <= p.b_min else "b_max"
             self.warn(f"slider reached its end stop {stop} = {self.state.b:.4f} m: "
-                      f"balance_error = {self.balance_error:.4g} N m")
-        self.stop_reported = self.slider_at_stop
+                      f"balance_error = {self.output_values.balance_error:.4g} N m")
+        self.stop_reported = self.output_values.slider_at_stop
 
     def switch_inputs(self, u: physics.Inputs) -> None:
         self.report_misuse(self.params, u)

@@ -208,7 +208,12 @@ def spring(p: Parameters, theta: float, Y_B: float) -> Spring:
 
 def tau_gravity(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
     """Gravity plus spring torque on the link about O, -dV/dtheta [N m]."""
-    return gravity_moment(p, payload) * math.sin(theta) + spring(p, theta, Y_B).tau
+    return _tau_gravity(p, payload, theta, spring(p, theta, Y_B))
+
+
+def _tau_gravity(p: Parameters, payload: float, theta: float, sp: Spring) -> float:
+    """tau_gravity for the spring sp at theta."""
+    return gravity_moment(p, payload) * math.sin(theta) + sp.tau
 
 
 def balance_error(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
@@ -245,10 +250,10 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
     other mechanisms take it: a payload changes only at events here, so it is not used);
     direction as for `carriage`, None for `motion_direction` at s."""
     theta, omega, q, q_dot = s[:4]
-    Y_B = p.Y_B0 + q
-    torque = tau_gravity(p, u.payload, theta, Y_B)
+    sp = spring(p, theta, p.Y_B0 + q)
+    torque = _tau_gravity(p, u.payload, theta, sp)
     omega_dot = (u.tau_drive + torque - p.d_link * omega) / link_inertia(p, u.payload)
-    load = spring(p, theta, Y_B).F_q - p.m_q * p.g
+    load = sp.F_q - p.m_q * p.g
     if direction is None:
         direction = motion_direction(u.F_adjust, q_dot)
     q_ddot, lock = carriage(p, u.F_adjust, load, q_dot, direction)

@@ -68,10 +68,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import integrate
+from fmu_src.integration import integrate_arm
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -94,11 +95,16 @@ class Geometry(NamedTuple):
 
 def geometry(OA: float, AB: float, phi: float) -> Geometry:
     """OB(phi) of eq. 13 and its first two derivatives; phi from the horizontal [rad]."""
+    return Geometry._make(_geometry(OA, AB, phi))
+
+
+def _geometry(OA: float, AB: float, phi: float) -> tuple[float, float, float]:
+    """geometry() as a plain tuple (the dynamics evaluate it four times per RK4 sub-step)."""
     sin_p, cos_p = math.sin(phi), math.cos(phi)
     root = math.sqrt(AB * AB - (OA * cos_p) ** 2)
     d_root = OA * OA * sin_p * cos_p / root
     d2_root = (OA * OA * math.cos(2.0 * phi) - d_root * d_root) / root
-    return Geometry(root - OA * sin_p, d_root - OA * cos_p, d2_root + OA * sin_p)
+    return root - OA * sin_p, d_root - OA * cos_p, d2_root + OA * sin_p
 
 
 class Moments(NamedTuple):
@@ -333,24 +339,32 @@ def _damping(p: Parameters, dOB: float) -> float:
 
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
-    return _inertia(p, payload, *geometry(p.OA, p.AB, HALF_PI - theta))
+    return _inertia(p, payload, *_geometry(p.OA, p.AB, HALF_PI - theta))
 
 
 def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
     """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
-    OB, dOB, _ = geometry(p.OA, p.AB, HALF_PI - theta)
+    OB, dOB, _ = _geometry(p.OA, p.AB, HALF_PI - theta)
     return _gravity(p, payload, theta, OB, dOB)
 
 
 def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
-    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega,
-    with one geometry() evaluation (this runs four times per RK4 sub-step)."""
-    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - theta)
+    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega."""
+    return _arm_rates(p, payload, tau_drive, theta, omega)[0]
+
+
+def _arm_rates(p: Parameters, payload: float, tau_drive: float, theta: float, omega: float
+               ) -> tuple[float, float]:
+    """The angular acceleration [rad/s^2] (`acceleration`) and the friction loss
+    d(theta) omega^2 [W], with one geometry() evaluation (this runs four times per RK4
+    sub-step)."""
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - theta)
     J, dJ = _inertia(p, payload, OB, dOB, d2OB)
-    return (tau_drive + _gravity(p, payload, theta, OB, dOB) - _damping(p, dOB) * omega
-            - 0.5 * dJ * omega * omega) / J
+    damping = _damping(p, dOB)
+    return ((tau_drive + _gravity(p, payload, theta, OB, dOB) - damping * omega
+             - 0.5 * dJ * omega * omega) / J, damping * omega * omega)
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
@@ -360,10 +374,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     arm, J omega' gains -payload_rate w^2 omega and E_loss 1/2 payload_rate w^2 omega^2; a
     payload leaving takes its kinetic energy (E_added)."""
     theta, omega = s[0], s[1]
-    omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
-    loss = p.d_link * omega * omega
-    if p.d_cw:
-        loss = _damping(p, geometry(p.OA, p.AB, HALF_PI - theta).dOB) * omega * omega
+    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive, theta, omega)
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
     flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
@@ -374,7 +385,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    OB, dOB, d2OB = geometry(p.OA, p.AB, HALF_PI - s.theta)
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - s.theta)
     J, dJ = _inertia(p, u.payload, OB, dOB, d2OB)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
@@ -384,7 +395,11 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
+    payload, tau = u.payload, u.tau_drive
+    theta, omega, W_drive, E_loss = integrate_arm(
+        partial(_arm_rates, p, payload, tau), s.theta, s.omega,
+        s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
+    return State(theta, omega, W_drive, E_loss, s.E_added)
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
@@ -415,7 +430,7 @@ class Outputs(NamedTuple):
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
     phi = HALF_PI - s.theta
-    OB, dOB, d2OB = geometry(p.OA, p.AB, phi)
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, phi)
     M = _moments(u.payload * p.g, p.w, p.m2 * p.g, OB, math.sin(s.theta))  # cos(phi)
     return Outputs(
         theta=s.theta, omega=s.omega, OB=OB,

@@ -101,7 +101,9 @@ class ModelSlave(Fmi2Slave):
     parameters), register inputs and outputs with `add_input`/`add_output`, and implement
     `initialise(params)` and `step(dt)`; `validate(params)` checks the field ranges unless
     overridden. Their hidden state is listed in `hidden_state`. A subclass whose outputs are
-    functions of its state and inputs implements `refresh_outputs`.
+    functions of its state and inputs implements `refresh_outputs` and keeps its outputs in
+    `output_values` (a tuple in output_names order, replaced at once by `set_outputs`); the
+    others keep each output in the attribute of its name.
     """
 
     parameters_type: type
@@ -131,6 +133,7 @@ class ModelSlave(Fmi2Slave):
         self.real_outputs: list[str] = []  # names of the Real outputs, checked finite per step
         self.calculated: list[str] = []    # names of the calculated parameters
         self.output_names: list[str] = []  # names of all outputs, restored by a refused step
+        self.output_values: tuple = ()     # the outputs of a slave that refreshes them
         for f in fields(self.parameters_type):
             meta = f.metadata
             setattr(self, f.name, f.default)
@@ -152,6 +155,8 @@ class ModelSlave(Fmi2Slave):
         self.register_variable(var)
         if var.causality in (Fmi2Causality.parameter, Fmi2Causality.calculatedParameter):
             var.setter = self._parameter_setter(var.name, var.causality)
+        for table in ("_real_getters", "_real_setters"):  # built again at the next call
+            self.__dict__.pop(table, None)
 
     def _parameter_setter(self, name: str, causality: Fmi2Causality) -> Any:
         """Setter of a fixed or calculated parameter: refused once initialised (the model
@@ -214,7 +219,11 @@ class ModelSlave(Fmi2Slave):
         self.dependencies[name] = tuple(depends_on)
         self.initial_dependencies[name] = tuple(
             depends_on if initial_depends_on is None else initial_depends_on)
-        setattr(self, name, False if unit is None else 0.0)
+        start = False if unit is None else 0.0
+        if self.refreshes_outputs:
+            self.output_values = (*self.output_values, start)
+        else:
+            setattr(self, name, start)
         self.output_names.append(name)
         if unit is None:
             var = Boolean(name, causality=Fmi2Causality.output,
@@ -252,27 +261,62 @@ class ModelSlave(Fmi2Slave):
         return set_input
 
     def _output_getter(self, name: str) -> Callable[[], Any]:
-        """Getter of an output: all are recomputed first if an input was set since they were
-        (before initialisation there is nothing to compute them from)."""
+        """Getter of an output of a refreshing slave: all are recomputed first if an input was
+        set since they were (before initialisation there is nothing to compute them from)."""
         attributes = self.__dict__
+        index = self.output_names.index(name)
 
         def current_output() -> Any:
             if attributes["outputs_stale"]:
                 attributes["outputs_stale"] = False
                 if self.params is not None:
                     self.refresh_outputs()
-            return attributes[name]
+            return attributes["output_values"][index]
         return current_output
+
+    # fmi2GetReal/fmi2SetReal: pythonfmu's look each variable up and check its type per call
+    @cached_property
+    def _real_getters(self) -> dict[int, Callable[[], Any]]:
+        """Getter of each Real variable by value reference (complete once registered)."""
+        return {vr: var.getter for vr, var in self.vars.items() if isinstance(var, Real)}
+
+    @cached_property
+    def _real_setters(self) -> dict[int, Callable[[Any], None]]:
+        """Setter of each Real variable by value reference."""
+        return {vr: var.setter for vr, var in self.vars.items() if isinstance(var, Real)}
+
+    def get_real(self, vrs: list[int]) -> list[float]:
+        getters = self._real_getters
+        try:
+            return [float(getters[vr]()) for vr in vrs]
+        except KeyError:  # not a Real: pythonfmu's TypeError names the value reference
+            return super().get_real(vrs)
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        setters = self._real_setters
+        try:
+            for vr, value in zip(vrs, values):
+                setters[vr](value)
+        except KeyError:
+            super().set_real(vrs, values)
 
     def refresh_outputs(self) -> None:
         """Recompute all outputs from the current inputs and state (with `set_outputs`)."""
         raise NotImplementedError
 
-    def set_outputs(self, values: Any) -> None:
-        """Copy a NamedTuple of all outputs onto the output variables of the same names: the
-        outputs are then current for the inputs they were computed from."""
-        self.__dict__.update(zip(values._fields, values))  # plain attributes: no setattr needed
+    def set_outputs(self, values: tuple) -> None:
+        """All outputs of a refreshing slave at once (a tuple in output_names order): they
+        are then current for the inputs they were computed from. One reference is stored,
+        not one attribute per output, and a refused step puts the previous tuple back."""
+        self.output_values = values
         self.outputs_stale = False
+
+    def _restore_outputs(self, values: Sequence[Any]) -> None:
+        """Put back output values taken with `_outputs_of` (output_names order)."""
+        if self.refreshes_outputs:
+            self.output_values = values
+        else:
+            self.__dict__.update(zip(self.output_names, values))
 
     def read_parameters(self) -> Any:
         """The parameters dataclass built from the current parameter variables."""
@@ -342,15 +386,18 @@ class ModelSlave(Fmi2Slave):
             problem = _arithmetic_problem(error)
         if problem is None:
             return True
-        self.__dict__.update(zip(self.output_names, outputs))
         self.restore_hidden_state(dict(zip(self.hidden_state, hidden)))
+        self._restore_outputs(outputs)
         self.fail(f"step at t = {current_time} s of {step_size} s refused, state unchanged: "
                   f"{problem}{self._describe_state()}")
         return False
 
     @cached_property
     def _outputs_of(self) -> Callable[[dict[str, Any]], tuple]:
-        """Tuple of the output values in a namespace dict, in output_names order."""
+        """Tuple of the output values in the instance's namespace dict, in output_names
+        order (a refreshing slave's output_values as they are)."""
+        if self.refreshes_outputs:
+            return itemgetter("output_values")
         return _tuple_getter(itemgetter, self.output_names)
 
     @cached_property
@@ -362,7 +409,7 @@ class ModelSlave(Fmi2Slave):
         """A message naming the first of the Real variables names (default: the outputs)
         that is NaN or infinite, else None."""
         names = self.real_outputs if names is None else names
-        values = self.__dict__
+        values = {**self.__dict__, **dict(zip(self.output_names, self._outputs_of(self.__dict__)))}
         if math.isfinite(sum(values[name] for name in names)):
             return None
         for name in names:
@@ -384,9 +431,10 @@ class ModelSlave(Fmi2Slave):
     def _input_problem(self) -> str | None:
         """Error message naming the first Real input that is not finite, outside its range or
         its magnitudes, else None."""
+        values = self.__dict__
         for name, lowest, highest in self.real_input_bounds:
-            value = getattr(self, name)
-            if lowest <= value <= highest and not 0.0 < abs(value) < SMALLEST:
+            value = values[name]
+            if lowest <= value <= highest and (value == 0.0 or not -SMALLEST < value < SMALLEST):
                 continue
             info = self.info[name]
             if not math.isfinite(value):
@@ -427,8 +475,10 @@ class ModelSlave(Fmi2Slave):
             if not all(math.isfinite(v) for v in _numbers(value)):
                 raise self._state_problem(f"hidden state {name} = {value} is not finite")
         names = {var.name: var for var in self.vars.values()}
+        # a refreshing slave's outputs are computed again from the restored state, below
+        skipped = set(self.output_names) if self.refreshes_outputs else set()
         for name, value in state.items():  # direct: the parameter setters refuse after init
-            if name in names:
+            if name in names and name not in skipped:
                 setattr(self, names[name].local_name, value)
         try:
             params = self.read_parameters()
@@ -437,6 +487,14 @@ class ModelSlave(Fmi2Slave):
             raise self._state_problem(f"invalid parameter: {error}") from None
         self.params = params
         self.restore_hidden_state(hidden)
+        if self.refreshes_outputs:  # what the saved state read: the same inputs and state
+            try:
+                self.refresh_outputs()
+                problem = self._non_finite_output()
+            except (ArithmeticError, ValueError) as error:
+                problem = _arithmetic_problem(error)
+            if problem is not None:
+                raise self._state_problem(problem)
 
     def _state_problem(self, problem: str) -> ValueError:
         self.fail(f"FMU state refused: {problem}")
@@ -495,7 +553,8 @@ class MechanismSlave(ModelSlave):
     `physics` is the module, a `fmu_src.mechanism.Physics`: validate, initial_state, advance
     (one communication step with the inputs held), outputs, and switch_inputs, called only
     when one of its EVENT_INPUTS changes (the drive effort changes at every step and is no
-    event). Subclasses register the variables and map them to physics.Inputs in `inputs()`.
+    event). Subclasses register the variables: one input per field of physics.Inputs, of the
+    same name, and one output per field of the Outputs, in their order.
     """
 
     physics: Any
@@ -509,20 +568,34 @@ class MechanismSlave(ModelSlave):
         # the event inputs of an Inputs tuple, as one comparable value (None: no events)
         self.event_values = (itemgetter(*(self.physics.Inputs._fields.index(n) for n in names))
                              if names else None)
+        # the input variables' values in physics.Inputs order, from the instance's __dict__
+        self.input_values = _tuple_getter(itemgetter, self.physics.Inputs._fields)
 
     def validate(self, params: Any) -> None:
         self.physics.validate(params)
 
     def inputs(self) -> Any:
-        raise NotImplementedError
+        """The current inputs as a physics.Inputs."""
+        return self.physics.Inputs._make(self.input_values(self.__dict__))
 
     def initialise(self, params: Any) -> None:
+        missing = [n for n in self.physics.Inputs._fields if n not in self.info]
+        if missing:
+            raise TypeError(f"{type(self).__name__} has no input variable for "
+                            f"{self.physics.__name__}.Inputs field(s) {', '.join(missing)}")
         self.state = self.physics.initial_state(params)
         self.previous_inputs = self.inputs()
-        self.set_outputs(self.physics.outputs(params, self.previous_inputs, self.state))
+        outputs = self.physics.outputs(params, self.previous_inputs, self.state)
+        if outputs._fields != tuple(self.output_names):
+            raise TypeError(f"{type(self).__name__} registers its outputs in another order "
+                            f"than {self.physics.__name__}.Outputs")
+        self.set_outputs(outputs)
 
     def step(self, dt: float) -> None:
-        u = self.inputs()
+        self.step_with(self.inputs(), dt)
+
+    def step_with(self, u: Any, dt: float) -> None:
+        """One communication step dt [s] with the inputs u (from `inputs()`)."""
         events = self.event_values
         if events is not None and events(u) != events(self.previous_inputs):
             self.switch_inputs(u)
@@ -559,8 +632,6 @@ class PayloadArmSlave(MechanismSlave):
         for name, unit, description in self.output_table:
             self.add_output(name, unit, description, self.input_dependencies.get(name, ()))
 
-    def inputs(self) -> Any:
-        return self.physics.Inputs(float(self.tau_drive), float(self.payload))
 
 
 def _indices(indices: Any) -> str:

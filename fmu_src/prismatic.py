@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
 from fmu_src.integration import integrate
@@ -126,7 +127,7 @@ class Parameters:
     q2_max: float = parameter(0.75, "m", "Outer end stop of the prismatic joint (default: m2 "
                               "at the end of the 1 m link, 1 m - ls0)")
 
-    @property
+    @cached_property
     def J1(self) -> float:
         """Inertia of link 1 about O, I1 + m1 lc1^2 [kg m^2]."""
         return self.I1 + self.m1 * self.lc1 ** 2
@@ -136,27 +137,27 @@ class Parameters:
         lc2 = self.ls0 + q2
         return self.J1 + self.J_drive1 + self.m2 * lc2 * lc2
 
-    @property
+    @cached_property
     def mass_2(self) -> float:
         """Inertia of the prismatic joint, m2 + m_drive2 [kg]."""
         return self.m2 + self.m_drive2
 
-    @property
+    @cached_property
     def k1_used(self) -> float:
         """Effective pin-slot spring stiffness, design m2 g / (2 r) (eq. 3.6) [N/m]."""
         return self.m2 * self.g / (2.0 * self.r) if self.design_springs else self.k1
 
-    @property
+    @cached_property
     def k2_used(self) -> float:
         """Effective stiffness of spring CD, design lc1 m1 g / (c d) (eq. 3.13) [N/m]."""
         return self.lc1 * self.m1 * self.g / (self.c * self.d) if self.design_springs else self.k2
 
-    @property
+    @cached_property
     def k3_used(self) -> float:
         """Effective stiffness of spring AB, design m2 g ls0 / (a b) (eqs. 3.15, 3.17) [N/m]."""
         return self.m2 * self.g * self.ls0 / (self.a * self.b) if self.design_springs else self.k3
 
-    @property
+    @cached_property
     def rho_used(self) -> float:
         """Effective belt ratio q*/q2, design b / ls0 (eq. 3.17) [-]."""
         return self.b / self.ls0 if self.design_springs else self.rho
@@ -242,9 +243,11 @@ def _held_by_stop(p: Parameters, q2: float, q2_dot: float, force: float) -> bool
                               or (q2 == p.q2_max and force >= 0.0))
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
-    """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
-    other mechanisms take it: no mass changes here, so it is not used)."""
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None
+                ) -> tuple[float, ...]:
+    """Time derivative of the state for constant inputs, in State's field order (`rates`,
+    d/dt of the inputs, as the other mechanisms take it: no mass changes here, so it is not
+    used). A plain tuple: this runs four times per RK4 sub-step."""
     q1, w1, q2, w2 = s[:4]
     lc2 = p.ls0 + q2
     eff = efforts(p, q1, q2)
@@ -253,9 +256,8 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     q2_dot, w2_dot = w2, f2 / p.mass_2
     if _held_by_stop(p, q2, w2, f2):
         q2_dot = w2_dot = 0.0
-    return State(w1, tau1 / p.inertia_1(q2), q2_dot, w2_dot,
-                 u.tau1 * w1 + u.f2 * q2_dot, eff.f2_worm * q2_dot,
-                 p.d1 * w1 * w1 + p.d2 * q2_dot * q2_dot, 0.0)
+    return (w1, tau1 / p.inertia_1(q2), q2_dot, w2_dot, u.tau1 * w1 + u.f2 * q2_dot,
+            eff.f2_worm * q2_dot, p.d1 * w1 * w1 + p.d2 * q2_dot * q2_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:

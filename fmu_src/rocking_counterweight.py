@@ -52,10 +52,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from functools import cached_property, partial
 from typing import Any, NamedTuple
 
 from fmu_src import ciupitu, ledger
-from fmu_src.integration import integrate
+from fmu_src.integration import integrate_arm
 from fmu_src.parameters import check_ranges, parameter
 
 HALF_PI = 0.5 * math.pi
@@ -131,11 +132,12 @@ def geometry(k: Linkage, phi: float) -> Geometry:
     dd = -(dAx * ubx + dAy * uby) / (k.BC * s)
     d2b = (k.AB * db * db * c - k.BC * dd * dd + (Ax * udx + Ay * udy)) / (k.AB * s)
     r = k.AC2
-    return Geometry(
-        X=Ax + r * ubx, Y=Ay + r * uby,
-        dX=dAx - r * db * uby, dY=dAy + r * db * ubx,
-        d2X=-Ax + r * (-d2b * uby - db * db * ubx), d2Y=-Ay + r * (d2b * ubx - db * db * uby),
-        psi=math.atan2(uby * cos_p - ubx * sin_p, ubx * cos_p + uby * sin_p))
+    # positional: keyword arguments cost more than the arithmetic here (four calls a sub-step)
+    return Geometry(Ax + r * ubx, Ay + r * uby,                                   # X, Y
+                    dAx - r * db * uby, dAy + r * db * ubx,                       # dX, dY
+                    -Ax + r * (-d2b * uby - db * db * ubx),                       # d2X
+                    -Ay + r * (d2b * ubx - db * db * uby),                        # d2Y
+                    math.atan2(uby * cos_p - ubx * sin_p, ubx * cos_p + uby * sin_p))  # psi
 
 
 class Moments(NamedTuple):
@@ -229,6 +231,11 @@ class Parameters:
     omega0: float = _as_translational("omega0")
     J_drive: float = _as_translational("J_drive")
 
+    @cached_property
+    def linkage(self) -> Linkage:
+        """The linkage fields (computed once: the dynamics need them at every evaluation)."""
+        return Linkage.of(self)
+
     @property
     def J_fixed(self) -> float:
         """The arm's inertia without payload and counterweight [kg m^2]."""
@@ -285,18 +292,18 @@ def _arm_moment(p: Parameters, payload: float) -> float:
 
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
-    return _inertia(p, payload, geometry(Linkage.of(p), HALF_PI - theta))
+    return _inertia(p, payload, geometry(p.linkage, HALF_PI - theta))
 
 
 def potential_energy(p: Parameters, payload: float, theta: float) -> float:
     """E_p [J], zero at the height of O."""
-    q = geometry(Linkage.of(p), HALF_PI - theta)
+    q = geometry(p.linkage, HALF_PI - theta)
     return p.g * (math.cos(theta) * _arm_moment(p, payload) + p.m2 * q.Y)
 
 
 def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
     """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
-    q = geometry(Linkage.of(p), HALF_PI - theta)
+    q = geometry(p.linkage, HALF_PI - theta)
     return p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
 
 
@@ -304,10 +311,18 @@ def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
     J theta'' + 1/2 (dJ/dtheta) omega^2 = tau_drive + tau_gravity - d_link omega."""
-    q = geometry(Linkage.of(p), HALF_PI - theta)
+    return _arm_rates(p, p.linkage, payload, tau_drive, theta, omega)[0]
+
+
+def _arm_rates(p: Parameters, k: Linkage, payload: float, tau_drive: float, theta: float,
+               omega: float) -> tuple[float, float]:
+    """The angular acceleration [rad/s^2] (`acceleration`, for the linkage k of p) and the
+    pivot's friction loss d_link omega^2 [W]."""
+    q = geometry(k, HALF_PI - theta)
     J, dJ = _inertia(p, payload, q)
     gravity = p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
-    return (tau_drive + gravity - p.d_link * omega - 0.5 * dJ * omega * omega) / J
+    return ((tau_drive + gravity - p.d_link * omega - 0.5 * dJ * omega * omega) / J,
+            p.d_link * omega * omega)
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
@@ -317,8 +332,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     arm (J omega' gains -payload_rate w^2 omega, E_loss 1/2 payload_rate w^2 omega^2); a
     payload leaving takes its kinetic energy with it (E_added)."""
     theta, omega = s[0], s[1]
-    omega_dot = acceleration(p, u.payload, u.tau_drive, theta, omega)
-    loss = p.d_link * omega * omega
+    omega_dot, loss = _arm_rates(p, p.linkage, u.payload, u.tau_drive, theta, omega)
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
     flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
@@ -329,7 +343,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    q = geometry(Linkage.of(p), HALF_PI - s.theta)
+    q = geometry(p.linkage, HALF_PI - s.theta)
     J, dJ = _inertia(p, u.payload, q)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * math.hypot(q.d2X, q.d2Y))
@@ -338,7 +352,11 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
+    k, payload, tau = p.linkage, u.payload, u.tau_drive
+    theta, omega, W_drive, E_loss = integrate_arm(
+        partial(_arm_rates, p, k, payload, tau), s.theta, s.omega,
+        s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
+    return State(theta, omega, W_drive, E_loss, s.E_added)
 
 
 def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
@@ -376,7 +394,7 @@ class Outputs(NamedTuple):
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
     phi = HALF_PI - s.theta
-    q = geometry(Linkage.of(p), phi)
+    q = geometry(p.linkage, phi)
     cos_phi = math.sin(s.theta)
     M = _moments(u.payload * p.g, p.w, p.m2 * p.g, q.dY, cos_phi)
     arm = _arm_moment(p, u.payload)

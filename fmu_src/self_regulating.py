@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import integrate
+from fmu_src.integration import integrate, integrate_arm
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -351,11 +351,17 @@ def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float
     return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
+def _link_rate(p: Parameters, moment: float, J: float, b: float, omega: float) -> float:
+    """Fastest rate of the link's own dynamics [1/s], for its gravity_moment and
+    link_inertia J with the slider at b."""
+    stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
+    return max(math.sqrt(stiffness / J), p.d_link / J, abs(omega))
+
+
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    J = link_inertia(p, u.payload, s.b)
-    stiffness = abs(gravity_moment(p, u.payload, s.b)) + p.k * p.a * (abs(s.b) + p.a)
-    rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
+    rate = _link_rate(p, gravity_moment(p, u.payload, s.b), link_inertia(p, u.payload, s.b),
+                      s.b, s.omega)
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
@@ -404,31 +410,29 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
     return clamped._replace(E_loss=s.E_loss + loss)
 
 
-class _LinkState(NamedTuple):
-    """State of the link alone while the slider is clamped: angle, speed, W_drive, E_loss."""
-
-    theta: float
-    omega: float
-    W_drive: float
-    E_loss: float
-
-
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    rate = characteristic_rate(p, u, s)
     if u.slider_locked:
         # A clamped slider leaves a 1-DOF link: b and s_cw stay put and v = 0. RK4 over the
         # link (and its ledger) alone gives the same numbers as over the full state, whose
-        # other derivatives are zero, at less cost.
-        b, tau = s.b, u.tau_drive
+        # other derivatives are zero, at less cost; the terms constant over the step are
+        # computed once (as _link_acceleration computes them, so the numbers stay the same).
+        b, tau, d = s.b, u.tau_drive, p.d_link
+        moment, J = gravity_moment(p, u.payload, b), link_inertia(p, u.payload, b)
+        spring, real_spring = p.k * p.a * b, p.L0 > 0.0
 
-        def link(x: _LinkState) -> tuple[float, ...]:
-            return (x.omega, _link_acceleration(p, u, x.theta, x.omega, b, 0.0),
-                    tau * x.omega, p.d_link * x.omega * x.omega)
+        def link(theta: float, omega: float) -> tuple[float, float]:
+            sin_t = math.sin(theta)
+            spring_torque = spring * sin_t
+            if real_spring:
+                spring_torque *= _free_length_factor(p, theta, b)
+            return (tau + moment * sin_t - spring_torque - d * omega) / J, d * omega * omega
 
-        end = integrate(link, _LinkState(s.theta, s.omega, s.W_drive, s.E_loss), dt, rate)
-        return s._replace(theta=end.theta, omega=end.omega, v=0.0, W_drive=end.W_drive,
-                          E_loss=end.E_loss)
+        theta, omega, W_drive, E_loss = integrate_arm(
+            link, s.theta, s.omega, s.W_drive, s.E_loss, tau, dt,
+            _link_rate(p, moment, J, b, s.omega))
+        return State(theta, omega, b, 0.0, s.s_cw, W_drive, E_loss, s.E_added)
+    rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
         return integrate(lambda state: _derivatives(p, u, state), s, dt, rate,
                          lambda state: _apply_constraints(p, u, state))

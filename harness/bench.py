@@ -15,8 +15,13 @@ their ratio.
 
 `cosim`: wall time of every variant of every shipped scenario at 1 ms, as a real-time
 factor (simulated / wall time), next to the cost of the FMU's own steps in it (steps times
-the fmu_step cost): what the master, drive and controller add. The last row is the sum,
-what `make cosim` spends in simulation.
+the fmu_step cost): what the master, drive and controller add. `us_per_step` is the CPU time
+of one closed-loop step in the thread that runs it (controller, motor, setReal, doStep,
+getReal; the run's set-up and result assembly spread over its steps; not the spinning of
+numerical libraries' helper threads) and `ratio_to_floor` its ratio to the BenchFloor step
+measured in the same benchmark run, a figure that the machine's load moves much less than the
+real-time factor. The last row is the sum, what `make cosim` spends in simulation on one
+core.
 
 `convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
 reference (harness.reference): the relative error of each drive energy, which must shrink
@@ -172,29 +177,35 @@ def native_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
 
 
 def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
-    """Wall time and real-time factor of each variant of each shipped scenario at 1 ms.
+    """Wall time, real-time factor and CPU time per closed-loop step of each variant of each
+    shipped scenario at 1 ms, the latter against the BenchFloor step.
 
     Each run is timed as `make cosim` runs it (FMU instantiation included); FMU-only time is
     the run's step count times the model's best fmu_step cost where that was measured.
     """
     step_cost = (fmu_step(steps, repeats).set_index("model").us_per_step * 1e-6).to_dict()
+    floor = step_cost["BenchFloor"]
     rows = []
     for name in scenarios.available():
         scenario = scenarios.load(name)
         for variant in scenario.variants.values():
-            start = time.perf_counter()
+            start, cpu_start = time.perf_counter(), time.thread_time()
             run = master.run(scenario, variant, STEP_SIZE)
-            wall = time.perf_counter() - start
+            wall, cpu = time.perf_counter() - start, time.thread_time() - cpu_start
             n_steps = round(scenario.duration / STEP_SIZE)
             rows.append({"scenario": name, "variant": variant.name, "model": run.model,
                          "simulated_s": scenario.duration, "steps": n_steps, "wall_s": wall,
                          "real_time_factor": scenario.duration / wall,
-                         "fmu_only_s": n_steps * step_cost.get(run.model, float("nan"))})
+                         "fmu_only_s": n_steps * step_cost.get(run.model, float("nan")),
+                         "cpu_s": cpu, "us_per_step": 1e6 * cpu / n_steps,
+                         "ratio_to_floor": cpu / n_steps / floor})
     table = pd.DataFrame(rows)
     total = {"scenario": "all", "variant": "all", "model": "",
-             **table[["simulated_s", "steps", "wall_s"]].sum().to_dict()}
+             **table[["simulated_s", "steps", "wall_s", "cpu_s"]].sum().to_dict()}
     total["real_time_factor"] = total["simulated_s"] / total["wall_s"]
     total["fmu_only_s"] = float("nan")
+    total["us_per_step"] = 1e6 * total["cpu_s"] / total["steps"]
+    total["ratio_to_floor"] = total["cpu_s"] / total["steps"] / floor
     return pd.concat([table, pd.DataFrame([total])], ignore_index=True)
 
 

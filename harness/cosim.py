@@ -1,8 +1,18 @@
-"""`python -m harness cosim`: run scenarios and variants, write results/<scenario>/."""
+"""`python -m harness cosim`: run scenarios and variants, write results/<scenario>/.
+
+The runs (every selected variant of every selected scenario) are independent: with
+`--workers N` above 1 they run in N worker processes (pythonfmu embeds one interpreter per
+process, so processes, not threads), longest first, and each scenario's files are written
+(by a worker as well: its plots cost as much as a run) as soon as its last run is done. A
+run's numbers do not depend on the process it ran in.
+"""
 
 from __future__ import annotations
 
 import argparse
+import os
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
 from tqdm import tqdm
@@ -20,6 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="communication step [s] (default 1e-3)")
     parser.add_argument("--out", type=Path, default=results.RESULTS_DIR,
                         help="results folder; files go to OUT/<scenario>/ (default results/)")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                        help="worker processes running the variants in parallel (default: "
+                             "the number of CPUs; 1 runs them one after another in this "
+                             "process)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -32,19 +46,66 @@ def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
     return list(dict.fromkeys(names + baselines))
 
 
-def run_scenario(scenario: scenarios.Scenario, variants: list[str], step: float, out: Path,
-                 quiet: bool = False) -> list[master.RunResult]:
-    """Run the variants of one scenario with a progress bar and write its result files."""
-    steps = round(scenario.duration / step)
-    runs = []
-    with tqdm(total=steps * len(variants), unit="step", unit_scale=True, disable=quiet,
-              desc=scenario.name) as bar:
-        for name in variants:
-            bar.set_postfix_str(name)
-            runs.append(master.run(scenario, scenario.variant(name), step, progress=bar.update))
-    for path in results.write_run(runs, scenario, out / scenario.name):
-        print(path)
-    return runs
+def run_variant(scenario: scenarios.Scenario, name: str, step: float,
+                progress: Callable[[int], None] | None = None) -> master.RunResult:
+    """One run (in a worker process, or here with a progress callback)."""
+    return master.run(scenario, scenario.variant(name), step, progress=progress)
+
+
+def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out: Path,
+            workers: int = 1, quiet: bool = False) -> None:
+    """Run every planned variant and write each scenario's result files (and print its
+    summary) once its runs are done; with workers above 1 both in that many processes."""
+    jobs = [(index, scenario, name) for index, (scenario, names) in enumerate(plans)
+            for name in names]
+    remaining = {index: len(names) for index, (_, names) in enumerate(plans)}
+    runs: dict[tuple[int, str], master.RunResult] = {}
+    total = sum(round(scenario.duration / step) for _, scenario, _ in jobs)
+
+    def finished(index: int, name: str, run: master.RunResult) -> tuple | None:
+        """Book a run; the arguments of write_scenario when it was its scenario's last."""
+        runs[index, name] = run
+        remaining[index] -= 1
+        if remaining[index]:
+            return None
+        scenario, names = plans[index]
+        return scenario, [runs.pop((index, n)) for n in names], out
+
+    with tqdm(total=total, unit="step", unit_scale=True, disable=quiet) as bar:
+        if workers == 1 or len(jobs) == 1:
+            for index, scenario, name in jobs:
+                bar.set_postfix_str(f"{scenario.name}.{name}")
+                write = finished(index, name, run_variant(scenario, name, step, bar.update))
+                if write is not None:
+                    tqdm.write(write_scenario(*write))
+            return
+        # longest runs first, so that the last ones to start are short; a scenario's files
+        # are written by a worker too, while the others still run
+        jobs.sort(key=lambda job: -job[1].duration)
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            pending = {pool.submit(run_variant, scenario, name, step): (index, scenario, name)
+                       for index, scenario, name in jobs}
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    job = pending.pop(future)
+                    if job is None:  # a scenario's files written
+                        tqdm.write(future.result())
+                        continue
+                    index, scenario, name = job
+                    bar.update(round(scenario.duration / step))
+                    bar.set_postfix_str(f"{scenario.name}.{name} done")
+                    write = finished(index, name, future.result())
+                    if write is not None:
+                        pending[pool.submit(write_scenario, *write)] = None
+
+
+def write_scenario(scenario: scenarios.Scenario, runs: list[master.RunResult],
+                   out: Path) -> str:
+    """Write one scenario's result files; their paths and its summary, to print."""
+    paths = results.write_run(runs, scenario, out / scenario.name)
+    return "\n".join([*map(str, paths),
+                      results.summary_text(out / scenario.name / "summary.csv", scenario)])
 
 
 MAX_STEPS = 10_000_000  # communication steps per run: the series stay well inside memory
@@ -58,6 +119,8 @@ def check_step(step: float, duration: float) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.workers < 1:
+        raise UserError(f"--workers = {args.workers} must be at least 1")
     names = scenarios.available() if args.scenario == "all" else [args.scenario]
     plans = []
     for name in names:  # every scenario, option and output folder checked before any run
@@ -69,7 +132,5 @@ def run(args: argparse.Namespace) -> int:
             master.check_names(scenario, variant, scenario.parameters | variant.parameters)
         results.check_writable(args.out / scenario.name)
         plans.append((scenario, variants))
-    for scenario, variants in plans:
-        run_scenario(scenario, variants, args.step, args.out, args.quiet)
-        print(results.summary_text(args.out / scenario.name / "summary.csv", scenario))
+    run_all(plans, args.step, args.out, args.workers, args.quiet)
     return 0

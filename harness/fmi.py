@@ -68,6 +68,7 @@ class CoSimFMU:
             raise UserError(f"{self.path}: not a readable FMU ({error}); rebuild it "
                             "(python -m harness build-fmus)") from None
         self.variables = {v.name: v for v in self.model_description.modelVariables}
+        self._get_plans: dict[tuple[str, ...], tuple] = {}  # by the names `get` was given
         self.messages: list[LogMessage] = []
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
@@ -114,20 +115,29 @@ class CoSimFMU:
 
     def get(self, names: Iterable[str]) -> dict[str, float | bool | str]:
         """Current values of Real, Boolean and String variables by name."""
-        names = list(names)
-        reals = [n for n in names if self.variables[n].type == "Real"]
-        bools = [n for n in names if self.variables[n].type == "Boolean"]
-        strings = [n for n in names if self.variables[n].type == "String"]
+        names = tuple(names)
+        plan = self._get_plans.get(names)
+        if plan is None:
+            plan = self._get_plans[names] = self._get_plan(names)
+        reals, real_refs, bools, bool_refs, strings, string_refs = plan
         out: dict[str, float | bool | str] = {}
         if reals:
-            out.update(zip(reals, self.slave.getReal(self.references(reals))))
+            out.update(zip(reals, self.slave.getReal(real_refs)))
         if bools:
-            out.update((n, bool(v)) for n, v in
-                       zip(bools, self.slave.getBoolean(self.references(bools))))
+            out.update((n, bool(v)) for n, v in zip(bools, self.slave.getBoolean(bool_refs)))
         if strings:
             out.update((n, v.decode() if isinstance(v, bytes) else v) for n, v in
-                       zip(strings, self.slave.getString(self.references(strings))))
+                       zip(strings, self.slave.getString(string_refs)))
         return {n: out[n] for n in names}
+
+    def _get_plan(self, names: tuple[str, ...]) -> tuple:
+        """The names of each type among names and their value references, for `get` (made
+        once per list of names: the master reads the same list at every recorded step)."""
+        plan = []
+        for kind in ("Real", "Boolean", "String"):
+            chosen = [n for n in names if self.variables[n].type == kind]
+            plan += [chosen, self.references(chosen)]
+        return tuple(plan)
 
     def initialize(self, parameters: Mapping[str, float | bool] | None = None,
                    start_time: float = 0.0, stop_time: float | None = None) -> None:

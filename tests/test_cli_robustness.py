@@ -97,6 +97,7 @@ def test_empty_variants_table_is_one_line(tmp_path: Path,
     (["--step", "0"], "--step"), (["--step", "inf"], "--step"), (["--step", "nan"], "--step"),
     (["--variants", "nope"], "no variant 'nope'"), (["--variants", ""], "no variant ''"),
     (["--scenario", "no_such_scenario"], "no scenario 'no_such_scenario'"),
+    (["--workers", "0"], "--workers = 0"),
 ])
 def test_bad_cosim_option_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                       options: list[str], named: str) -> None:
@@ -160,6 +161,20 @@ def test_one_variant_merges_into_the_result_set(tmp_path: Path) -> None:
                      str(out), "--quiet"]) == 0
     second = pd.read_csv(out / "short" / "summary.csv")
     pd.testing.assert_frame_equal(first, second)  # same runs, same numbers, both rows
+
+
+def test_worker_processes_write_what_one_process_writes(tmp_path: Path) -> None:
+    """cosim --workers 2 runs the variants and writes the files in worker processes: the
+    same CSV files, byte for byte, as one process."""
+    path = scenario_file(tmp_path)
+    for workers in ("1", "2"):
+        assert cli.main(["cosim", "--scenario", str(path), "--workers", workers, "--out",
+                         str(tmp_path / workers), "--quiet"]) == 0
+    csvs = sorted(p.name for p in (tmp_path / "1" / "short").glob("*.csv"))
+    assert csvs == ["balanced.csv", "summary.csv", "unbalanced.csv"]
+    for name in csvs:
+        assert ((tmp_path / "1" / "short" / name).read_bytes()
+                == (tmp_path / "2" / "short" / name).read_bytes()), name
 
 
 def test_interrupted_write_leaves_the_result_set_as_it_was(
