@@ -243,8 +243,13 @@ def _held_by_stop(p: Parameters, q2: float, q2_dot: float, force: float) -> bool
                               or (q2 == p.q2_max and force >= 0.0))
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None
-                ) -> tuple[float, ...]:
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state (see _derivatives) as a State."""
+    return State._make(_derivatives(p, u, s, rates))
+
+
+def _derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None
+                 ) -> tuple[float, ...]:
     """Time derivative of the state for constant inputs, in State's field order (`rates`,
     d/dt of the inputs, as the other mechanisms take it: no mass changes here, so it is not
     used). A plain tuple: this runs four times per RK4 sub-step."""
@@ -297,7 +302,7 @@ def _apply_stops(p: Parameters, s: State) -> State:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s),
+    return integrate(lambda state: _derivatives(p, u, state), s, dt, characteristic_rate(p, u, s),
                      lambda state: _apply_stops(p, state))
 
 

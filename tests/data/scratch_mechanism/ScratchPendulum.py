@@ -35,9 +35,6 @@ class ScratchPendulum(MechanismSlave):
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description)
 
-    def inputs(self) -> physics.Inputs:
-        return physics.Inputs(float(self.tau_drive))
-
 
 REGISTRATION = Registration(
     physics=physics,

@@ -72,10 +72,11 @@ def tau_gravity(p: Parameters, theta: float) -> float:
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
-    """ds/dt for the inputs held (no input ramps a mass: rates is not used)."""
-    torque = u.tau_drive + tau_gravity(p, s.theta) - p.d_link * s.omega
-    return State(s.omega, torque / inertia(p), u.tau_drive * s.omega,
-                 p.d_link * s.omega * s.omega)
+    """ds/dt for the inputs held (no input ramps a mass: rates is not used). s is read by
+    position: the integrator passes its intermediate states as plain lists."""
+    theta, omega = s[0], s[1]
+    torque = u.tau_drive + tau_gravity(p, theta) - p.d_link * omega
+    return State(omega, torque / inertia(p), u.tau_drive * omega, p.d_link * omega * omega)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
