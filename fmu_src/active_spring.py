@@ -69,6 +69,7 @@ with E_loss also counting the dampers d_link and d_q and the self-locking screw'
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -196,14 +197,20 @@ def spring(p: Parameters, theta: float, Y_B: float) -> Spring:
     At l_s = 0 (A on B) the direction is undefined; the force per length is then taken as
     its zero-free-length value k (exact when F_s0 = k l_s0, the only spring finite there).
     """
+    return Spring._make(_spring(p, theta, Y_B))
+
+
+def _spring(p: Parameters, theta: float, Y_B: float) -> tuple[float, float, float, float,
+                                                              float]:
+    """`spring` as a plain tuple in Spring's order (the integrator's stages need no names)."""
     sin_t, cos_t = math.sin(theta), math.cos(theta)
     dx = p.X_B + p.x1A * sin_t
     dy = Y_B - p.x1A * cos_t
     l_s = math.hypot(dx, dy)
     F_s = p.F_s0 + p.k * (l_s - p.l_s0)
     per_length = F_s / l_s if l_s > 0.0 else p.k
-    return Spring(l_s, F_s, -p.x1A * per_length * (Y_B * sin_t + p.X_B * cos_t),
-                  -per_length * dy, p.x1A * Y_B * per_length)
+    return (l_s, F_s, -p.x1A * per_length * (Y_B * sin_t + p.X_B * cos_t),
+            -per_length * dy, p.x1A * Y_B * per_length)
 
 
 def tau_gravity(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
@@ -249,16 +256,24 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
     """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
     other mechanisms take it: a payload changes only at events here, so it is not used);
     direction as for `carriage`, None for `motion_direction` at s."""
-    theta, omega, q, q_dot = s[:4]
-    sp = spring(p, theta, p.Y_B0 + q)
-    torque = _tau_gravity(p, u.payload, theta, sp)
-    omega_dot = (u.tau_drive + torque - p.d_link * omega) / link_inertia(p, u.payload)
-    load = sp.F_q - p.m_q * p.g
     if direction is None:
-        direction = motion_direction(u.F_adjust, q_dot)
-    q_ddot, lock = carriage(p, u.F_adjust, load, q_dot, direction)
-    return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
-                 p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+        direction = motion_direction(u.F_adjust, s[3])
+    return State._make(_derivatives(p, u, s, direction, link_inertia(p, u.payload),
+                                    gravity_moment(p, u.payload)))
+
+
+def _derivatives(p: Parameters, u: Inputs, s: Sequence[float], direction: float,
+                 inertia: float, moment: float) -> tuple[float, ...]:
+    """`derivatives` as a plain tuple in State's order, for the link's inertia [kg m^2] and
+    gravity moment [N m] of the step (`link_inertia`, `gravity_moment`): the integrator's
+    stages read states by position and need no State."""
+    theta, omega, q, q_dot = s[:4]
+    _, _, spring_torque, F_q, _ = _spring(p, theta, p.Y_B0 + q)
+    torque = moment * math.sin(theta) + spring_torque
+    omega_dot = (u.tau_drive + torque - p.d_link * omega) / inertia
+    q_ddot, lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot, direction)
+    return (omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -277,10 +292,12 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     return rate
 
 
-def _rk4_step(p: Parameters, u: Inputs, s: State, h: float) -> State:
-    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start."""
+def _rk4_step(p: Parameters, u: Inputs, s: State, h: float, inertia: float,
+              moment: float) -> State:
+    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start; the
+    link's inertia and gravity moment as for `_derivatives`."""
     direction = motion_direction(u.F_adjust, s.q_dot)
-    return rk4(lambda state: derivatives(p, u, state, None, direction), s, h)
+    return rk4(lambda state: _derivatives(p, u, state, direction, inertia, moment), s, h)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -293,15 +310,16 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """
     n = substeps(dt, characteristic_rate(p, u, s))
     h = dt / n
+    inertia, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
     for _ in range(n):
-        new = _rk4_step(p, u, s, h)
+        new = _rk4_step(p, u, s, h, inertia, moment)
         if p.self_locking and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
-            stopped = _rk4_step(p, u, s, h_stop)
+            stopped = _rk4_step(p, u, s, h_stop, inertia, moment)
             stopped = stopped._replace(
                 q_dot=0.0,
                 E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
-            new = _rk4_step(p, u, stopped, h - h_stop)
+            new = _rk4_step(p, u, stopped, h - h_stop, inertia, moment)
         s = new
     return s
 
