@@ -129,17 +129,17 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
 
         changes = _input_changes(fmu, inputs)
         state_values = calls.states
+        state_values[:] = state
         set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
         step_times = times.tolist()
         drive_steps = [(loop.step, 2 * j) for j, loop in enumerate(loops)]
-        states = [state] * (n_steps + 1)
         calls.record()
         # in blocks of record_every steps, recording after each full block
         for first in range(0, n_steps, record_every):
             last = min(first + record_every, n_steps)
             for k in range(first, last):
                 for drive_step, index in drive_steps:
-                    drive_step(k, state[index], state[index + 1])
+                    drive_step(k, state_values[index], state_values[index + 1])
                 if (status := set_efforts()) > fmi2Warning:
                     raise _refused(fmu, "fmi2SetReal", status, first_message)
                 if k in changes:
@@ -149,26 +149,26 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                     raise _refused(fmu, "fmi2DoStep", status, first_message)
                 if (status := get_states()) > fmi2Warning:
                     raise _refused(fmu, "fmi2GetReal", status, first_message)
-                state = states[k + 1] = state_values[:]
             if last - first == record_every:
                 calls.record()
                 if progress is not None:
                     progress(record_every)
+        for j, loop in enumerate(loops):  # the joints at the end of the run
+            loop.position[n_steps], loop.speed[n_steps] = state_values[2 * j:2 * j + 2]
         messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
-    states = np.asarray(states)
-    traces = [loop.trace(joint, drive_motor, step_size, states[:, 2 * j],
-                         states[:, 2 * j + 1], reference)
-              for j, (loop, joint, drive_motor, reference)
-              in enumerate(zip(loops, joints, drive_motors, references, strict=True))]
+    traces = [loop.trace(joint, drive_motor, step_size, reference)
+              for loop, joint, drive_motor, reference
+              in zip(loops, joints, drive_motors, references, strict=True)]
     return assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
                     messages)
 
 
 class DriveLoop:
     """One joint's discrete PID and sampled motor in the master's loop, with a record of
-    each step k: the voltage [V], the armature current at its start [A] (and at the end of
-    the last step), its step average [A] and the effort [N m or N].
+    each step k: the joint's position and speed at its start (and at the end of the last
+    step, which the master puts in), the voltage [V], the armature current at its start [A]
+    (and at the end of the last step), its step average [A] and the effort [N m or N].
 
     `step` is the joint's step: `DiscretePID.update` and `SampledMotor.step` fused into one
     function over local variables (one Python call per joint and step instead of four), the
@@ -176,13 +176,15 @@ class DriveLoop:
     (tests/test_master_loop.py checks it against the two).
     """
 
-    __slots__ = ("step", "voltage", "start_current", "current", "effort")
+    __slots__ = ("step", "position", "speed", "voltage", "start_current", "current", "effort")
 
     def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: list[float],
                  efforts: ctypes.Array, index: int) -> None:
         """A drive for a run of len(reference) - 1 steps that puts its effort in
         efforts[index]; the PID's and motor's state then live in `step`."""
         n_steps = len(reference) - 1
+        positions = self.position = [0.0] * (n_steps + 1)
+        speeds = self.speed = [0.0] * (n_steps + 1)
         voltages, currents, effort_record = [0.0] * n_steps, [0.0] * n_steps, [0.0] * n_steps
         starts = [motor.current] + [0.0] * n_steps
         self.voltage, self.start_current = voltages, starts
@@ -211,15 +213,17 @@ class DriveLoop:
             current = a * current + b_v * voltage + b_w * speed
             efforts[index] = effort_record[k] = torque_per_amp * average
             voltages[k], currents[k], starts[k + 1] = voltage, average, current
+            positions[k], speeds[k] = position, speed
 
         self.step = step
 
     def trace(self, joint: Joint, motor: MotorParameters, step_size: float,
-              position: np.ndarray, speed: np.ndarray, reference: np.ndarray) -> DriveTrace:
-        """The drive's trace of the run, from the joint's position and speed at every step."""
+              reference: np.ndarray) -> DriveTrace:
+        """The drive's trace of the run."""
         return DriveTrace(joint, motor, step_size, np.array(self.voltage),
                           np.array(self.current), np.array(self.effort),
-                          np.array(self.start_current), position, speed, reference)
+                          np.array(self.start_current), np.array(self.position),
+                          np.array(self.speed), reference)
 
 
 class _FMICalls:
@@ -257,25 +261,33 @@ class _FMICalls:
             dll.fmi2GetBoolean, component, _references(fmu, self._booleans),
             len(self._booleans), self._boolean_values)
         self._fmu, self._first_message = fmu, first_message
-        self._rows: list[list] = []
+        # each record() as the bytes of its C arrays, and the other types' values
+        self._real_rows: list[bytes] = []
+        self._boolean_rows: list[bytes] = []
+        self._other_rows: list[list] = []
 
     def record(self) -> None:
         """Read the recorded variables' current values (FMUCallError if the FMU refuses)."""
         if (status := self._get_reals()) > fmi2Warning:
             raise _refused(self._fmu, "fmi2GetReal", status, self._first_message)
-        row = self._real_values[:]
+        self._real_rows.append(bytes(self._real_values))
         if self._booleans:
             if (status := self._get_booleans()) > fmi2Warning:
                 raise _refused(self._fmu, "fmi2GetBoolean", status, self._first_message)
-            row += [value != fmi2False for value in self._boolean_values]
+            self._boolean_rows.append(bytes(self._boolean_values))
         if self._others:
-            row += self._fmu.get(self._others).values()
-        self._rows.append(row)
+            self._other_rows.append(list(self._fmu.get(self._others).values()))
 
     def recorded(self) -> pd.DataFrame:
         """One row per `record()`, one column per recorded variable."""
-        return pd.DataFrame(self._rows, columns=self._reals + self._booleans
-                            + self._others)[self._record_names]
+        rows = len(self._real_rows)
+        reals = np.frombuffer(b"".join(self._real_rows)).reshape(rows, len(self._reals))
+        booleans = np.frombuffer(b"".join(self._boolean_rows), dtype=fmi2Boolean).reshape(
+            rows, len(self._booleans)) != fmi2False
+        table = pd.concat([pd.DataFrame(reals, columns=self._reals),
+                           pd.DataFrame(booleans, columns=self._booleans),
+                           pd.DataFrame(self._other_rows, columns=self._others)], axis=1)
+        return table[self._record_names]
 
 
 def _refused(fmu: CoSimFMU, function: str, status: int, first_message: int) -> FMUCallError:

@@ -64,5 +64,6 @@ def test_the_fused_drive_step_is_the_pid_and_the_motor_to_the_last_bit() -> None
         saturated += pid.saturated
         assert (drive.voltage[k], drive.start_current[k], drive.current[k], drive.effort[k],
                 efforts[1]) == (voltage, start, current, effort, effort)
+        assert (drive.position[k], drive.speed[k]) == (positions[k], speeds[k])
     assert drive.start_current[n] == motor.current and efforts[0] == 0.0
     assert 0 < saturated < n  # both regimes were crossed
