@@ -143,8 +143,10 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                 if (status := set_efforts()) > fmi2Warning:
                     raise _refused(fmu, "fmi2SetReal", status, first_message)
                 if k in changes:
-                    for setter, refs, value in changes[k]:
-                        setter(refs, [value])
+                    for set_input, value_array, value, function in changes[k]:
+                        value_array[0] = value
+                        if (status := set_input()) > fmi2Warning:
+                            raise _refused(fmu, function, status, first_message)
                 if (status := do_step(step_times[k], step_size, fmi2True)) > fmi2Warning:
                     raise _refused(fmu, "fmi2DoStep", status, first_message)
                 if (status := get_states()) > fmi2Warning:
@@ -398,19 +400,24 @@ def check_names(scenario: Scenario, variant: Variant,
 
 
 def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:
-    """Input changes by step index: {k: [(setter, value references, value), ...]}.
+    """Input changes by step index: {k: [(setter, C array, value, FMI function), ...]}: put
+    the value in the array (of one element), then `setter()` sets the input from it through
+    the FMU's fmi2SetReal or fmi2SetBoolean and returns the status.
 
     Inputs are set only at the communication points where they change (step 0's values are
     set before initialisation), which keeps the loop free of per-input work.
     """
     changes: dict[int, list] = {}
+    slave = fmu.slave
     for name, signal in inputs.items():
         boolean = signal.dtype == bool
-        setter = fmu.slave.setBoolean if boolean else fmu.slave.setReal
-        refs = fmu.references([name])
-        for k in np.flatnonzero(signal[1:] != signal[:-1]) + 1:
-            value = bool(signal[k]) if boolean else float(signal[k])
-            changes.setdefault(int(k), []).append((setter, refs, value))
+        function = "fmi2SetBoolean" if boolean else "fmi2SetReal"
+        values = ((fmi2Boolean if boolean else ctypes.c_double) * 1)()
+        setter = functools.partial(getattr(slave.dll, function), slave.component,
+                                   _references(fmu, [name]), 1, values)
+        steps = np.flatnonzero(signal[1:] != signal[:-1]) + 1
+        for k, value in zip(steps.tolist(), signal[steps].tolist(), strict=True):
+            changes.setdefault(k, []).append((setter, values, value, function))
     return changes
 
 
