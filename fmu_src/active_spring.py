@@ -258,12 +258,12 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
     direction as for `carriage`, None for `motion_direction` at s."""
     if direction is None:
         direction = motion_direction(u.F_adjust, s[3])
-    return State._make(_derivatives(p, u, s, direction, link_inertia(p, u.payload),
-                                    gravity_moment(p, u.payload)))
+    return State._make(_derivatives(p, u, direction, link_inertia(p, u.payload),
+                                    gravity_moment(p, u.payload), s))
 
 
-def _derivatives(p: Parameters, u: Inputs, s: Sequence[float], direction: float,
-                 inertia: float, moment: float) -> tuple[float, ...]:
+def _derivatives(p: Parameters, u: Inputs, direction: float, inertia: float, moment: float,
+                 s: Sequence[float]) -> tuple[float, ...]:
     """`derivatives` as a plain tuple in State's order, for the link's inertia [kg m^2] and
     gravity moment [N m] of the step (`link_inertia`, `gravity_moment`): the integrator's
     stages read states by position and need no State."""
@@ -279,15 +279,15 @@ def _derivatives(p: Parameters, u: Inputs, s: Sequence[float], direction: float,
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
     J = link_inertia(p, u.payload)
-    sp = spring(p, s.theta, p.Y_B0 + s.q)
+    l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
     reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
-    per_length = abs(sp.F_s) / sp.l_s if sp.l_s > 0.0 else p.k
+    per_length = abs(F_s) / l_s if l_s > 0.0 else p.k
     stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
     rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
     if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
         M_q = p.carriage_inertia
         carriage_rate = max(p.d_q / M_q, math.sqrt((p.k + per_length) / M_q),
-                            abs(s.q_dot) / max(sp.l_s, p.x1A))
+                            abs(s.q_dot) / max(l_s, p.x1A))
         rate = max(rate, CARRIAGE_ACCURACY * carriage_rate)
     return rate
 
@@ -297,7 +297,7 @@ def _rk4_step(p: Parameters, u: Inputs, s: State, h: float, inertia: float,
     """One RK4 step of size h [s], the screw's regime fixed by the motion at its start; the
     link's inertia and gravity moment as for `_derivatives`."""
     direction = motion_direction(u.F_adjust, s.q_dot)
-    return rk4(lambda state: _derivatives(p, u, state, direction, inertia, moment), s, h)
+    return rk4(lambda state: _derivatives(p, u, direction, inertia, moment, state), s, h)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -365,14 +365,14 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
     Y_B = p.Y_B0 + q
-    sp = spring(p, theta, Y_B)
+    l_s, F_s, spring_torque, F_q, spring_moment = _spring(p, theta, Y_B)
     moment = gravity_moment(p, u.payload)
     E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
-    E_e = elastic_energy(p, sp.l_s)
+    E_e = elastic_energy(p, l_s)
     E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
-    _, F_lock = carriage(p, u.F_adjust, sp.F_q - p.m_q * p.g, q_dot,
+    _, F_lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot,
                          motion_direction(u.F_adjust, q_dot))
-    F_hold = 0.0 if p.self_locking else p.m_q * p.g - sp.F_q
-    return Outputs(theta, omega, q, q_dot, Y_B, sp.l_s, sp.F_s,
-                   moment * math.sin(theta) + sp.tau, sp.F_q, F_lock, F_hold, moment - sp.moment,
-                   E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust, E_loss, E_added)
+    F_hold = 0.0 if p.self_locking else p.m_q * p.g - F_q
+    return Outputs(theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque,
+                   F_q, F_lock, F_hold, moment - spring_moment, E_p, E_e, E_p + E_e, E_kin,
+                   W_drive, W_adjust, E_loss, E_added)
