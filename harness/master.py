@@ -7,7 +7,7 @@ Per communication step k (time t = k dt), with the FMU's outputs at t, for each 
 then the FMU: set every joint's effort and the scenario inputs of t, doStep(t, dt), read the
 joints' positions and speeds. Every output of the FMU is read at the recording rate only
 (100 Hz by default). The loop calls the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal (and
-the recording's fmi2GetReal) on C arrays made once (`_FMICalls`); each joint's PID and motor
+the recording's fmi2GetReal) on C arrays made once (`FMICalls`); each joint's PID and motor
 are one fused function per step (`DriveLoop.step`) that records what the drive held and
 carried in lists made once, from which its `DriveTrace`, metrics and CSV columns are made.
 
@@ -59,6 +59,7 @@ class RunResult:
     parameters: dict[str, float | bool]
     joint_phase_work: dict[str, dict[str, float]] = field(default_factory=dict)
     messages: list[str] = field(default_factory=list)
+    traces: list[DriveTrace] = field(default_factory=list)  # per joint, if run kept them
 
     @property
     def phase_work(self) -> dict[str, float]:
@@ -76,14 +77,15 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         motor: MotorParameters | Mapping[str, MotorParameters] | None = None,
         design: ControllerDesign = ControllerDesign(),
         progress: Callable[[int], None] | None = None,
-        fmu: CoSimFMU | None = None) -> RunResult:
+        fmu: CoSimFMU | None = None, keep_traces: bool = False) -> RunResult:
     """Co-simulate one variant of a scenario and return its series and metrics.
 
     motor: the drives by name (`harness.drive.motors`; default MOTORS, one MotorParameters
     replaces the geared motor). The variant's own joints are driven too
     (`Scenario.for_variant`). fmu: an instance of the variant's model to reuse (it is
     reset first and left open), e.g. one per worker in a parameter sweep; by default a new
-    instance is made and freed.
+    instance is made and freed. keep_traces: return each joint's `DriveTrace` of every step
+    too (`RunResult.traces`), e.g. to replay the run's efforts.
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
         raise UserError(f"step size = {step_size} s is outside (0, inf)")
@@ -116,7 +118,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         # equilibrium (holding the static effort at the initial position)
         state_names = [name for joint in joints for name in (joint.position, joint.speed)]
         state = fmu.slave.getReal(fmu.references(state_names))
-        calls = _FMICalls(fmu, [joint.effort for joint in joints], state_names,
+        calls = FMICalls(fmu, [joint.effort for joint in joints], state_names,
                           fmu.names("output") + list(inputs), first_message)
         gains, loops = {}, []
         for j, (joint, drive_motor) in enumerate(zip(joints, drive_motors, strict=True)):
@@ -127,7 +129,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
             loops.append(DriveLoop(pid, sampled_motor(drive_motor, step_size, hold_current),
                                    references[j].tolist(), calls.inputs, j))
 
-        changes = _input_changes(fmu, inputs)
+        changes = input_changes(fmu, inputs)
         state_values = calls.states
         state_values[:] = state
         set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
@@ -162,8 +164,11 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     traces = [loop.trace(joint, drive_motor, step_size, reference)
               for loop, joint, drive_motor, reference
               in zip(loops, joints, drive_motors, references, strict=True)]
-    return assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
-                    messages)
+    result = assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
+                      messages)
+    if keep_traces:
+        result.traces = traces
+    return result
 
 
 class DriveLoop:
@@ -228,7 +233,7 @@ class DriveLoop:
                           np.array(self.speed), reference)
 
 
-class _FMICalls:
+class FMICalls:
     """The loop's FMI calls on ctypes arrays made once: set the joints' efforts, doStep and
     get the joints' states call the FMU's C functions directly and return their status
     (FMPy's wrappers build the arrays anew at each call); `record()` reads the recorded
@@ -399,7 +404,7 @@ def check_names(scenario: Scenario, variant: Variant,
                             f"(named by joint {joint.name})")
 
 
-def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:
+def input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:
     """Input changes by step index: {k: [(setter, C array, value, FMI function), ...]}: put
     the value in the array (of one element), then `setter()` sets the input from it through
     the FMU's fmi2SetReal or fmi2SetBoolean and returns the status.

@@ -13,7 +13,7 @@ import pytest
 
 from fmu_src.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
 from fmu_src.pid import DiscretePID, PIDGains, tustin_coefficients
-from harness import master, scenarios
+from harness import bench, master, scenarios
 from harness.fmi import FMUCallError
 
 
@@ -67,3 +67,15 @@ def test_the_fused_drive_step_is_the_pid_and_the_motor_to_the_last_bit() -> None
         assert (drive.position[k], drive.speed[k]) == (positions[k], speeds[k])
     assert drive.start_current[n] == motor.current and efforts[0] == 0.0
     assert 0 < saturated < n  # both regimes were crossed
+
+
+def test_the_master_share_replays_each_run_to_the_bit() -> None:
+    """`bench.master_share` on demian2022's variants: the replay of each run's efforts ends
+    where the run ended (it raises otherwise), its FMU calls cost less than the whole
+    closed-loop step, and the master's share is the difference."""
+    table = bench.master_share(repeats=1, scenario_name="demian2022")
+    assert list(table.variant) == list(scenarios.load("demian2022").variants)
+    assert (table.fmu_calls_us_per_step > 0.0).all()
+    assert (table.fmu_calls_us_per_step < table.us_per_step).all()
+    np.testing.assert_allclose(table.master_us_per_step,
+                               table.us_per_step - table.fmu_calls_us_per_step, rtol=1e-9)
