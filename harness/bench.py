@@ -223,8 +223,9 @@ def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
     efforts and input changes replayed through the master's own prepared calls
     (`master.FMICalls`: setReal of the efforts, the input changes, doStep, getReal of the
     joints' states, and the recording read every RECORD_INTERVAL), with no controller and no
-    motor; the FMU instantiated and initialised as in the run, untimed. RuntimeError if the
-    replay does not end where the run ended."""
+    motor (the replay's own loop, copying each step's efforts into the C array, counts here);
+    the FMU instantiated and initialised as in the run, untimed. RuntimeError if the replay
+    does not end where the run ended."""
     scenario = scenario.for_variant(variant)
     joints, step_size = scenario.joints, run.step_size
     n_steps = round(scenario.duration / step_size)
@@ -249,9 +250,10 @@ def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
                 for j, effort in enumerate(efforts):
                     values[j] = effort[k]
                 calls.set_inputs()
-                for set_input, value_array, value, _ in changes.get(k, ()):
-                    value_array[0] = value
-                    set_input()
+                if k in changes:
+                    for set_input, value_array, value, _ in changes[k]:
+                        value_array[0] = value
+                        set_input()
                 calls.do_step(step_times[k], step_size, fmi2True)
                 calls.get_states()
             if last - first == record_every:
