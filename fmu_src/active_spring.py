@@ -69,6 +69,7 @@ with E_loss also counting the dampers d_link and d_q and the self-locking screw'
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -196,14 +197,20 @@ def spring(p: Parameters, theta: float, Y_B: float) -> Spring:
     At l_s = 0 (A on B) the direction is undefined; the force per length is then taken as
     its zero-free-length value k (exact when F_s0 = k l_s0, the only spring finite there).
     """
+    return Spring._make(_spring(p, theta, Y_B))
+
+
+def _spring(p: Parameters, theta: float, Y_B: float) -> tuple[float, float, float, float,
+                                                              float]:
+    """`spring` as a plain tuple in Spring's order (the integrator's stages need no names)."""
     sin_t, cos_t = math.sin(theta), math.cos(theta)
     dx = p.X_B + p.x1A * sin_t
     dy = Y_B - p.x1A * cos_t
     l_s = math.hypot(dx, dy)
     F_s = p.F_s0 + p.k * (l_s - p.l_s0)
     per_length = F_s / l_s if l_s > 0.0 else p.k
-    return Spring(l_s, F_s, -p.x1A * per_length * (Y_B * sin_t + p.X_B * cos_t),
-                  -per_length * dy, p.x1A * Y_B * per_length)
+    return (l_s, F_s, -p.x1A * per_length * (Y_B * sin_t + p.X_B * cos_t),
+            -per_length * dy, p.x1A * Y_B * per_length)
 
 
 def tau_gravity(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
@@ -249,38 +256,48 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
     """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
     other mechanisms take it: a payload changes only at events here, so it is not used);
     direction as for `carriage`, None for `motion_direction` at s."""
-    theta, omega, q, q_dot = s[:4]
-    sp = spring(p, theta, p.Y_B0 + q)
-    torque = _tau_gravity(p, u.payload, theta, sp)
-    omega_dot = (u.tau_drive + torque - p.d_link * omega) / link_inertia(p, u.payload)
-    load = sp.F_q - p.m_q * p.g
     if direction is None:
-        direction = motion_direction(u.F_adjust, q_dot)
-    q_ddot, lock = carriage(p, u.F_adjust, load, q_dot, direction)
-    return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
-                 p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+        direction = motion_direction(u.F_adjust, s[3])
+    return State._make(_derivatives(p, u, direction, link_inertia(p, u.payload),
+                                    gravity_moment(p, u.payload), s))
+
+
+def _derivatives(p: Parameters, u: Inputs, direction: float, inertia: float, moment: float,
+                 s: Sequence[float]) -> tuple[float, ...]:
+    """`derivatives` as a plain tuple in State's order, for the link's inertia [kg m^2] and
+    gravity moment [N m] of the step (`link_inertia`, `gravity_moment`): the integrator's
+    stages read states by position and need no State."""
+    theta, omega, q, q_dot = s[:4]
+    _, _, spring_torque, F_q, _ = _spring(p, theta, p.Y_B0 + q)
+    torque = moment * math.sin(theta) + spring_torque
+    omega_dot = (u.tau_drive + torque - p.d_link * omega) / inertia
+    q_ddot, lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot, direction)
+    return (omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
     J = link_inertia(p, u.payload)
-    sp = spring(p, s.theta, p.Y_B0 + s.q)
+    l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
     reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
-    per_length = abs(sp.F_s) / sp.l_s if sp.l_s > 0.0 else p.k
+    per_length = abs(F_s) / l_s if l_s > 0.0 else p.k
     stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
     rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
     if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
         M_q = p.carriage_inertia
         carriage_rate = max(p.d_q / M_q, math.sqrt((p.k + per_length) / M_q),
-                            abs(s.q_dot) / max(sp.l_s, p.x1A))
+                            abs(s.q_dot) / max(l_s, p.x1A))
         rate = max(rate, CARRIAGE_ACCURACY * carriage_rate)
     return rate
 
 
-def _rk4_step(p: Parameters, u: Inputs, s: State, h: float) -> State:
-    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start."""
+def _rk4_step(p: Parameters, u: Inputs, s: State, h: float, inertia: float,
+              moment: float) -> State:
+    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start; the
+    link's inertia and gravity moment as for `_derivatives`."""
     direction = motion_direction(u.F_adjust, s.q_dot)
-    return rk4(lambda state: derivatives(p, u, state, None, direction), s, h)
+    return rk4(lambda state: _derivatives(p, u, direction, inertia, moment, state), s, h)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -293,15 +310,16 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """
     n = substeps(dt, characteristic_rate(p, u, s))
     h = dt / n
+    inertia, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
     for _ in range(n):
-        new = _rk4_step(p, u, s, h)
+        new = _rk4_step(p, u, s, h, inertia, moment)
         if p.self_locking and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
-            stopped = _rk4_step(p, u, s, h_stop)
+            stopped = _rk4_step(p, u, s, h_stop, inertia, moment)
             stopped = stopped._replace(
                 q_dot=0.0,
                 E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
-            new = _rk4_step(p, u, stopped, h - h_stop)
+            new = _rk4_step(p, u, stopped, h - h_stop, inertia, moment)
         s = new
     return s
 
@@ -347,14 +365,14 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
     Y_B = p.Y_B0 + q
-    sp = spring(p, theta, Y_B)
+    l_s, F_s, spring_torque, F_q, spring_moment = _spring(p, theta, Y_B)
     moment = gravity_moment(p, u.payload)
     E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
-    E_e = elastic_energy(p, sp.l_s)
+    E_e = elastic_energy(p, l_s)
     E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
-    _, F_lock = carriage(p, u.F_adjust, sp.F_q - p.m_q * p.g, q_dot,
+    _, F_lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot,
                          motion_direction(u.F_adjust, q_dot))
-    F_hold = 0.0 if p.self_locking else p.m_q * p.g - sp.F_q
-    return Outputs(theta, omega, q, q_dot, Y_B, sp.l_s, sp.F_s,
-                   moment * math.sin(theta) + sp.tau, sp.F_q, F_lock, F_hold, moment - sp.moment,
-                   E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust, E_loss, E_added)
+    F_hold = 0.0 if p.self_locking else p.m_q * p.g - F_q
+    return Outputs(theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque,
+                   F_q, F_lock, F_hold, moment - spring_moment, E_p, E_e, E_p + E_e, E_kin,
+                   W_drive, W_adjust, E_loss, E_added)

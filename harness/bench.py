@@ -23,6 +23,12 @@ measured in the same benchmark run, a figure that the machine's load moves much 
 real-time factor. The last row is the sum, what `make cosim` spends in simulation on one
 core.
 
+`master_share`: per franchetti2021 variant, the CPU time of one closed-loop step (as `cosim`)
+and that of its FMU calls alone (the run's efforts and input changes replayed through the
+master's prepared calls, the recording read included), best of repeats each, and their
+difference, the master's share: its set-up and result assembly spread over the steps, the
+controller and motor, the loop.
+
 `convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
 reference (harness.reference): the relative error of each drive energy, which must shrink
 with the step.
@@ -42,8 +48,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from fmpy import read_model_description
+from fmpy.fmi2 import fmi2True
 
 from fmu_src.mechanism import Port
 from harness import fmu_build, master, reference, registry, scenarios
@@ -209,6 +217,78 @@ def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
     return pd.concat([table, pd.DataFrame([total])], ignore_index=True)
 
 
+def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
+                   run: master.RunResult) -> float:
+    """CPU time [s] of this thread in the FMU calls alone of a run made with keep_traces: its
+    efforts and input changes replayed through the master's own prepared calls
+    (`master.FMICalls`: setReal of the efforts, the input changes, doStep, getReal of the
+    joints' states, and the recording read every RECORD_INTERVAL), with no controller and no
+    motor (the replay's own loop, copying each step's efforts into the C array, counts here);
+    the FMU instantiated and initialised as in the run, untimed. RuntimeError if the replay
+    does not end where the run ended."""
+    scenario = scenario.for_variant(variant)
+    joints, step_size = scenario.joints, run.step_size
+    n_steps = round(scenario.duration / step_size)
+    times = np.arange(n_steps + 1) * step_size
+    inputs = scenario.inputs(times, variant)
+    record_every = max(1, round(master.RECORD_INTERVAL / step_size))
+    efforts = [trace.effort.tolist() for trace in run.traces]
+    with CoSimFMU(fmu_build.fmu_path(run.model), f"replay.{scenario.name}") as fmu:
+        fmu.set({name: signal[0] for name, signal in inputs.items()})
+        fmu.initialize(run.parameters, stop_time=scenario.duration)
+        calls = master.FMICalls(fmu, [joint.effort for joint in joints],
+                                [name for joint in joints for name in (joint.position,
+                                                                      joint.speed)],
+                                fmu.names("output") + list(inputs), len(fmu.messages))
+        changes = master.input_changes(fmu, inputs)
+        values, step_times = calls.inputs, times.tolist()
+        start = time.thread_time()
+        calls.record()
+        for first in range(0, n_steps, record_every):
+            last = min(first + record_every, n_steps)
+            for k in range(first, last):
+                for j, effort in enumerate(efforts):
+                    values[j] = effort[k]
+                calls.set_inputs()
+                if k in changes:
+                    for set_input, value_array, value, _ in changes[k]:
+                        value_array[0] = value
+                        set_input()
+                calls.do_step(step_times[k], step_size, fmi2True)
+                calls.get_states()
+            if last - first == record_every:
+                calls.record()
+        seconds = time.thread_time() - start
+        end = [value for trace in run.traces for value in (trace.position[-1], trace.speed[-1])]
+        if calls.states[:] != end:
+            raise RuntimeError(f"{scenario.name}.{variant.name}: the replay ends at "
+                               f"{calls.states[:]}, the run at {end}")
+        return seconds
+
+
+def master_share(steps: int = 0, repeats: int = 3,
+                 scenario_name: str = "franchetti2021") -> pd.DataFrame:
+    """The master's share of a closed-loop step at 1 ms per variant: the CPU time of one step
+    of the run (as `cosim`: set-up, controller, motor, FMU calls, recording, result assembly;
+    `us_per_step`) less that of its FMU calls alone (`replay_seconds`; `fmu_calls_us_per_step`),
+    best of repeats each."""
+    scenario = scenarios.load(scenario_name)
+    rows = []
+    for variant in scenario.variants.values():
+        run_cost = fmu_cost = float("inf")
+        for _ in range(repeats):
+            start = time.thread_time()
+            run = master.run(scenario, variant, STEP_SIZE, keep_traces=True)
+            run_cost = min(run_cost, time.thread_time() - start)
+            fmu_cost = min(fmu_cost, replay_seconds(scenario, variant, run))
+        n_steps = round(scenario.duration / STEP_SIZE)
+        rows.append({"scenario": scenario_name, "variant": variant.name, "model": run.model,
+                     "steps": n_steps, "us_per_step": 1e6 * run_cost / n_steps,
+                     "fmu_calls_us_per_step": 1e6 * fmu_cost / n_steps,
+                     "master_us_per_step": 1e6 * (run_cost - fmu_cost) / n_steps})
+    return pd.DataFrame(rows)
+
+
 CONVERGENCE_STEPS = (4e-3, 2e-3, 1e-3, 0.5e-3)  # communication steps [s]
 
 
@@ -283,6 +363,8 @@ BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "native_step": native_step,
     # steps and repeats apply to the FMU-only step cost
     "cosim": cosim,
+    # steps do not apply
+    "master_share": master_share,
     # steps and repeats do not apply
     "convergence": lambda steps, repeats: convergence(),
     # runs/s of a parameter sweep with 1 and 2 worker processes; steps and repeats do not apply

@@ -6,9 +6,10 @@ Per communication step k (time t = k dt), with the FMU's outputs at t, for each 
   2. motor: V_j and the joint speed held over the step -> step-average current and effort;
 then the FMU: set every joint's effort and the scenario inputs of t, doStep(t, dt), read the
 joints' positions and speeds. Every output of the FMU is read at the recording rate only
-(100 Hz by default). The loop calls the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal on
-C arrays made once (`_FMICalls`), and each joint's drive records what it held and carried
-per step (`DriveLoop`), from which its `DriveTrace`, metrics and CSV columns are made.
+(100 Hz by default). The loop calls the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal (and
+the recording's fmi2GetReal) on C arrays made once (`FMICalls`); each joint's PID and motor
+are one fused function per step (`DriveLoop.step`) that records what the drive held and
+carried in lists made once, from which its `DriveTrace`, metrics and CSV columns are made.
 
 The run starts in equilibrium: the mechanism at rest at the initial positions and each
 joint's PID integrator and motor current holding the static effort the FMU reports for that
@@ -58,6 +59,7 @@ class RunResult:
     parameters: dict[str, float | bool]
     joint_phase_work: dict[str, dict[str, float]] = field(default_factory=dict)
     messages: list[str] = field(default_factory=list)
+    traces: list[DriveTrace] = field(default_factory=list)  # per joint, if run kept them
 
     @property
     def phase_work(self) -> dict[str, float]:
@@ -75,14 +77,15 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         motor: MotorParameters | Mapping[str, MotorParameters] | None = None,
         design: ControllerDesign = ControllerDesign(),
         progress: Callable[[int], None] | None = None,
-        fmu: CoSimFMU | None = None) -> RunResult:
+        fmu: CoSimFMU | None = None, keep_traces: bool = False) -> RunResult:
     """Co-simulate one variant of a scenario and return its series and metrics.
 
     motor: the drives by name (`harness.drive.motors`; default MOTORS, one MotorParameters
     replaces the geared motor). The variant's own joints are driven too
     (`Scenario.for_variant`). fmu: an instance of the variant's model to reuse (it is
     reset first and left open), e.g. one per worker in a parameter sweep; by default a new
-    instance is made and freed.
+    instance is made and freed. keep_traces: return each joint's `DriveTrace` of every step
+    too (`RunResult.traces`), e.g. to replay the run's efforts.
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
         raise UserError(f"step size = {step_size} s is outside (0, inf)")
@@ -115,6 +118,8 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         # equilibrium (holding the static effort at the initial position)
         state_names = [name for joint in joints for name in (joint.position, joint.speed)]
         state = fmu.slave.getReal(fmu.references(state_names))
+        calls = FMICalls(fmu, [joint.effort for joint in joints], state_names,
+                          fmu.names("output") + list(inputs), first_message)
         gains, loops = {}, []
         for j, (joint, drive_motor) in enumerate(zip(joints, drive_motors, strict=True)):
             gains[joint.name], hold_current = joint_drive(fmu, joint, drive_motor, design)
@@ -122,82 +127,122 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
             pid.reset(references[j][0] - state[2 * j],
                       integral=armature_voltage(drive_motor, hold_current, 0.0))
             loops.append(DriveLoop(pid, sampled_motor(drive_motor, step_size, hold_current),
-                                   references[j].tolist()))
+                                   references[j].tolist(), calls.inputs, j))
 
-        calls = _FMICalls(fmu, [joint.effort for joint in joints], state_names,
-                          fmu.names("output") + list(inputs))
-        changes = _input_changes(fmu, inputs)
-        efforts, state_values = calls.inputs, calls.states
+        changes = input_changes(fmu, inputs)
+        state_values = calls.states
+        state_values[:] = state
         set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
         step_times = times.tolist()
-        drive_steps = [(j, loop.step, 2 * j) for j, loop in enumerate(loops)]
-        states = [state]
+        drive_steps = [(loop.step, 2 * j) for j, loop in enumerate(loops)]
         calls.record()
-        for k in range(n_steps):
-            for j, drive_step, index in drive_steps:
-                efforts[j] = drive_step(k, state[index], state[index + 1])
-            if (status := set_efforts()) > fmi2Warning:
-                raise _refused(fmu, "fmi2SetReal", status, first_message)
-            if k in changes:
-                for setter, refs, value in changes[k]:
-                    setter(refs, [value])
-            if (status := do_step(step_times[k], step_size, fmi2True)) > fmi2Warning:
-                raise _refused(fmu, "fmi2DoStep", status, first_message)
-            if (status := get_states()) > fmi2Warning:
-                raise _refused(fmu, "fmi2GetReal", status, first_message)
-            state = state_values[:]
-            states.append(state)
-            if (k + 1) % record_every == 0:
+        # in blocks of record_every steps, recording after each full block
+        for first in range(0, n_steps, record_every):
+            last = min(first + record_every, n_steps)
+            for k in range(first, last):
+                for drive_step, index in drive_steps:
+                    drive_step(k, state_values[index], state_values[index + 1])
+                if (status := set_efforts()) > fmi2Warning:
+                    raise _refused(fmu, "fmi2SetReal", status, first_message)
+                if k in changes:
+                    for set_input, value_array, value, function in changes[k]:
+                        value_array[0] = value
+                        if (status := set_input()) > fmi2Warning:
+                            raise _refused(fmu, function, status, first_message)
+                if (status := do_step(step_times[k], step_size, fmi2True)) > fmi2Warning:
+                    raise _refused(fmu, "fmi2DoStep", status, first_message)
+                if (status := get_states()) > fmi2Warning:
+                    raise _refused(fmu, "fmi2GetReal", status, first_message)
+            if last - first == record_every:
                 calls.record()
                 if progress is not None:
                     progress(record_every)
+        for j, loop in enumerate(loops):  # the joints at the end of the run
+            loop.position[n_steps], loop.speed[n_steps] = state_values[2 * j:2 * j + 2]
         messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
-    states = np.asarray(states)
-    traces = [loop.trace(joint, drive_motor, step_size, states[:, 2 * j],
-                         states[:, 2 * j + 1], reference)
-              for j, (loop, joint, drive_motor, reference)
-              in enumerate(zip(loops, joints, drive_motors, references, strict=True))]
-    return assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
-                    messages)
+    traces = [loop.trace(joint, drive_motor, step_size, reference)
+              for loop, joint, drive_motor, reference
+              in zip(loops, joints, drive_motors, references, strict=True)]
+    result = assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
+                      messages)
+    if keep_traces:
+        result.traces = traces
+    return result
 
 
 class DriveLoop:
     """One joint's discrete PID and sampled motor in the master's loop, with a record of
-    each step: (voltage [V], armature current at the step's start [A], its step average [A],
-    effort [N m or N])."""
+    each step k: the joint's position and speed at its start (and at the end of the last
+    step, which the master puts in), the voltage [V], the armature current at its start [A]
+    (and at the end of the last step), its step average [A] and the effort [N m or N].
 
-    __slots__ = ("update", "motor", "reference", "record")
+    `step` is the joint's step: `DiscretePID.update` and `SampledMotor.step` fused into one
+    function over local variables (one Python call per joint and step instead of four), the
+    same operations in the same order, so the same numbers to the last bit
+    (tests/test_master_loop.py checks it against the two).
+    """
 
-    def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: list[float]) -> None:
-        self.update, self.motor, self.reference = pid.update, motor, reference
-        self.record: list[tuple[float, float, float, float]] = []
+    __slots__ = ("step", "position", "speed", "voltage", "start_current", "current", "effort")
 
-    def step(self, k: int, position: float, speed: float) -> float:
-        """Step k from the joint's position and speed at its start: the effort over it."""
-        motor = self.motor
-        voltage, start = self.update(self.reference[k] - position), motor.current
-        current, effort = motor.step(voltage, speed)
-        self.record.append((voltage, start, current, effort))
-        return effort
+    def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: list[float],
+                 efforts: ctypes.Array, index: int) -> None:
+        """A drive for a run of len(reference) - 1 steps that puts its effort in
+        efforts[index]; the PID's and motor's state then live in `step`."""
+        n_steps = len(reference) - 1
+        positions = self.position = [0.0] * (n_steps + 1)
+        speeds = self.speed = [0.0] * (n_steps + 1)
+        voltages, currents, effort_record = [0.0] * n_steps, [0.0] * n_steps, [0.0] * n_steps
+        starts = [motor.current] + [0.0] * n_steps
+        self.voltage, self.start_current = voltages, starts
+        self.current, self.effort = currents, effort_record
+        b0, b1, a1, half_ki_dt = pid.coefficients
+        gain, limit = pid.gains.Kp, pid.limit
+        integral, previous, derivative = pid.state()[:3]
+        a, b_v, b_w, avg_a, avg_b_v, avg_b_w = motor.coefficients
+        torque_per_amp, current = motor.motor.torque_per_amp, motor.current
+
+        def step(k: int, position: float, speed: float) -> None:
+            """Step k from the joint's position and speed at its start: puts the effort over
+            it in efforts[index] and records the step."""
+            nonlocal integral, previous, derivative, current
+            # DiscretePID.update
+            error = reference[k] - position
+            derivative = -a1 * derivative + b0 * error + b1 * previous
+            candidate = integral + half_ki_dt * (error + previous)
+            unclamped = gain * error + candidate + derivative
+            voltage = limit if unclamped > limit else -limit if unclamped < -limit else unclamped
+            if voltage == unclamped or (unclamped > 0) != (error > 0):
+                integral = candidate
+            previous = error
+            # SampledMotor.step
+            average = avg_a * current + avg_b_v * voltage + avg_b_w * speed
+            current = a * current + b_v * voltage + b_w * speed
+            efforts[index] = effort_record[k] = torque_per_amp * average
+            voltages[k], currents[k], starts[k + 1] = voltage, average, current
+            positions[k], speeds[k] = position, speed
+
+        self.step = step
 
     def trace(self, joint: Joint, motor: MotorParameters, step_size: float,
-              position: np.ndarray, speed: np.ndarray, reference: np.ndarray) -> DriveTrace:
-        """The drive's trace of the run, from the joint's position and speed at every step."""
-        voltage, start, current, effort = np.asarray(self.record).reshape(-1, 4).T
-        return DriveTrace(joint, motor, step_size, voltage, current, effort,
-                          np.append(start, self.motor.current), position, speed, reference)
+              reference: np.ndarray) -> DriveTrace:
+        """The drive's trace of the run."""
+        return DriveTrace(joint, motor, step_size, np.array(self.voltage),
+                          np.array(self.current), np.array(self.effort),
+                          np.array(self.start_current), np.array(self.position),
+                          np.array(self.speed), reference)
 
 
-class _FMICalls:
+class FMICalls:
     """The loop's FMI calls on ctypes arrays made once: set the joints' efforts, doStep and
     get the joints' states call the FMU's C functions directly and return their status
     (FMPy's wrappers build the arrays anew at each call); `record()` reads the recorded
-    variables (through FMPy's checked fmi2GetReal and fmi2GetBoolean) and `recorded()` is
-    the table of what it read."""
+    variables the same way (one fmi2GetReal, and one fmi2GetBoolean if some are Boolean)
+    and `recorded()` is the table of what it read. first_message: the index of the run's
+    first message in fmu.messages, for the error of a refused read."""
 
     def __init__(self, fmu: CoSimFMU, input_names: list[str], state_names: list[str],
-                 record_names: list[str]) -> None:
+                 record_names: list[str], first_message: int) -> None:
         slave = fmu.slave
         component, dll = slave.component, slave.dll
         self.inputs = (ctypes.c_double * len(input_names))()
@@ -216,30 +261,40 @@ class _FMICalls:
         self._others = [name for name in record_names if name not in self._reals + self._booleans]
         self._real_values = (ctypes.c_double * len(self._reals))()
         self._boolean_values = (fmi2Boolean * len(self._booleans))()
-        self._get_reals = functools.partial(slave.fmi2GetReal, component,
+        self._get_reals = functools.partial(dll.fmi2GetReal, component,
                                             _references(fmu, self._reals), len(self._reals),
                                             self._real_values)
         self._get_booleans = functools.partial(
-            slave.fmi2GetBoolean, component, _references(fmu, self._booleans),
+            dll.fmi2GetBoolean, component, _references(fmu, self._booleans),
             len(self._booleans), self._boolean_values)
-        self._fmu = fmu
-        self._rows: list[list] = []
+        self._fmu, self._first_message = fmu, first_message
+        # each record() as the bytes of its C arrays, and the other types' values
+        self._real_rows: list[bytes] = []
+        self._boolean_rows: list[bytes] = []
+        self._other_rows: list[list] = []
 
     def record(self) -> None:
-        """Read the recorded variables' current values."""
-        self._get_reals()
-        row = self._real_values[:]
+        """Read the recorded variables' current values (FMUCallError if the FMU refuses)."""
+        if (status := self._get_reals()) > fmi2Warning:
+            raise _refused(self._fmu, "fmi2GetReal", status, self._first_message)
+        self._real_rows.append(bytes(self._real_values))
         if self._booleans:
-            self._get_booleans()
-            row += [value != fmi2False for value in self._boolean_values]
+            if (status := self._get_booleans()) > fmi2Warning:
+                raise _refused(self._fmu, "fmi2GetBoolean", status, self._first_message)
+            self._boolean_rows.append(bytes(self._boolean_values))
         if self._others:
-            row += self._fmu.get(self._others).values()
-        self._rows.append(row)
+            self._other_rows.append(list(self._fmu.get(self._others).values()))
 
     def recorded(self) -> pd.DataFrame:
         """One row per `record()`, one column per recorded variable."""
-        return pd.DataFrame(self._rows, columns=self._reals + self._booleans
-                            + self._others)[self._record_names]
+        rows = len(self._real_rows)
+        reals = np.frombuffer(b"".join(self._real_rows)).reshape(rows, len(self._reals))
+        booleans = np.frombuffer(b"".join(self._boolean_rows), dtype=fmi2Boolean).reshape(
+            rows, len(self._booleans)) != fmi2False
+        table = pd.concat([pd.DataFrame(reals, columns=self._reals),
+                           pd.DataFrame(booleans, columns=self._booleans),
+                           pd.DataFrame(self._other_rows, columns=self._others)], axis=1)
+        return table[self._record_names]
 
 
 def _refused(fmu: CoSimFMU, function: str, status: int, first_message: int) -> FMUCallError:
@@ -349,20 +404,25 @@ def check_names(scenario: Scenario, variant: Variant,
                             f"(named by joint {joint.name})")
 
 
-def _input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:
-    """Input changes by step index: {k: [(setter, value references, value), ...]}.
+def input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, list]:
+    """Input changes by step index: {k: [(setter, C array, value, FMI function), ...]}: put
+    the value in the array (of one element), then `setter()` sets the input from it through
+    the FMU's fmi2SetReal or fmi2SetBoolean and returns the status.
 
     Inputs are set only at the communication points where they change (step 0's values are
     set before initialisation), which keeps the loop free of per-input work.
     """
     changes: dict[int, list] = {}
+    slave = fmu.slave
     for name, signal in inputs.items():
         boolean = signal.dtype == bool
-        setter = fmu.slave.setBoolean if boolean else fmu.slave.setReal
-        refs = fmu.references([name])
-        for k in np.flatnonzero(signal[1:] != signal[:-1]) + 1:
-            value = bool(signal[k]) if boolean else float(signal[k])
-            changes.setdefault(int(k), []).append((setter, refs, value))
+        function = "fmi2SetBoolean" if boolean else "fmi2SetReal"
+        values = ((fmi2Boolean if boolean else ctypes.c_double) * 1)()
+        setter = functools.partial(getattr(slave.dll, function), slave.component,
+                                   _references(fmu, [name]), 1, values)
+        steps = np.flatnonzero(signal[1:] != signal[:-1]) + 1
+        for k, value in zip(steps.tolist(), signal[steps].tolist(), strict=True):
+            changes.setdefault(k, []).append((setter, values, value, function))
     return changes
 
 
