@@ -36,7 +36,7 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
-from functools import cached_property
+from functools import cached_property, partial
 from operator import attrgetter, itemgetter
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
@@ -359,17 +359,10 @@ class ModelSlave(Fmi2Slave):
             raise ValueError(problem)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        if self.params is None:
-            self.fail("fmi2DoStep called before initialisation (fmi2ExitInitializationMode) "
-                      "succeeded")
-            return False
-        if not current_time >= self.start_time or current_time == math.inf:
-            self.fail(f"communication point = {current_time} s is outside "
-                      f"[{self.start_time}, inf) (start time of fmi2SetupExperiment)")
-            return False
-        if not (step_size > 0.0 and math.isfinite(step_size)):
-            self.fail(f"communication step size = {step_size} s is outside (0, inf)")
-            return False
+        # One chained test for the usual case (also false for NaN); the messages below
+        if not (self.params is not None and self.start_time <= current_time < math.inf
+                and 0.0 < step_size < math.inf):
+            return self._refuse_call(current_time, step_size)
         problem = self._input_problem()
         if problem is not None:
             self.fail(problem)
@@ -390,6 +383,18 @@ class ModelSlave(Fmi2Slave):
         self._restore_outputs(outputs)
         self.fail(f"step at t = {current_time} s of {step_size} s refused, state unchanged: "
                   f"{problem}{self._describe_state()}")
+        return False
+
+    def _refuse_call(self, current_time: float, step_size: float) -> bool:
+        """Log why fmi2DoStep cannot be called so and return False (fmi2Discard)."""
+        if self.params is None:
+            self.fail("fmi2DoStep called before initialisation (fmi2ExitInitializationMode) "
+                      "succeeded")
+        elif not self.start_time <= current_time < math.inf:
+            self.fail(f"communication point = {current_time} s is outside "
+                      f"[{self.start_time}, inf) (start time of fmi2SetupExperiment)")
+        else:
+            self.fail(f"communication step size = {step_size} s is outside (0, inf)")
         return False
 
     @cached_property
@@ -568,15 +573,17 @@ class MechanismSlave(ModelSlave):
         # the event inputs of an Inputs tuple, as one comparable value (None: no events)
         self.event_values = (itemgetter(*(self.physics.Inputs._fields.index(n) for n in names))
                              if names else None)
-        # the input variables' values in physics.Inputs order, from the instance's __dict__
+        # the input variables' values in physics.Inputs order, from the instance's __dict__,
+        # and an Inputs built from such a tuple at C level (Inputs._make is a Python call)
         self.input_values = _tuple_getter(itemgetter, self.physics.Inputs._fields)
+        self.new_inputs = partial(tuple.__new__, self.physics.Inputs)
 
     def validate(self, params: Any) -> None:
         self.physics.validate(params)
 
     def inputs(self) -> Any:
         """The current inputs as a physics.Inputs."""
-        return self.physics.Inputs._make(self.input_values(self.__dict__))
+        return self.new_inputs(self.input_values(self.__dict__))
 
     def initialise(self, params: Any) -> None:
         missing = [n for n in self.physics.Inputs._fields if n not in self.info]
@@ -599,8 +606,10 @@ class MechanismSlave(ModelSlave):
         events = self.event_values
         if events is not None and events(u) != events(self.previous_inputs):
             self.switch_inputs(u)
-        self.state = self.physics.advance(self.params, u, self.state, dt)
-        self.set_outputs(self.physics.outputs(self.params, u, self.state))
+        physics, params = self.physics, self.params
+        self.state = state = physics.advance(params, u, self.state, dt)
+        self.output_values = physics.outputs(params, u, state)  # set_outputs, inlined
+        self.outputs_stale = False
 
     def switch_inputs(self, u: Any) -> None:
         """Book the change of event inputs from previous_inputs to u at this communication

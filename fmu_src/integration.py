@@ -81,7 +81,8 @@ def integrate_arm(f: Callable[[float, float], tuple[float, float]], theta: float
     bit, with the stages kept in local floats: one call of f per stage and no tuple per
     stage, where the tuples and calls cost more than the arm's arithmetic.
     """
-    n = substeps(dt, rate)
+    # one sub-step for the usual step (substeps' answer then, without its call)
+    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
     h = dt / n
     half, sixth = 0.5 * h, h / 6.0
     for _ in range(n):

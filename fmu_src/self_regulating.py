@@ -40,6 +40,7 @@ from fmu_src.integration import integrate, integrate_arm
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
+_new = tuple.__new__  # a NamedTuple from a tuple of its fields, without a Python call
 # A free slider starts every lock event with a jump in its acceleration, which RK4 at the
 # shared step-rate product resolves to ~1e-9 J of the energy ledger per event; sub-steps four
 # times finer on the slider's rates keep it near 1e-11 J (the link's own rate is unchanged).
@@ -130,6 +131,12 @@ class Parameters:
     def pulley_ratio(self) -> float:
         """Counterweight travel per unit slider travel, R/r (design value w/a, eq. 13)."""
         return self.R / self.r
+
+    @cached_property
+    def _link_memo(self) -> list:
+        """[((payload, b), _link_terms)]: the last link terms computed with these parameters
+        (a locked slider and a held payload repeat them at every step)."""
+        return [((math.nan, math.nan), ())]
 
 
 def validate(params: Parameters) -> None:
@@ -351,17 +358,25 @@ def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float
     return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
-def _link_rate(p: Parameters, moment: float, J: float, b: float, omega: float) -> float:
-    """Fastest rate of the link's own dynamics [1/s], for its gravity_moment and
-    link_inertia J with the slider at b."""
+def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, float, float, float]:
+    """(gravity_moment [N m], link_inertia J [kg m^2], the spring's moment amplitude k a b
+    [N m], the fastest rate of the link's own dynamics but for its speed [1/s]) with the
+    slider at b: constant while the slider is locked and the payload held, so the last ones
+    are kept with the parameters and reused (the same numbers as computed afresh)."""
+    memo = p._link_memo
+    key, terms = memo[0]
+    if key[0] == payload and key[1] == b:
+        return terms
+    moment, J = gravity_moment(p, payload, b), link_inertia(p, payload, b)
     stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
-    return max(math.sqrt(stiffness / J), p.d_link / J, abs(omega))
+    terms = (moment, J, p.k * p.a * b, max(math.sqrt(stiffness / J), p.d_link / J))
+    memo[0] = ((payload, b), terms)  # one assignment: key and terms change together
+    return terms
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    rate = _link_rate(p, gravity_moment(p, u.payload, s.b), link_inertia(p, u.payload, s.b),
-                      s.b, s.omega)
+    rate = max(_link_terms(p, u.payload, s.b)[3], abs(s.omega))
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
@@ -417,9 +432,10 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         # link (and its ledger) alone gives the same numbers as over the full state, whose
         # other derivatives are zero, at less cost; the terms constant over the step are
         # computed once (as _link_acceleration computes them, so the numbers stay the same).
-        b, tau, d = s.b, u.tau_drive, p.d_link
-        moment, J = gravity_moment(p, u.payload, b), link_inertia(p, u.payload, b)
-        spring, real_spring = p.k * p.a * b, p.L0 > 0.0
+        theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
+        tau, d = u.tau_drive, p.d_link
+        moment, J, spring, rate = _link_terms(p, u.payload, b)
+        real_spring = p.L0 > 0.0
 
         def link(theta: float, omega: float) -> tuple[float, float]:
             sin_t = math.sin(theta)
@@ -429,9 +445,8 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
             return (tau + moment * sin_t - spring_torque - d * omega) / J, d * omega * omega
 
         theta, omega, W_drive, E_loss = integrate_arm(
-            link, s.theta, s.omega, s.W_drive, s.E_loss, tau, dt,
-            _link_rate(p, moment, J, b, s.omega))
-        return State(theta, omega, b, 0.0, s.s_cw, W_drive, E_loss, s.E_added)
+            link, theta, omega, W_drive, E_loss, tau, dt, max(rate, abs(omega)))
+        return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
     rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
         return integrate(lambda state: _derivatives(p, u, state), s, dt, rate,
@@ -654,22 +669,21 @@ class Outputs(NamedTuple):
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    theta, omega, b, v, s_cw = s[:5]
+    theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
+    _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
+    moment, J, spring, _ = _link_terms(p, payload, b)
     x = spring_length(p, theta, b)
-    factor = _free_length_factor(p, theta, b)
-    moment = gravity_moment(p, u.payload, b)
+    factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
     E_p = moment * cos_t
     E_e = 0.5 * p.k * (x - p.L0) ** 2
-    E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
-    mass = slider_mass(p, u) if not u.slider_locked else p.m_slider
-    E_kin = 0.5 * link_inertia(p, u.payload, b) * omega ** 2 + 0.5 * mass * v ** 2
+    E_cw = -(p.M0 + counterweight_added) * p.g * s_cw
+    mass = p.m_slider if slider_locked else slider_mass(p, u)
+    E_kin = 0.5 * J * omega ** 2 + 0.5 * mass * v ** 2
     F_t = p.k * (b - p.a * cos_t) * factor
     F_n = p.k * p.a * sin_t * factor
-    tau_gravity = (moment - p.k * p.a * b * factor) * sin_t
-    balance_error = moment - p.k * p.a * b
-    # Positional, in field order: keyword arguments would add a microsecond to every step.
-    return Outputs(theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, balance_error,
-                   E_p, E_e, E_p + E_e, E_cw, E_kin, slider_at_stop(p, u, s), s.W_drive,
-                   s.E_loss, s.E_added)
-
+    tau_gravity = (moment - spring * factor) * sin_t
+    at_stop = not slider_locked and (b <= p.b_min or b >= p.b_max)  # slider_at_stop
+    # Built by tuple.__new__ in field order: Outputs(...) would add a Python call per step.
+    return _new(Outputs, (theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, moment - spring,
+                          E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))
