@@ -128,6 +128,9 @@ class ModelSlave(Fmi2Slave):
         self.dependencies: dict[str, tuple[str, ...]] = {}
         self.initial_dependencies: dict[str, tuple[str, ...]] = {}
         self.outputs_stale = False  # an input was set since the outputs were computed
+        # False once a Real input was set outside its bounds (and at the start, or after a
+        # restored state): do_step then looks for the problem
+        self.inputs_checked = False
         self.params = None
         self.start_time = 0.0
         self.real_outputs: list[str] = []  # names of the Real outputs, checked finite per step
@@ -252,13 +255,23 @@ class ModelSlave(Fmi2Slave):
 
     # Closures over the instance's __dict__: they run at every fmi2Get/fmi2Set call.
     def _input_setter(self, name: str) -> Callable[[Any], None]:
-        """Setter of an input: the outputs become stale."""
+        """Setter of an input: the outputs become stale, and a Real input's value is checked
+        against its bounds at once (_input_problem names the problem at the next step)."""
         attributes = self.__dict__
+        bounds = [(low, high) for n, low, high in self.real_input_bounds if n == name]
+        if not bounds:
+            def set_input(value: Any) -> None:
+                attributes[name] = value
+                attributes["outputs_stale"] = True
+            return set_input
+        lowest, highest = bounds[0]
 
-        def set_input(value: Any) -> None:
+        def set_real_input(value: Any) -> None:
             attributes[name] = value
             attributes["outputs_stale"] = True
-        return set_input
+            if not _within(value, lowest, highest):
+                attributes["inputs_checked"] = False
+        return set_real_input
 
     def _output_getter(self, name: str) -> Callable[[], Any]:
         """Getter of an output of a refreshing slave: all are recomputed first if an input was
@@ -363,10 +376,12 @@ class ModelSlave(Fmi2Slave):
         if not (self.params is not None and self.start_time <= current_time < math.inf
                 and 0.0 < step_size < math.inf):
             return self._refuse_call(current_time, step_size)
-        problem = self._input_problem()
-        if problem is not None:
-            self.fail(problem)
-            return False
+        if not self.inputs_checked:
+            problem = self._input_problem()
+            if problem is not None:
+                self.fail(problem)
+                return False
+            self.inputs_checked = True
         # What a step changes: the outputs and the hidden state (C-level getters: cheap).
         outputs, hidden = self._outputs_of(self.__dict__), self._hidden_of(self)
         try:
@@ -439,7 +454,7 @@ class ModelSlave(Fmi2Slave):
         values = self.__dict__
         for name, lowest, highest in self.real_input_bounds:
             value = values[name]
-            if lowest <= value <= highest and (value == 0.0 or not -SMALLEST < value < SMALLEST):
+            if _within(value, lowest, highest):
                 continue
             info = self.info[name]
             if not math.isfinite(value):
@@ -482,6 +497,7 @@ class ModelSlave(Fmi2Slave):
         names = {var.name: var for var in self.vars.values()}
         # a refreshing slave's outputs are computed again from the restored state, below
         skipped = set(self.output_names) if self.refreshes_outputs else set()
+        self.inputs_checked = False  # the inputs are set here without their setters
         for name, value in state.items():  # direct: the parameter setters refuse after init
             if name in names and name not in skipped:
                 setattr(self, names[name].local_name, value)
@@ -641,6 +657,11 @@ class PayloadArmSlave(MechanismSlave):
         for name, unit, description in self.output_table:
             self.add_output(name, unit, description, self.input_dependencies.get(name, ()))
 
+
+
+def _within(value: float, lowest: float, highest: float) -> bool:
+    """value in [lowest, highest] (not NaN) and zero or of magnitude at least SMALLEST."""
+    return lowest <= value <= highest and (value == 0.0 or not -SMALLEST < value < SMALLEST)
 
 
 def _indices(indices: Any) -> str:
