@@ -401,11 +401,12 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
     """E_t + E_cw + E_kin [J] (as `outputs` reports them)."""
     theta, omega, b, v, s_cw = s[:5]
-    E_p = gravity_moment(p, u.payload, b) * math.cos(theta)
+    moment, J, _, _ = _link_terms(p, u.payload, b)
+    E_p = moment * math.cos(theta)
     E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
     E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
     mass = p.m_slider if u.slider_locked else slider_mass(p, u)
-    return E_p + E_e + E_cw + 0.5 * link_inertia(p, u.payload, b) * omega ** 2 + 0.5 * mass * v * v
+    return E_p + E_e + E_cw + 0.5 * J * omega ** 2 + 0.5 * mass * v * v
 
 
 def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
@@ -511,7 +512,7 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     if d_payload != 0.0:
         added += d_payload * p.g * p.w * math.cos(theta)
         if d_payload > 0.0:
-            omega *= link_inertia(p, before.payload, b) / link_inertia(p, after.payload, b)
+            omega *= _link_terms(p, before.payload, b)[1] / _link_terms(p, after.payload, b)[1]
         else:
             added += 0.5 * d_payload * (p.w * omega) ** 2
     moving_cw = not (before.slider_locked or before.pulley_locked)
