@@ -127,7 +127,9 @@ class ModelSlave(Fmi2Slave):
         # per output, the inputs it depends on at communication points and in initialisation
         self.dependencies: dict[str, tuple[str, ...]] = {}
         self.initial_dependencies: dict[str, tuple[str, ...]] = {}
-        self.outputs_stale = False  # an input was set since the outputs were computed
+        # an input was set since the outputs were computed (always, in a slave that does
+        # not refresh them: get_real then reads each output's own getter)
+        self.outputs_stale = not self.refreshes_outputs
         # False once a Real input was set outside its bounds (and at the start, or after a
         # restored state): do_step then looks for the problem
         self.inputs_checked = False
@@ -158,7 +160,7 @@ class ModelSlave(Fmi2Slave):
         self.register_variable(var)
         if var.causality in (Fmi2Causality.parameter, Fmi2Causality.calculatedParameter):
             var.setter = self._parameter_setter(var.name, var.causality)
-        for table in ("_real_getters", "_real_setters"):  # built again at the next call
+        for table in ("_real_getters", "_real_setters", "_output_positions"):  # built again
             self.__dict__.pop(table, None)
 
     def _parameter_setter(self, name: str, causality: Fmi2Causality) -> Any:
@@ -269,7 +271,9 @@ class ModelSlave(Fmi2Slave):
         def set_real_input(value: Any) -> None:
             attributes[name] = value
             attributes["outputs_stale"] = True
-            if not _within(value, lowest, highest):
+            # _input_problem's tests in one chained comparison (also false for NaN)
+            if not (lowest <= value <= highest
+                    and (value == 0.0 or not -SMALLEST < value < SMALLEST)):
                 attributes["inputs_checked"] = False
         return set_real_input
 
@@ -298,7 +302,19 @@ class ModelSlave(Fmi2Slave):
         """Setter of each Real variable by value reference."""
         return {vr: var.setter for vr, var in self.vars.items() if isinstance(var, Real)}
 
+    @cached_property
+    def _output_positions(self) -> dict[int, int]:
+        """Position in output_values of each Real output by value reference."""
+        return {vr: self.output_names.index(var.name) for vr, var in self.vars.items()
+                if var.name in self.real_outputs}
+
     def get_real(self, vrs: list[int]) -> list[float]:
+        if not self.outputs_stale:  # current outputs of a refreshing slave: read at once
+            positions, values = self._output_positions, self.output_values
+            try:
+                return [values[positions[vr]] for vr in vrs]
+            except KeyError:  # not only outputs
+                pass
         getters = self._real_getters
         try:
             return [float(getters[vr]()) for vr in vrs]
@@ -454,17 +470,16 @@ class ModelSlave(Fmi2Slave):
         values = self.__dict__
         for name, lowest, highest in self.real_input_bounds:
             value = values[name]
-            if _within(value, lowest, highest):
-                continue
             info = self.info[name]
             if not math.isfinite(value):
                 return f"input {name} = {value} is not a finite number"
             magnitude = magnitude_problem(value)
             if magnitude:
                 return f"input {name} = {value} {info.unit} {magnitude}"
-            low = -math.inf if info.min is None else info.min
-            high = math.inf if info.max is None else info.max
-            return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
+            if not lowest <= value <= highest:  # within the magnitudes: the declared range
+                low = -math.inf if info.min is None else info.min
+                high = math.inf if info.max is None else info.max
+                return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
         return None
 
     def validate(self, params: Any) -> None:
@@ -657,11 +672,6 @@ class PayloadArmSlave(MechanismSlave):
         for name, unit, description in self.output_table:
             self.add_output(name, unit, description, self.input_dependencies.get(name, ()))
 
-
-
-def _within(value: float, lowest: float, highest: float) -> bool:
-    """value in [lowest, highest] (not NaN) and zero or of magnitude at least SMALLEST."""
-    return lowest <= value <= highest and (value == 0.0 or not -SMALLEST < value < SMALLEST)
 
 
 def _indices(indices: Any) -> str:

@@ -687,7 +687,7 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
     moment, J, spring, _ = _link_terms(p, payload, b)
-    x = spring_length(p, theta, b)
+    x = math.sqrt(max(p.a * p.a + b * b - 2.0 * p.a * b * cos_t, 0.0))  # spring_length
     factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
     E_p = moment * cos_t
     E_e = 0.5 * p.k * (x - p.L0) ** 2
