@@ -388,7 +388,7 @@ class ModelSlave(Fmi2Slave):
             raise ValueError(problem)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        # One chained test for the usual case (also false for NaN); the messages below
+        # one chained test for the usual call (also false for NaN); _refuse_call says why not
         if not (self.params is not None and self.start_time <= current_time < math.inf
                 and 0.0 < step_size < math.inf):
             return self._refuse_call(current_time, step_size)
