@@ -71,11 +71,12 @@ class SelfRegulatingBalancer(MechanismSlave):
             raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
         self.step_with(u, dt)
-        if self.output_values.slider_at_stop and not self.stop_reported:
+        at_stop = self.output_values.slider_at_stop
+        if at_stop and not self.stop_reported:
             stop = "b_min" if self.state.b <= p.b_min else "b_max"
             self.warn(f"slider reached its end stop {stop} = {self.state.b:.4f} m: "
                       f"balance_error = {self.output_values.balance_error:.4g} N m")
-        self.stop_reported = self.output_values.slider_at_stop
+        self.stop_reported = at_stop
 
     def switch_inputs(self, u: physics.Inputs) -> None:
         self.report_misuse(self.params, u)

@@ -124,7 +124,7 @@ def _moments(G_pv: float, OP: float, G2: float, OB: float, cos_phi: float) -> Mo
     """moments() for a known OB [m] and cos(phi)."""
     M_g = -G_pv * OP * cos_phi
     M_b = G2 * OB * cos_phi
-    return Moments(M_g, M_b, M_b + M_g)
+    return tuple.__new__(Moments, (M_g, M_b, M_b + M_g))  # Moments(...) is a Python call
 
 
 # ---- static example of the paper (Section 4) --------------------------------------------
@@ -399,7 +399,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     theta, omega, W_drive, E_loss = integrate_arm(
         partial(_arm_rates, p, payload, tau), s.theta, s.omega,
         s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
-    return State(theta, omega, W_drive, E_loss, s.E_added)
+    return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
@@ -432,12 +432,12 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     phi = HALF_PI - s.theta
     OB, dOB, d2OB = _geometry(p.OA, p.AB, phi)
     M = _moments(u.payload * p.g, p.w, p.m2 * p.g, OB, math.sin(s.theta))  # cos(phi)
-    return Outputs(
-        theta=s.theta, omega=s.omega, OB=OB,
-        tau_gravity=_gravity(p, u.payload, s.theta, OB, dOB),
-        E_p=p.g * math.cos(s.theta) * _net_moment_arm(p, u.payload, OB),
-        E_kin=0.5 * _inertia(p, u.payload, OB, dOB, d2OB)[0] * s.omega ** 2,
-        M_g=M.M_g, M_b=M.M_b, M_u=M.M_u,
-        M_bar=p.m2 * p.g * dOB * math.sin(phi),
-        W_drive=s.W_drive, E_loss=s.E_loss, E_added=s.E_added,
-    )
+    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
+    return tuple.__new__(Outputs, (
+        s.theta, s.omega, OB,
+        _gravity(p, u.payload, s.theta, OB, dOB),                             # tau_gravity
+        p.g * math.cos(s.theta) * _net_moment_arm(p, u.payload, OB),           # E_p
+        0.5 * _inertia(p, u.payload, OB, dOB, d2OB)[0] * s.omega ** 2,         # E_kin
+        *M,                                                                     # M_g, M_b, M_u
+        p.m2 * p.g * dOB * math.sin(phi),                                       # M_bar
+        s.W_drive, s.E_loss, s.E_added))

@@ -36,7 +36,7 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
-from functools import cached_property
+from functools import cached_property, partial
 from operator import attrgetter, itemgetter
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
@@ -127,7 +127,12 @@ class ModelSlave(Fmi2Slave):
         # per output, the inputs it depends on at communication points and in initialisation
         self.dependencies: dict[str, tuple[str, ...]] = {}
         self.initial_dependencies: dict[str, tuple[str, ...]] = {}
-        self.outputs_stale = False  # an input was set since the outputs were computed
+        # an input was set since the outputs were computed (always, in a slave that does
+        # not refresh them: get_real then reads each output's own getter)
+        self.outputs_stale = not self.refreshes_outputs
+        # False once a Real input was set outside its bounds (and at the start, or after a
+        # restored state): do_step then looks for the problem
+        self.inputs_checked = False
         self.params = None
         self.start_time = 0.0
         self.real_outputs: list[str] = []  # names of the Real outputs, checked finite per step
@@ -155,7 +160,7 @@ class ModelSlave(Fmi2Slave):
         self.register_variable(var)
         if var.causality in (Fmi2Causality.parameter, Fmi2Causality.calculatedParameter):
             var.setter = self._parameter_setter(var.name, var.causality)
-        for table in ("_real_getters", "_real_setters"):  # built again at the next call
+        for table in ("_real_getters", "_real_setters", "_output_positions"):  # built again
             self.__dict__.pop(table, None)
 
     def _parameter_setter(self, name: str, causality: Fmi2Causality) -> Any:
@@ -252,13 +257,25 @@ class ModelSlave(Fmi2Slave):
 
     # Closures over the instance's __dict__: they run at every fmi2Get/fmi2Set call.
     def _input_setter(self, name: str) -> Callable[[Any], None]:
-        """Setter of an input: the outputs become stale."""
+        """Setter of an input: the outputs become stale, and a Real input's value is checked
+        against its bounds at once (_input_problem names the problem at the next step)."""
         attributes = self.__dict__
+        bounds = [(low, high) for n, low, high in self.real_input_bounds if n == name]
+        if not bounds:
+            def set_input(value: Any) -> None:
+                attributes[name] = value
+                attributes["outputs_stale"] = True
+            return set_input
+        lowest, highest = bounds[0]
 
-        def set_input(value: Any) -> None:
+        def set_real_input(value: Any) -> None:
             attributes[name] = value
             attributes["outputs_stale"] = True
-        return set_input
+            # _input_problem's tests in one chained comparison (also false for NaN)
+            if not (lowest <= value <= highest
+                    and (value == 0.0 or not -SMALLEST < value < SMALLEST)):
+                attributes["inputs_checked"] = False
+        return set_real_input
 
     def _output_getter(self, name: str) -> Callable[[], Any]:
         """Getter of an output of a refreshing slave: all are recomputed first if an input was
@@ -285,7 +302,19 @@ class ModelSlave(Fmi2Slave):
         """Setter of each Real variable by value reference."""
         return {vr: var.setter for vr, var in self.vars.items() if isinstance(var, Real)}
 
+    @cached_property
+    def _output_positions(self) -> dict[int, int]:
+        """Position in output_values of each Real output by value reference."""
+        return {vr: self.output_names.index(var.name) for vr, var in self.vars.items()
+                if var.name in self.real_outputs}
+
     def get_real(self, vrs: list[int]) -> list[float]:
+        if not self.outputs_stale:  # current outputs of a refreshing slave: read at once
+            positions, values = self._output_positions, self.output_values
+            try:
+                return [values[positions[vr]] for vr in vrs]
+            except KeyError:  # not only outputs
+                pass
         getters = self._real_getters
         try:
             return [float(getters[vr]()) for vr in vrs]
@@ -359,21 +388,16 @@ class ModelSlave(Fmi2Slave):
             raise ValueError(problem)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        if self.params is None:
-            self.fail("fmi2DoStep called before initialisation (fmi2ExitInitializationMode) "
-                      "succeeded")
-            return False
-        if not current_time >= self.start_time or current_time == math.inf:
-            self.fail(f"communication point = {current_time} s is outside "
-                      f"[{self.start_time}, inf) (start time of fmi2SetupExperiment)")
-            return False
-        if not (step_size > 0.0 and math.isfinite(step_size)):
-            self.fail(f"communication step size = {step_size} s is outside (0, inf)")
-            return False
-        problem = self._input_problem()
-        if problem is not None:
-            self.fail(problem)
-            return False
+        # one chained test for the usual call (also false for NaN); _refuse_call says why not
+        if not (self.params is not None and self.start_time <= current_time < math.inf
+                and 0.0 < step_size < math.inf):
+            return self._refuse_call(current_time, step_size)
+        if not self.inputs_checked:
+            problem = self._input_problem()
+            if problem is not None:
+                self.fail(problem)
+                return False
+            self.inputs_checked = True
         # What a step changes: the outputs and the hidden state (C-level getters: cheap).
         outputs, hidden = self._outputs_of(self.__dict__), self._hidden_of(self)
         try:
@@ -390,6 +414,18 @@ class ModelSlave(Fmi2Slave):
         self._restore_outputs(outputs)
         self.fail(f"step at t = {current_time} s of {step_size} s refused, state unchanged: "
                   f"{problem}{self._describe_state()}")
+        return False
+
+    def _refuse_call(self, current_time: float, step_size: float) -> bool:
+        """Log why fmi2DoStep cannot be called so and return False (fmi2Discard)."""
+        if self.params is None:
+            self.fail("fmi2DoStep called before initialisation (fmi2ExitInitializationMode) "
+                      "succeeded")
+        elif not self.start_time <= current_time < math.inf:
+            self.fail(f"communication point = {current_time} s is outside "
+                      f"[{self.start_time}, inf) (start time of fmi2SetupExperiment)")
+        else:
+            self.fail(f"communication step size = {step_size} s is outside (0, inf)")
         return False
 
     @cached_property
@@ -434,17 +470,16 @@ class ModelSlave(Fmi2Slave):
         values = self.__dict__
         for name, lowest, highest in self.real_input_bounds:
             value = values[name]
-            if lowest <= value <= highest and (value == 0.0 or not -SMALLEST < value < SMALLEST):
-                continue
             info = self.info[name]
             if not math.isfinite(value):
                 return f"input {name} = {value} is not a finite number"
             magnitude = magnitude_problem(value)
             if magnitude:
                 return f"input {name} = {value} {info.unit} {magnitude}"
-            low = -math.inf if info.min is None else info.min
-            high = math.inf if info.max is None else info.max
-            return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
+            if not lowest <= value <= highest:  # within the magnitudes: the declared range
+                low = -math.inf if info.min is None else info.min
+                high = math.inf if info.max is None else info.max
+                return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
         return None
 
     def validate(self, params: Any) -> None:
@@ -477,6 +512,7 @@ class ModelSlave(Fmi2Slave):
         names = {var.name: var for var in self.vars.values()}
         # a refreshing slave's outputs are computed again from the restored state, below
         skipped = set(self.output_names) if self.refreshes_outputs else set()
+        self.inputs_checked = False  # the inputs are set here without their setters
         for name, value in state.items():  # direct: the parameter setters refuse after init
             if name in names and name not in skipped:
                 setattr(self, names[name].local_name, value)
@@ -568,15 +604,17 @@ class MechanismSlave(ModelSlave):
         # the event inputs of an Inputs tuple, as one comparable value (None: no events)
         self.event_values = (itemgetter(*(self.physics.Inputs._fields.index(n) for n in names))
                              if names else None)
-        # the input variables' values in physics.Inputs order, from the instance's __dict__
+        # the input variables' values in physics.Inputs order, from the instance's __dict__,
+        # and an Inputs built from such a tuple at C level (Inputs._make is a Python call)
         self.input_values = _tuple_getter(itemgetter, self.physics.Inputs._fields)
+        self.new_inputs = partial(tuple.__new__, self.physics.Inputs)
 
     def validate(self, params: Any) -> None:
         self.physics.validate(params)
 
     def inputs(self) -> Any:
         """The current inputs as a physics.Inputs."""
-        return self.physics.Inputs._make(self.input_values(self.__dict__))
+        return self.new_inputs(self.input_values(self.__dict__))
 
     def initialise(self, params: Any) -> None:
         missing = [n for n in self.physics.Inputs._fields if n not in self.info]
@@ -599,8 +637,10 @@ class MechanismSlave(ModelSlave):
         events = self.event_values
         if events is not None and events(u) != events(self.previous_inputs):
             self.switch_inputs(u)
-        self.state = self.physics.advance(self.params, u, self.state, dt)
-        self.set_outputs(self.physics.outputs(self.params, u, self.state))
+        physics, params = self.physics, self.params
+        self.state = state = physics.advance(params, u, self.state, dt)
+        self.output_values = physics.outputs(params, u, state)  # set_outputs, inlined
+        self.outputs_stale = False
 
     def switch_inputs(self, u: Any) -> None:
         """Book the change of event inputs from previous_inputs to u at this communication

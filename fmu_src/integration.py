@@ -33,15 +33,16 @@ def rk4(f: Callable[[Sequence[float]], Sequence[float]], s: S, h: float) -> S:
     """One classical Runge-Kutta step of size h for ds/dt = f(s); s is a NamedTuple.
 
     f gets the intermediate states as plain lists (it reads them by position): building a
-    NamedTuple per stage cost more than the arithmetic. The result is of s's type.
+    NamedTuple per stage cost more than the arithmetic. The result is of s's type (built by
+    tuple.__new__: s's _make is a Python call).
     """
     half, sixth = 0.5 * h, h / 6.0
     k1 = f(s)
     k2 = f([si + half * ki for si, ki in zip(s, k1)])
     k3 = f([si + half * ki for si, ki in zip(s, k2)])
     k4 = f([si + h * ki for si, ki in zip(s, k3)])
-    return type(s)._make([si + sixth * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
-                          for si, d1, d2, d3, d4 in zip(s, k1, k2, k3, k4)])
+    return tuple.__new__(type(s), [si + sixth * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+                                   for si, d1, d2, d3, d4 in zip(s, k1, k2, k3, k4)])
 
 
 def substeps(dt: float, rate: float) -> int:
@@ -81,7 +82,8 @@ def integrate_arm(f: Callable[[float, float], tuple[float, float]], theta: float
     bit, with the stages kept in local floats: one call of f per stage and no tuple per
     stage, where the tuples and calls cost more than the arm's arithmetic.
     """
-    n = substeps(dt, rate)
+    # one sub-step for the usual step (substeps' answer then, without its call)
+    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
     h = dt / n
     half, sixth = 0.5 * h, h / 6.0
     for _ in range(n):

@@ -217,12 +217,15 @@ class Efforts(NamedTuple):
 
 
 def efforts(p: Parameters, q1: float, q2: float) -> Efforts:
-    """Gravity efforts, their residuals after compensation and the worm force at (q1, q2)."""
+    """Gravity efforts, their residuals after compensation and the worm force at (q1, q2).
+
+    Built by tuple.__new__ (Efforts(...) is a Python call): this runs at every RK4 stage."""
     sin_q, cos_q = math.sin(q1), math.cos(q1)
     tau1_gravity = (p.lc1 * p.m1 + (p.ls0 + q2) * p.m2) * p.g * cos_q
     f2_gravity = p.m2 * p.g * sin_q
     if not p.compensated:
-        return Efforts(tau1_gravity, f2_gravity, tau1_gravity, f2_gravity, 0.0, 0.0)
+        return tuple.__new__(Efforts, (tau1_gravity, f2_gravity, tau1_gravity, f2_gravity,
+                                       0.0, 0.0))
     k1, k2, k3, rho = p.k1_used, p.k2_used, p.k3_used, p.rho_used
     e = p.b + rho * q2
     stretch = p.r * max(sin_q, 0.0)
@@ -230,7 +233,8 @@ def efforts(p: Parameters, q1: float, q2: float) -> Efforts:
     dV_dq1 = tau1_gravity + (T * p.r - p.c * p.d * k2 - p.a * e * k3) * cos_q
     dE3_dq2 = k3 * rho * (e - p.a * sin_q)
     f2_worm = 2.0 * T + (dE3_dq2 if p.self_locking else 0.0)
-    return Efforts(tau1_gravity, f2_gravity, dV_dq1, f2_gravity + dE3_dq2 - f2_worm, T, f2_worm)
+    return tuple.__new__(Efforts, (tau1_gravity, f2_gravity, dV_dq1,
+                                   f2_gravity + dE3_dq2 - f2_worm, T, f2_worm))
 
 
 def _held_by_stop(p: Parameters, q2: float, q2_dot: float, force: float) -> bool:
@@ -350,10 +354,10 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     depends on the inputs u here)."""
     q1, w1, q2, w2, W_drive, W_worm, E_friction, E_impact = s
     lc2 = p.ls0 + q2
-    return Outputs(
+    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
+    return tuple.__new__(Outputs, (
         q1, w1, q2, w2, *efforts(p, q1, q2),
-        E_grav=(p.m1 * p.lc1 + p.m2 * lc2) * p.g * math.sin(q1),
-        E_springs=spring_energy(p, q1, q2),
-        E_kin=0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2,
-        W_drive=W_drive, W_worm=W_worm, E_friction=E_friction, E_loss=E_friction + E_impact,
-        E_added=0.0)
+        (p.m1 * p.lc1 + p.m2 * lc2) * p.g * math.sin(q1),                 # E_grav
+        spring_energy(p, q1, q2),                                          # E_springs
+        0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2,        # E_kin
+        W_drive, W_worm, E_friction, E_friction + E_impact, 0.0))          # ..., E_loss, E_added

@@ -132,12 +132,14 @@ def geometry(k: Linkage, phi: float) -> Geometry:
     dd = -(dAx * ubx + dAy * uby) / (k.BC * s)
     d2b = (k.AB * db * db * c - k.BC * dd * dd + (Ax * udx + Ay * udy)) / (k.AB * s)
     r = k.AC2
-    # positional: keyword arguments cost more than the arithmetic here (four calls a sub-step)
-    return Geometry(Ax + r * ubx, Ay + r * uby,                                   # X, Y
-                    dAx - r * db * uby, dAy + r * db * ubx,                       # dX, dY
-                    -Ax + r * (-d2b * uby - db * db * ubx),                       # d2X
-                    -Ay + r * (d2b * ubx - db * db * uby),                        # d2Y
-                    math.atan2(uby * cos_p - ubx * sin_p, ubx * cos_p + uby * sin_p))  # psi
+    # in field order, built by tuple.__new__: Geometry(...) is a Python call, and this runs
+    # four times a sub-step
+    return tuple.__new__(Geometry, (
+        Ax + r * ubx, Ay + r * uby,                                               # X, Y
+        dAx - r * db * uby, dAy + r * db * ubx,                                   # dX, dY
+        -Ax + r * (-d2b * uby - db * db * ubx),                                   # d2X
+        -Ay + r * (d2b * ubx - db * db * uby),                                    # d2Y
+        math.atan2(uby * cos_p - ubx * sin_p, ubx * cos_p + uby * sin_p)))        # psi
 
 
 class Moments(NamedTuple):
@@ -157,7 +159,7 @@ def _moments(G_pv: float, OP: float, G2: float, dY: float, cos_phi: float) -> Mo
     """moments() for a known dY_P/dphi [m/rad] and cos(phi)."""
     M_g = -G_pv * OP * cos_phi
     M_b = -G2 * dY
-    return Moments(M_g, M_b, M_b + M_g)
+    return tuple.__new__(Moments, (M_g, M_b, M_b + M_g))  # Moments(...) is a Python call
 
 
 # ---- static example of the paper (Section 4), with a rocking counterweight ----------------
@@ -356,7 +358,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     theta, omega, W_drive, E_loss = integrate_arm(
         partial(_arm_rates, p, k, payload, tau), s.theta, s.omega,
         s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
-    return State(theta, omega, W_drive, E_loss, s.E_added)
+    return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
 
 
 def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
@@ -398,11 +400,11 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     cos_phi = math.sin(s.theta)
     M = _moments(u.payload * p.g, p.w, p.m2 * p.g, q.dY, cos_phi)
     arm = _arm_moment(p, u.payload)
-    return Outputs(
-        theta=s.theta, omega=s.omega,
-        tau_gravity=p.g * (cos_phi * arm + p.m2 * q.dY),
-        E_p=p.g * (math.cos(s.theta) * arm + p.m2 * q.Y),
-        E_kin=0.5 * _inertia(p, u.payload, q)[0] * s.omega ** 2,
-        M_g=M.M_g, M_b=M.M_b, M_u=M.M_u, X_cw=q.X, Y_cw=q.Y, psi=q.psi,
-        W_drive=s.W_drive, E_loss=s.E_loss, E_added=s.E_added,
-    )
+    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
+    return tuple.__new__(Outputs, (
+        s.theta, s.omega,
+        p.g * (cos_phi * arm + p.m2 * q.dY),                    # tau_gravity
+        p.g * (math.cos(s.theta) * arm + p.m2 * q.Y),           # E_p
+        0.5 * _inertia(p, u.payload, q)[0] * s.omega ** 2,      # E_kin
+        *M, q.X, q.Y, q.psi,                                    # M_g, M_b, M_u, X_cw, Y_cw, psi
+        s.W_drive, s.E_loss, s.E_added))

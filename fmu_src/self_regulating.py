@@ -31,7 +31,7 @@ conserved where the bodies couple or decouple), `advance` integrates between the
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
@@ -40,6 +40,7 @@ from fmu_src.integration import integrate, integrate_arm
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
+_new = tuple.__new__  # a NamedTuple from a tuple of its fields, without a Python call
 # A free slider starts every lock event with a jump in its acceleration, which RK4 at the
 # shared step-rate product resolves to ~1e-9 J of the energy ledger per event; sub-steps four
 # times finer on the slider's rates keep it near 1e-11 J (the link's own rate is unchanged).
@@ -130,6 +131,12 @@ class Parameters:
     def pulley_ratio(self) -> float:
         """Counterweight travel per unit slider travel, R/r (design value w/a, eq. 13)."""
         return self.R / self.r
+
+    @cached_property
+    def _link_memo(self) -> list:
+        """[((payload, b), _link_terms)]: the last link terms computed with these parameters
+        (a locked slider and a held payload repeat them at every step)."""
+        return [((math.nan, math.nan), ())]
 
 
 def validate(params: Parameters) -> None:
@@ -229,15 +236,15 @@ def link_inertia(p: Parameters, payload: float, b: float) -> float:
     return p.J_link + payload * p.w * p.w + p.m_slider * b * b + p.J_drive
 
 
-def _slider_force(p: Parameters, u: Inputs, theta: float, omega: float, b: float, v: float,
-                  factor: float) -> float:
+def _slider_force(p: Parameters, theta: float, omega: float, b: float, v: float,
+                  factor: float, pull: float, damping: float) -> float:
     """Net force along the link on the slider, outward positive, excluding its inertia [N].
 
-    factor is _free_length_factor(p, theta, b).
+    factor is _free_length_factor(p, theta, b), pull wire_tension(p, u) and damping
+    slider_damping(p, u) (constant while the inputs are held).
     """
     spring = p.k * (b - p.a * math.cos(theta)) * factor
-    return (p.m_slider * (b * omega * omega - p.g * math.cos(theta)) - spring
-            + wire_tension(p, u) - slider_damping(p, u) * v)
+    return p.m_slider * (b * omega * omega - p.g * math.cos(theta)) - spring + pull - damping * v
 
 
 def _at_stop(p: Parameters, b: float, push: float) -> bool:
@@ -247,16 +254,6 @@ def _at_stop(p: Parameters, b: float, push: float) -> bool:
     sub-step: holding it there would mix two right-hand sides in one RK4 step and spoil the
     energy balance."""
     return (b == p.b_min and push <= 0.0) or (b == p.b_max and push >= 0.0)
-
-
-def _link_acceleration(p: Parameters, u: Inputs, theta: float, omega: float, b: float,
-                       v: float) -> float:
-    """Angular acceleration of the link with the slider at b moving at v along it [rad/s^2]."""
-    sin_t = math.sin(theta)
-    spring_torque = p.k * p.a * b * sin_t * _free_length_factor(p, theta, b)
-    coriolis = 2.0 * p.m_slider * b * v * omega
-    return (u.tau_drive + gravity_moment(p, u.payload, b) * sin_t - spring_torque
-            - p.d_link * omega - coriolis) / link_inertia(p, u.payload, b)
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
@@ -270,43 +267,62 @@ def _derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None
     or, for a continuous-time model such as the harness's reference, change at `rates`
     (d/dt of the Real inputs; masses then join and leave continuously, see _mass_flow).
     `slip` fixes the slider's friction state for a whole RK4 sub-step (0: stuck, +1 or -1:
-    sliding out or in; see advance); None decides it from s.
-
-    A plain tuple, not a State: advance runs this four times per RK4 step and a NamedTuple
-    costs more.
-    """
-    theta, omega, b, v = s[:4]
-    omega_dot = _link_acceleration(p, u, theta, omega, b, v)
-    drive_power = u.tau_drive * omega
-    link_loss = p.d_link * omega * omega
-    if u.slider_locked:
-        d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
-        return d if rates is None else _mass_flow(p, u, rates, s, d)
-    m_eff = slider_mass(p, u)
-    factor = _free_length_factor(p, theta, b)
-    force = _slider_force(p, u, theta, omega, b, v, factor)
-    friction = slider_friction(p, theta, factor)
-    damping = slider_damping(p, u)
-    if m_eff > 0.0:
-        if slip is None:
-            slip = _slip(p, b, v, force, friction)
-        if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
-            d = (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
-            return d if rates is None else _mass_flow(p, u, rates, s, d)
-        b_dot = v
-        v_dot = (force - slip * friction) / m_eff
-        rubbing = slip * friction * v  # power of the friction force -slip friction
-    else:
-        # Massless slider: damping v = F_spring + T - friction (v eliminated, an output).
-        b_dot = _creep_speed(force + damping * v, friction, damping)
-        if _at_stop(p, b, b_dot):
-            b_dot = 0.0
-        v_dot = 0.0
-        rubbing = friction * abs(b_dot)
-    s_cw_dot = 0.0 if u.pulley_locked else p.pulley_ratio * b_dot
-    d = (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
-         link_loss + damping * b_dot * b_dot + rubbing, 0.0)
+    sliding out or in; see advance); None decides it from s."""
+    d = _state_rates(p, u, slip)(s)
     return d if rates is None else _mass_flow(p, u, rates, s, d)
+
+
+def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
+                 ) -> Callable[[Sequence[float]], tuple[float, ...]]:
+    """The time derivative of the state as a function of the state (read by position; a
+    plain tuple in State's field order) for inputs u held and the friction state slip (see
+    _derivatives): the terms constant while the inputs are held are computed once, for the
+    RK4 stages of a whole step."""
+    tau, payload, _, slider_locked, pulley_locked = u
+    moment_base = p.m * p.c + payload * p.w      # gravity_moment less m_slider b, times g
+    inertia_base = p.J_link + payload * p.w * p.w  # link_inertia less m_slider b^2 + J_drive
+    g, k_a, d_link, m_slider, J_drive = p.g, p.k * p.a, p.d_link, p.m_slider, p.J_drive
+    coriolis_factor = 2.0 * m_slider
+    real_spring = p.L0 > 0.0
+    if not slider_locked:
+        m_eff, pull, damping = slider_mass(p, u), wire_tension(p, u), slider_damping(p, u)
+        no_friction = p.mu_slider == 0.0
+        cw_ratio = 0.0 if pulley_locked else p.pulley_ratio
+    fixed_slip = slip
+
+    def state_rates(s: Sequence[float]) -> tuple[float, ...]:
+        theta, omega, b, v = s[:4]
+        sin_t = math.sin(theta)
+        factor = _free_length_factor(p, theta, b) if real_spring else 1.0
+        # the link's angular acceleration with the slider at b moving at v along it
+        spring_torque = k_a * b * sin_t * factor
+        coriolis = coriolis_factor * b * v * omega
+        omega_dot = (tau + (moment_base + m_slider * b) * g * sin_t - spring_torque
+                     - d_link * omega - coriolis) / (inertia_base + m_slider * b * b + J_drive)
+        drive_power = tau * omega
+        link_loss = d_link * omega * omega
+        if slider_locked:
+            return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+        force = _slider_force(p, theta, omega, b, v, factor, pull, damping)
+        friction = 0.0 if no_friction else slider_friction(p, theta, factor)
+        if m_eff > 0.0:
+            slip = _slip(p, b, v, force, friction) if fixed_slip is None else fixed_slip
+            if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
+                return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+            b_dot = v
+            v_dot = (force - slip * friction) / m_eff
+            rubbing = slip * friction * v  # power of the friction force -slip friction
+        else:
+            # Massless slider: damping v = F_spring + T - friction (v eliminated, an output).
+            b_dot = _creep_speed(force + damping * v, friction, damping)
+            if _at_stop(p, b, b_dot):
+                b_dot = 0.0
+            v_dot = 0.0
+            rubbing = friction * abs(b_dot)
+        s_cw_dot = 0.0 if pulley_locked else cw_ratio * b_dot
+        return (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
+                link_loss + damping * b_dot * b_dot + rubbing, 0.0)
+    return state_rates
 
 
 def _slip(p: Parameters, b: float, v: float, force: float, friction: float) -> float:
@@ -351,17 +367,25 @@ def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float
     return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
-def _link_rate(p: Parameters, moment: float, J: float, b: float, omega: float) -> float:
-    """Fastest rate of the link's own dynamics [1/s], for its gravity_moment and
-    link_inertia J with the slider at b."""
+def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, float, float, float]:
+    """(gravity_moment [N m], link_inertia J [kg m^2], the spring's moment amplitude k a b
+    [N m], the fastest rate of the link's own dynamics but for its speed [1/s]) with the
+    slider at b: constant while the slider is locked and the payload held, so the last ones
+    are kept with the parameters and reused (the same numbers as computed afresh)."""
+    memo = p._link_memo
+    key, terms = memo[0]
+    if key[0] == payload and key[1] == b:
+        return terms
+    moment, J = gravity_moment(p, payload, b), link_inertia(p, payload, b)
     stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
-    return max(math.sqrt(stiffness / J), p.d_link / J, abs(omega))
+    terms = (moment, J, p.k * p.a * b, max(math.sqrt(stiffness / J), p.d_link / J))
+    memo[0] = ((payload, b), terms)  # one assignment: key and terms change together
+    return terms
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    rate = _link_rate(p, gravity_moment(p, u.payload, s.b), link_inertia(p, u.payload, s.b),
-                      s.b, s.omega)
+    rate = max(_link_terms(p, u.payload, s.b)[3], abs(s.omega))
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
@@ -377,17 +401,19 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
     """E_t + E_cw + E_kin [J] (as `outputs` reports them)."""
     theta, omega, b, v, s_cw = s[:5]
-    E_p = gravity_moment(p, u.payload, b) * math.cos(theta)
+    moment, J, _, _ = _link_terms(p, u.payload, b)
+    E_p = moment * math.cos(theta)
     E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
     E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
     mass = p.m_slider if u.slider_locked else slider_mass(p, u)
-    return E_p + E_e + E_cw + 0.5 * link_inertia(p, u.payload, b) * omega ** 2 + 0.5 * mass * v * v
+    return E_p + E_e + E_cw + 0.5 * J * omega ** 2 + 0.5 * mass * v * v
 
 
 def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
     """Speed of a free massless slider with the pulley locked, set by the forces [m/s]."""
     factor = _free_length_factor(p, s.theta, s.b)
-    v = _creep_speed(_slider_force(p, u, s.theta, s.omega, s.b, 0.0, factor),
+    v = _creep_speed(_slider_force(p, s.theta, s.omega, s.b, 0.0, factor, wire_tension(p, u),
+                                   slider_damping(p, u)),
                      slider_friction(p, s.theta, factor), slider_damping(p, u))
     return 0.0 if _at_stop(p, s.b, v) else v
 
@@ -416,10 +442,11 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         # A clamped slider leaves a 1-DOF link: b and s_cw stay put and v = 0. RK4 over the
         # link (and its ledger) alone gives the same numbers as over the full state, whose
         # other derivatives are zero, at less cost; the terms constant over the step are
-        # computed once (as _link_acceleration computes them, so the numbers stay the same).
-        b, tau, d = s.b, u.tau_drive, p.d_link
-        moment, J = gravity_moment(p, u.payload, b), link_inertia(p, u.payload, b)
-        spring, real_spring = p.k * p.a * b, p.L0 > 0.0
+        # computed once (as _state_rates computes them, so the numbers stay the same).
+        theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
+        tau, d = u.tau_drive, p.d_link
+        moment, J, spring, rate = _link_terms(p, u.payload, b)
+        real_spring = p.L0 > 0.0
 
         def link(theta: float, omega: float) -> tuple[float, float]:
             sin_t = math.sin(theta)
@@ -429,12 +456,11 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
             return (tau + moment * sin_t - spring_torque - d * omega) / J, d * omega * omega
 
         theta, omega, W_drive, E_loss = integrate_arm(
-            link, s.theta, s.omega, s.W_drive, s.E_loss, tau, dt,
-            _link_rate(p, moment, J, b, s.omega))
-        return State(theta, omega, b, 0.0, s.s_cw, W_drive, E_loss, s.E_added)
+            link, theta, omega, W_drive, E_loss, tau, dt, max(rate, abs(omega)))
+        return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
     rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
-        return integrate(lambda state: _derivatives(p, u, state), s, dt, rate,
+        return integrate(_state_rates(p, u), s, dt, rate,
                          lambda state: _apply_constraints(p, u, state))
     # Coulomb friction: the friction state is decided at the start of each sub-step and held
     # through it, so that RK4 sees one smooth right-hand side (and the ledger stays exact).
@@ -458,8 +484,9 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
 def _friction_state(p: Parameters, u: Inputs, s: State) -> float:
     """_slip of the free slider in state s."""
     factor = _free_length_factor(p, s.theta, s.b)
-    return _slip(p, s.b, s.v, _slider_force(p, u, s.theta, s.omega, s.b, s.v, factor),
-                 slider_friction(p, s.theta, factor))
+    force = _slider_force(p, s.theta, s.omega, s.b, s.v, factor, wire_tension(p, u),
+                          slider_damping(p, u))
+    return _slip(p, s.b, s.v, force, slider_friction(p, s.theta, factor))
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
@@ -485,7 +512,7 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     if d_payload != 0.0:
         added += d_payload * p.g * p.w * math.cos(theta)
         if d_payload > 0.0:
-            omega *= link_inertia(p, before.payload, b) / link_inertia(p, after.payload, b)
+            omega *= _link_terms(p, before.payload, b)[1] / _link_terms(p, after.payload, b)[1]
         else:
             added += 0.5 * d_payload * (p.w * omega) ** 2
     moving_cw = not (before.slider_locked or before.pulley_locked)
@@ -493,7 +520,8 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     if d_cw != 0.0:
         added -= d_cw * p.g * s_cw
         if moving_cw and d_cw > 0.0:
-            heavier = before._replace(counterweight_added=after.counterweight_added)
+            heavier = Inputs(before.tau_drive, before.payload, after.counterweight_added,
+                             before.slider_locked, before.pulley_locked)
             v *= slider_mass(p, before) / slider_mass(p, heavier)
         elif moving_cw:
             added += 0.5 * d_cw * (p.pulley_ratio * v) ** 2
@@ -502,11 +530,11 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     elif not before.slider_locked and not after.pulley_locked and before.pulley_locked:
         coupled = slider_mass(p, after)
         v = v * p.m_slider / coupled if coupled > 0.0 else 0.0
-    new = State(theta, omega, b, v, s_cw, s.W_drive, s.E_loss, s.E_added + added)
     if not after.slider_locked and slider_mass(p, after) == 0.0:
-        new = new._replace(v=_damper_speed(p, after, new))
+        v = _damper_speed(p, after, State(theta, omega, b, v))
+    new = _new(State, (theta, omega, b, v, s_cw, s.W_drive, s.E_loss, s.E_added + added))
     loss = mechanical_energy(p, before, s) + added - mechanical_energy(p, after, new)
-    return new._replace(E_loss=s.E_loss + loss)
+    return _new(State, (*new[:6], s.E_loss + loss, new[7]))
 
 
 def slider_at_stop(p: Parameters, u: Inputs, s: State) -> bool:
@@ -524,7 +552,8 @@ def regulated_slider_position(p: Parameters, u: Inputs, theta: float) -> float:
     def net(b: float) -> float:
         if spring_length(p, theta, b) == 0.0:
             return 1.0
-        return _slider_force(p, u, theta, 0.0, b, 0.0, _free_length_factor(p, theta, b))
+        return _slider_force(p, theta, 0.0, b, 0.0, _free_length_factor(p, theta, b),
+                             wire_tension(p, u), slider_damping(p, u))
     lo, hi = p.b_min, p.b_max
     if net(lo) <= 0.0:
         return lo
@@ -654,22 +683,21 @@ class Outputs(NamedTuple):
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    theta, omega, b, v, s_cw = s[:5]
+    theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
+    _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
-    x = spring_length(p, theta, b)
-    factor = _free_length_factor(p, theta, b)
-    moment = gravity_moment(p, u.payload, b)
+    moment, J, spring, _ = _link_terms(p, payload, b)
+    x = math.sqrt(max(p.a * p.a + b * b - 2.0 * p.a * b * cos_t, 0.0))  # spring_length
+    factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
     E_p = moment * cos_t
     E_e = 0.5 * p.k * (x - p.L0) ** 2
-    E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
-    mass = slider_mass(p, u) if not u.slider_locked else p.m_slider
-    E_kin = 0.5 * link_inertia(p, u.payload, b) * omega ** 2 + 0.5 * mass * v ** 2
+    E_cw = -(p.M0 + counterweight_added) * p.g * s_cw
+    mass = p.m_slider if slider_locked else slider_mass(p, u)
+    E_kin = 0.5 * J * omega ** 2 + 0.5 * mass * v ** 2
     F_t = p.k * (b - p.a * cos_t) * factor
     F_n = p.k * p.a * sin_t * factor
-    tau_gravity = (moment - p.k * p.a * b * factor) * sin_t
-    balance_error = moment - p.k * p.a * b
-    # Positional, in field order: keyword arguments would add a microsecond to every step.
-    return Outputs(theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, balance_error,
-                   E_p, E_e, E_p + E_e, E_cw, E_kin, slider_at_stop(p, u, s), s.W_drive,
-                   s.E_loss, s.E_added)
-
+    tau_gravity = (moment - spring * factor) * sin_t
+    at_stop = not slider_locked and (b <= p.b_min or b >= p.b_max)  # slider_at_stop
+    # Built by tuple.__new__ in field order: Outputs(...) would add a Python call per step.
+    return _new(Outputs, (theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, moment - spring,
+                          E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))

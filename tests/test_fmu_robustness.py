@@ -207,6 +207,26 @@ def test_restored_state_is_validated(original: bytes, replacement: bytes, named:
         fmu.close()
 
 
+def test_bad_input_in_a_restored_state_is_refused_at_the_next_step() -> None:
+    """Inputs are checked when set; a restored state sets them directly, so the step after
+    it checks them again: payload = -1 kg saved in a state, a good payload stepped with in
+    between, the restored state's step is refused naming payload and leaves theta as it was
+    (1 rad/s then carries it DT further)."""
+    with open_fmu(fmu_build.fmu_path(SRB), {"omega0": 1.0}) as fmu:
+        fmu.set({"payload": -1.0})
+        state = fmu.slave.getFMUstate()
+        fmu.set({"payload": 0.5})
+        fmu.step(0.0, DT)
+        fmu.slave.setFMUstate(state)
+        fmu.slave.freeFMUstate(state)
+        before = fmu.get(["theta"])
+        assert "input payload = -1.0 kg is outside [0.0, inf]" in refused_step(fmu)
+        assert fmu.get(["theta"]) == before
+        fmu.set({"payload": 0.0})  # the restored state's own payload: no event
+        fmu.step(0.0, DT)
+        assert fmu.get(["theta"])["theta"] == pytest.approx(before["theta"] + DT, abs=1e-5)
+
+
 # ---- section 9: per-instance growth that is ours
 
 def test_instances_leave_sys_path_as_it_was() -> None:

@@ -105,6 +105,28 @@ def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
         assert fast == full
 
 
+def test_link_terms_kept_with_the_parameters_give_the_numbers_computed_afresh() -> None:
+    """The link's terms a parameter set keeps for its last payload and slider position are
+    the closed forms (m c + payload w + m_slider b) g, J_link + payload w^2 + m_slider b^2 +
+    J_drive and k a b, and outputs and advance give the same numbers whether they are reused,
+    replaced by other ones, or computed on a fresh copy of the parameters."""
+    p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, J_drive=0.05)
+    for payload, b in ((0.0, 0.06), (0.7, 0.08), (0.7, 0.08), (0.7, 0.05), (0.0, 0.05)):
+        moment, J, spring, _ = physics._link_terms(p, payload, b)
+        assert moment == pytest.approx((p.m * p.c + payload * p.w + p.m_slider * b) * p.g,
+                                       rel=1e-15)
+        assert J == pytest.approx(p.J_link + payload * p.w ** 2 + p.m_slider * b ** 2
+                                  + p.J_drive, rel=1e-15)
+        assert spring == pytest.approx(p.k * p.a * b, rel=1e-15)
+    s = physics.State(1.0, 0.5, 0.08, 0.0, 0.01, 0.2, 0.1, 0.05)
+    held, other = physics.Inputs(tau_drive=0.3, payload=0.7), physics.Inputs(payload=0.2)
+    for u, b in ((held, 0.08), (other, 0.08), (held, 0.09), (held, 0.09), (held, 0.06),
+                 (other, 0.06)):
+        fresh, at_b = dataclasses.replace(p), s._replace(b=b)  # fresh: no kept terms
+        assert physics.outputs(p, u, at_b) == physics.outputs(fresh, u, at_b)
+        assert physics.advance(p, u, at_b, 1e-3) == physics.advance(fresh, u, at_b, 1e-3)
+
+
 # ---- events at communication points (switch_inputs), against momentum balances by hand
 
 P_EVENTS = dataclasses.replace(TABLE_1, m_slider=0.2)
