@@ -56,6 +56,11 @@ class Physics(Protocol):
         """The Outputs at the state s with the inputs u."""
 
 
+def no_input_events(p: Any, before: Any, after: Any, s: Any) -> Any:
+    """`switch_inputs` of a mechanism whose EVENT_INPUTS is empty: the state, unchanged."""
+    return s
+
+
 # OSP-IS port kinds (harness.osp): effort and flow of each
 ANGULAR = "AngularMechanicalPort"   # Torque [N.m], AngularVelocity [rad/s]
 LINEAR = "LinearMechanicalPort"     # Force [N], LinearVelocity [m/s]

@@ -64,6 +64,7 @@ from functools import cached_property
 from typing import NamedTuple
 
 from fmu_src.integration import integrate
+from fmu_src.mechanism import no_input_events
 from fmu_src.parameters import check_ranges, parameter
 
 
@@ -310,9 +311,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
                      lambda state: _apply_stops(p, state))
 
 
-def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
-    """The state after the inputs change: unchanged (EVENT_INPUTS is empty)."""
-    return s
+switch_inputs = no_input_events  # EVENT_INPUTS is empty
 
 
 class Outputs(NamedTuple):

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src.integration import integrate
+from fmu_src.mechanism import no_input_events
 from fmu_src.parameters import check_ranges, parameter
 
 
@@ -90,9 +91,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     return integrate(lambda state: derivatives(p, u, state), s, dt, characteristic_rate(p, u, s))
 
 
-def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
-    """No input changes the state at a communication point."""
-    return s
+switch_inputs = no_input_events  # EVENT_INPUTS is empty
 
 
 class Outputs(NamedTuple):
