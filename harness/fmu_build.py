@@ -263,9 +263,13 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
 def update(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
            sequencer_scenario: str | Path | None = None, force: bool = False) -> bool:
     """Build dest/<model>.fmu (see `build`) if forced or stale, that is, unless it records
-    the digest of its current inputs (`fmu_inputs`); True if it was built."""
+    the digest of its current inputs (`fmu_inputs`); True if it was built. An up-to-date
+    FMU whose OSP model description is missing gets it written again."""
     embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
-    if not force and not stale(dest / f"{model}.fmu", fmu_inputs(model, source_dir, embedded)):
+    fmu = dest / f"{model}.fmu"
+    if not force and not stale(fmu, fmu_inputs(model, source_dir, embedded)):
+        if not (dest / f"{model}{osp.SUFFIX}").exists():  # deleted beside an up-to-date FMU
+            osp.write_model_description(fmu)
         return False
     build(model, dest, source_dir, sequencer_scenario)
     return True

@@ -34,6 +34,19 @@ def test_a_second_build_rewrites_nothing(capsys: pytest.CaptureFixture[str]) -> 
     assert snapshot(files) == before
 
 
+def test_a_deleted_osp_file_comes_back_without_a_rebuild() -> None:
+    """An up-to-date FMU whose OSP model description was deleted gets the same file back,
+    and the FMU itself is not rewritten."""
+    model = fmu_build.MODELS[0]
+    fmu = fmu_build.fmu_path(model)
+    osp_file = fmu.with_name(f"{model}_OspModelDescription.xml")
+    fmu_before, osp_before = snapshot([fmu])[fmu.name], osp_file.read_bytes()
+    osp_file.unlink()
+    assert not fmu_build.update(model)
+    assert osp_file.read_bytes() == osp_before
+    assert snapshot([fmu])[fmu.name] == fmu_before
+
+
 @pytest.fixture
 def sources(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """A copy of fmu_src that the build reads instead of the committed one."""
