@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import integrate, integrate_arm
+from fmu_src.integration import integrate, integrate_arm, substeps
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -276,9 +276,26 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
                  ) -> Callable[[Sequence[float]], tuple[float, ...]]:
     """The time derivative of the state as a function of the state (read by position; a
     plain tuple in State's field order) for inputs u held and the friction state slip (see
-    _derivatives): the terms constant while the inputs are held are computed once, for the
-    RK4 stages of a whole step."""
-    tau, payload, _, slider_locked, pulley_locked = u
+    _derivatives), built on _slider_rates."""
+    tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
+    rates = _slider_rates(p, u, slip)
+
+    def state_rates(s: Sequence[float]) -> tuple[float, ...]:
+        theta, omega, b, v = s[:4]
+        omega_dot, b_dot, v_dot, loss = rates(theta, omega, b, v)
+        return (omega, omega_dot, b_dot, v_dot, 0.0 if pulley_locked else cw_ratio * b_dot,
+                tau * omega, loss, 0.0)
+    return state_rates
+
+
+def _slider_rates(p: Parameters, u: Inputs, slip: float | None = None
+                  ) -> Callable[[float, float, float, float], tuple[float, float, float, float]]:
+    """(omega', b', v', E_loss') as a function of theta, omega, b and v for inputs u held and
+    the friction state slip (see _derivatives); the other rates follow from these: theta' =
+    omega, s_cw' = (R/r) b' while the pulley turns, W_drive' = tau_drive omega, E_added' = 0.
+    The terms constant while the inputs are held are computed once, for the RK4 stages of a
+    whole step."""
+    tau, payload, _, slider_locked, _ = u
     moment_base = p.m * p.c + payload * p.w      # gravity_moment less m_slider b, times g
     inertia_base = p.J_link + payload * p.w * p.w  # link_inertia less m_slider b^2 + J_drive
     g, k_a, d_link, m_slider, J_drive = p.g, p.k * p.a, p.d_link, p.m_slider, p.J_drive
@@ -287,11 +304,10 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
     if not slider_locked:
         m_eff, pull, damping = slider_mass(p, u), wire_tension(p, u), slider_damping(p, u)
         no_friction = p.mu_slider == 0.0
-        cw_ratio = 0.0 if pulley_locked else p.pulley_ratio
     fixed_slip = slip
 
-    def state_rates(s: Sequence[float]) -> tuple[float, ...]:
-        theta, omega, b, v = s[:4]
+    def slider_rates(theta: float, omega: float, b: float, v: float
+                     ) -> tuple[float, float, float, float]:
         sin_t = math.sin(theta)
         factor = _free_length_factor(p, theta, b) if real_spring else 1.0
         # the link's angular acceleration with the slider at b moving at v along it
@@ -299,16 +315,15 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
         coriolis = coriolis_factor * b * v * omega
         omega_dot = (tau + (moment_base + m_slider * b) * g * sin_t - spring_torque
                      - d_link * omega - coriolis) / (inertia_base + m_slider * b * b + J_drive)
-        drive_power = tau * omega
         link_loss = d_link * omega * omega
         if slider_locked:
-            return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+            return omega_dot, 0.0, 0.0, link_loss
         force = _slider_force(p, theta, omega, b, v, factor, pull, damping)
         friction = 0.0 if no_friction else slider_friction(p, theta, factor)
         if m_eff > 0.0:
             slip = _slip(p, b, v, force, friction) if fixed_slip is None else fixed_slip
             if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
-                return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+                return omega_dot, 0.0, 0.0, link_loss
             b_dot = v
             v_dot = (force - slip * friction) / m_eff
             rubbing = slip * friction * v  # power of the friction force -slip friction
@@ -319,10 +334,8 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
                 b_dot = 0.0
             v_dot = 0.0
             rubbing = friction * abs(b_dot)
-        s_cw_dot = 0.0 if pulley_locked else cw_ratio * b_dot
-        return (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
-                link_loss + damping * b_dot * b_dot + rubbing, 0.0)
-    return state_rates
+        return omega_dot, b_dot, v_dot, link_loss + damping * b_dot * b_dot + rubbing
+    return slider_rates
 
 
 def _slip(p: Parameters, b: float, v: float, force: float, friction: float) -> float:
@@ -460,8 +473,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
     rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
-        return integrate(_state_rates(p, u), s, dt, rate,
-                         lambda state: _apply_constraints(p, u, state))
+        return _integrate_free_slider(p, u, s, dt, rate)
     # Coulomb friction: the friction state is decided at the start of each sub-step and held
     # through it, so that RK4 sees one smooth right-hand side (and the ledger stays exact).
     slip = [_friction_state(p, u, s)]
@@ -479,6 +491,49 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         return state
 
     return integrate(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
+
+
+def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, rate: float
+                           ) -> State:
+    """`integrate` over the state with the derivatives of `_state_rates` and
+    `_apply_constraints` after each sub-step (a free slider with no friction state to hold),
+    bit for bit (same operations in the same order), with the RK4 stages kept in local
+    floats: one call of `_slider_rates` per stage and no tuple per stage, where the tuples,
+    calls and the full-state arithmetic cost more than the slider's own."""
+    rates = _slider_rates(p, u)
+    tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
+    b_min, b_max = p.b_min, p.b_max
+    massive = slider_mass(p, u) != 0.0  # _apply_constraints leaves it alone within the stops
+    theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
+    n = substeps(dt, rate)
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    for _ in range(n):
+        a1, b1, v1, l1 = rates(theta, omega, b, v)
+        o2 = omega + half * a1
+        a2, b2, v2, l2 = rates(theta + half * omega, o2, b + half * b1, v + half * v1)
+        o3 = omega + half * a2
+        a3, b3, v3, l3 = rates(theta + half * o2, o3, b + half * b2, v + half * v2)
+        o4 = omega + h * a3
+        a4, b4, v4, l4 = rates(theta + h * o3, o4, b + h * b3, v + h * v3)
+        # rk4's sums for s_cw, whose rate is 0.0 while the pulley is locked, and E_added
+        # (rate 0.0): adding sixth times the zero sum is adding 0.0
+        if pulley_locked:
+            s_cw += 0.0
+        else:
+            s_cw += sixth * (cw_ratio * b1 + 2.0 * (cw_ratio * b2) + 2.0 * (cw_ratio * b3)
+                             + cw_ratio * b4)
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+        E_added += 0.0
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        b += sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        v += sixth * (v1 + 2.0 * v2 + 2.0 * v3 + v4)
+        if not (massive and b_min <= b <= b_max):
+            theta, omega, b, v, s_cw, W_drive, E_loss, E_added = _apply_constraints(
+                p, u, _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added)))
+    return _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added))
 
 
 def _friction_state(p: Parameters, u: Inputs, s: State) -> float:

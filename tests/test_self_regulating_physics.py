@@ -105,6 +105,39 @@ def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
         assert fast == full
 
 
+@pytest.mark.parametrize("changes, inputs, b, v", [
+    # regulating (slider and pulley free), a real spring and a slider with mass
+    ({"m_slider": 0.2, "L0": 0.01}, {"payload": 0.8, "counterweight_added": 0.5}, 0.07, 0.1),
+    # slider and counterweight thrown onto b_max, the link driven
+    ({"m_slider": 0.1}, {"tau_drive": 0.3, "counterweight_added": 3.0}, 0.345, 5.0),
+    # massless slider with the pulley locked: first-order creep onto b_min
+    ({}, {"pulley_locked": True}, 0.01, 0.0),
+    # a slider with mass and the pulley locked, thrown onto b_min
+    ({"m_slider": 0.3}, {"pulley_locked": True}, 0.005, -1.0),
+])
+def test_free_slider_shortcut_matches_the_full_state_integration(
+        changes: dict, inputs: dict, b: float, v: float) -> None:
+    """advance() integrates a free slider with no friction in local floats: same numbers, bit
+    for bit, as RK4 on the full state with the general derivatives and the end-stop clamp,
+    within the stops and when it hits one."""
+    p = dataclasses.replace(TABLE_1, theta0=2.5, omega0=1.5, **changes)
+    u = physics.Inputs(**{"slider_locked": False, "pulley_locked": False, **inputs})
+    fast = full = physics.initial_state(p)._replace(b=b, v=v, s_cw=0.01, E_added=0.2)
+    clamped = []
+
+    def constrain(s: physics.State) -> physics.State:
+        after = physics._apply_constraints(p, u, s)
+        clamped.append(after.b != s.b)
+        return after
+    for dt in (1e-3, 1e-2, 0.1) * 10:
+        fast = physics.advance(p, u, fast, dt)
+        full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
+                         physics.characteristic_rate(p, u, full), constrain)
+        assert fast == full
+    assert any(clamped) == (b != 0.07)
+    assert fast.b != b
+
+
 def test_link_terms_kept_with_the_parameters_give_the_numbers_computed_afresh() -> None:
     """The link's terms a parameter set keeps for its last payload and slider position are
     the closed forms (m c + payload w + m_slider b) g, J_link + payload w^2 + m_slider b^2 +
