@@ -134,9 +134,10 @@ class Parameters:
 
     @cached_property
     def _link_memo(self) -> list:
-        """[((payload, b), _link_terms)]: the last link terms computed with these parameters
-        (a locked slider and a held payload repeat them at every step)."""
-        return [((math.nan, math.nan), ())]
+        """[((payload, b), _link_terms)] * 2: the last two link terms computed with these
+        parameters, the latest first (a locked slider and a held payload repeat them at every
+        step; a payload event reads them before and after it)."""
+        return [((math.nan, math.nan), ())] * 2
 
 
 def validate(params: Parameters) -> None:
@@ -389,9 +390,13 @@ def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, float, 
     key, terms = memo[0]
     if key[0] == payload and key[1] == b:
         return terms
+    key, terms = memo[1]
+    if key[0] == payload and key[1] == b:
+        return terms
     moment, J = gravity_moment(p, payload, b), link_inertia(p, payload, b)
     stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
     terms = (moment, J, p.k * p.a * b, max(math.sqrt(stiffness / J), p.d_link / J))
+    memo[1] = memo[0]
     memo[0] = ((payload, b), terms)  # one assignment: key and terms change together
     return terms
 
@@ -413,12 +418,16 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
     """E_t + E_cw + E_kin [J] (as `outputs` reports them)."""
+    return _mechanical_energy(p, u, s, p.m_slider if u.slider_locked else slider_mass(p, u))
+
+
+def _mechanical_energy(p: Parameters, u: Inputs, s: State, mass: float) -> float:
+    """mechanical_energy with the slider's effective mass [kg] known."""
     theta, omega, b, v, s_cw = s[:5]
     moment, J, _, _ = _link_terms(p, u.payload, b)
     E_p = moment * math.cos(theta)
     E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
     E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
-    mass = p.m_slider if u.slider_locked else slider_mass(p, u)
     return E_p + E_e + E_cw + 0.5 * J * omega ** 2 + 0.5 * mass * v * v
 
 
@@ -562,6 +571,9 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     away) to E_added; the kinetic energy the events destroy goes to E_loss.
     """
     theta, omega, b, v, s_cw = s[:5]
+    # the slider's effective masses (mechanical_energy's), each computed once
+    mass_before = p.m_slider if before.slider_locked else slider_mass(p, before)
+    mass_after = p.m_slider if after.slider_locked else slider_mass(p, after)
     added = 0.0
     d_payload = after.payload - before.payload
     if d_payload != 0.0:
@@ -575,20 +587,20 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     if d_cw != 0.0:
         added -= d_cw * p.g * s_cw
         if moving_cw and d_cw > 0.0:
-            heavier = Inputs(before.tau_drive, before.payload, after.counterweight_added,
-                             before.slider_locked, before.pulley_locked)
-            v *= slider_mass(p, before) / slider_mass(p, heavier)
+            heavier = _new(Inputs, (before.tau_drive, before.payload, after.counterweight_added,
+                                    before.slider_locked, before.pulley_locked))
+            v *= mass_before / slider_mass(p, heavier)
         elif moving_cw:
             added += 0.5 * d_cw * (p.pulley_ratio * v) ** 2
     if after.slider_locked:
         v = 0.0
     elif not before.slider_locked and not after.pulley_locked and before.pulley_locked:
-        coupled = slider_mass(p, after)
-        v = v * p.m_slider / coupled if coupled > 0.0 else 0.0
-    if not after.slider_locked and slider_mass(p, after) == 0.0:
+        v = v * p.m_slider / mass_after if mass_after > 0.0 else 0.0
+    if not after.slider_locked and mass_after == 0.0:
         v = _damper_speed(p, after, State(theta, omega, b, v))
     new = _new(State, (theta, omega, b, v, s_cw, s.W_drive, s.E_loss, s.E_added + added))
-    loss = mechanical_energy(p, before, s) + added - mechanical_energy(p, after, new)
+    loss = (_mechanical_energy(p, before, s, mass_before) + added
+            - _mechanical_energy(p, after, new, mass_after))
     return _new(State, (*new[:6], s.E_loss + loss, new[7]))
 
 
