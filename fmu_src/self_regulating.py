@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import integrate, integrate_arm, substeps
+from fmu_src.integration import STEP_RATE_PRODUCT, integrate, substeps
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -461,25 +461,7 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
     if u.slider_locked:
-        # A clamped slider leaves a 1-DOF link: b and s_cw stay put and v = 0. RK4 over the
-        # link (and its ledger) alone gives the same numbers as over the full state, whose
-        # other derivatives are zero, at less cost; the terms constant over the step are
-        # computed once (as _state_rates computes them, so the numbers stay the same).
-        theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
-        tau, d = u.tau_drive, p.d_link
-        moment, J, spring, rate = _link_terms(p, u.payload, b)
-        real_spring = p.L0 > 0.0
-
-        def link(theta: float, omega: float) -> tuple[float, float]:
-            sin_t = math.sin(theta)
-            spring_torque = spring * sin_t
-            if real_spring:
-                spring_torque *= _free_length_factor(p, theta, b)
-            return (tau + moment * sin_t - spring_torque - d * omega) / J, d * omega * omega
-
-        theta, omega, W_drive, E_loss = integrate_arm(
-            link, theta, omega, W_drive, E_loss, tau, dt, max(rate, abs(omega)))
-        return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
+        return _integrate_locked_slider(p, u, s, dt)
     rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
         return _integrate_free_slider(p, u, s, dt, rate)
@@ -500,6 +482,54 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         return state
 
     return integrate(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
+
+
+def _integrate_locked_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """`integrate` over the state with the derivatives of `_state_rates` for a clamped slider,
+    bit for bit (same operations in the same order): it leaves a 1-DOF link, b and s_cw
+    stay put and v = 0, so RK4 runs over the link and its ledger alone (`integrate_arm`'s
+    scheme), its angular acceleration written out in each stage, with the terms constant
+    over the step computed once: a call and a tuple per stage cost more than the link's
+    arithmetic."""
+    theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
+    tau, d = u.tau_drive, p.d_link
+    moment, J, spring, rate = _link_terms(p, u.payload, b)
+    rate = max(rate, abs(omega))
+    # one sub-step for the usual step (substeps' answer then, without its call)
+    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    # the spring's moment is spring sin(theta) (1 - L0/x): the factor is exactly 1.0 for
+    # the ideal spring (and multiplying by 1.0 changes no number)
+    real_spring = p.L0 > 0.0
+    f1 = f2 = f3 = f4 = 1.0
+    for _ in range(n):
+        t2 = theta + half * omega
+        if real_spring:
+            f1, f2 = _free_length_factor(p, theta, b), _free_length_factor(p, t2, b)
+        s1 = math.sin(theta)
+        a1 = (tau + moment * s1 - spring * s1 * f1 - d * omega) / J
+        o2 = omega + half * a1
+        s2 = math.sin(t2)
+        a2 = (tau + moment * s2 - spring * s2 * f2 - d * o2) / J
+        o3 = omega + half * a2
+        t3 = theta + half * o2
+        if real_spring:
+            f3 = _free_length_factor(p, t3, b)
+        s3 = math.sin(t3)
+        a3 = (tau + moment * s3 - spring * s3 * f3 - d * o3) / J
+        o4 = omega + h * a3
+        t4 = theta + h * o3
+        if real_spring:
+            f4 = _free_length_factor(p, t4, b)
+        s4 = math.sin(t4)
+        a4 = (tau + moment * s4 - spring * s4 * f4 - d * o4) / J
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (d * omega * omega + 2.0 * (d * o2 * o2) + 2.0 * (d * o3 * o3)
+                           + d * o4 * o4)
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
 
 
 def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, rate: float

@@ -92,10 +92,11 @@ def test_real_spring_free_slider_conserves_energy() -> None:
     assert travel > 1e-3 and drift < 1e-8
 
 
-def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
+@pytest.mark.parametrize("L0", [0.0, 0.01])
+def test_locked_slider_shortcut_matches_the_full_state_integration(L0: float) -> None:
     """advance() integrates only the link while the slider is clamped: same numbers as RK4 on
-    the full state with the general derivatives."""
-    p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, theta0=1.0, omega0=2.0)
+    the full state with the general derivatives, for the ideal and a real spring."""
+    p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=L0, theta0=1.0, omega0=2.0)
     u = physics.Inputs(tau_drive=0.3, payload=0.8)
     fast = full = physics.initial_state(p)
     for dt in (1e-3, 1e-2, 0.1) * 20:
