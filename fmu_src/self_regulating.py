@@ -403,16 +403,20 @@ def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, float, 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    rate = max(_link_terms(p, u.payload, s.b)[3], abs(s.omega))
+    # max(a, b) as `b if b > a else a` (the same value; the builtin's call costs more)
+    rate, speed = _link_terms(p, u.payload, s.b)[3], abs(s.omega)
+    rate = speed if speed > rate else rate
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
         damping = slider_damping(p, u)
         if m_eff > 0.0:
-            slider_rate = max(math.sqrt(k_b / m_eff), damping / m_eff)
+            slider_rate, decay = math.sqrt(k_b / m_eff), damping / m_eff
+            slider_rate = decay if decay > slider_rate else slider_rate
         else:
             slider_rate = k_b / damping
-        rate = max(rate, SLIDER_RATE_FACTOR * slider_rate)
+        slider_rate *= SLIDER_RATE_FACTOR
+        rate = slider_rate if slider_rate > rate else rate
     return rate
 
 
@@ -458,10 +462,8 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
     return clamped._replace(E_loss=s.E_loss + loss)
 
 
-def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """Integrate over one communication step dt [s] with inputs held constant."""
-    if u.slider_locked:
-        return _integrate_locked_slider(p, u, s, dt)
+def _advance_free_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """advance with the slider free."""
     rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
         return _integrate_free_slider(p, u, s, dt, rate)
@@ -484,17 +486,23 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     return integrate(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
 
 
-def _integrate_locked_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """`integrate` over the state with the derivatives of `_state_rates` for a clamped slider,
-    bit for bit (same operations in the same order): it leaves a 1-DOF link, b and s_cw
-    stay put and v = 0, so RK4 runs over the link and its ledger alone (`integrate_arm`'s
-    scheme), its angular acceleration written out in each stage, with the terms constant
-    over the step computed once: a call and a tuple per stage cost more than the link's
-    arithmetic."""
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant.
+
+    A clamped slider (the usual step, done here without a further call) leaves a 1-DOF
+    link: b and s_cw stay put and v = 0, so RK4 runs over the link and its ledger alone
+    (`integrate_arm`'s scheme), its angular acceleration written out in each stage, with the
+    terms constant over the step computed once (a call and a tuple per stage cost more than
+    the link's arithmetic). The same numbers, bit for bit (same operations in the same
+    order), as `integrate` over the full state with the derivatives of `_state_rates`.
+    """
+    if not u.slider_locked:
+        return _advance_free_slider(p, u, s, dt)
     theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
     tau, d = u.tau_drive, p.d_link
     moment, J, spring, rate = _link_terms(p, u.payload, b)
-    rate = max(rate, abs(omega))
+    speed = abs(omega)
+    rate = speed if speed > rate else rate  # max(rate, speed), without the builtin's call
     # one sub-step for the usual step (substeps' answer then, without its call)
     n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
     h = dt / n
@@ -784,7 +792,8 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
     moment, J, spring, _ = _link_terms(p, payload, b)
-    x = math.sqrt(max(p.a * p.a + b * b - 2.0 * p.a * b * cos_t, 0.0))  # spring_length
+    x2 = p.a * p.a + b * b - 2.0 * p.a * b * cos_t
+    x = math.sqrt(0.0 if 0.0 > x2 else x2)  # spring_length (max(x2, 0.0) without its call)
     factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
     E_p = moment * cos_t
     E_e = 0.5 * p.k * (x - p.L0) ** 2
