@@ -322,7 +322,12 @@ def _slider_rates(p: Parameters, u: Inputs, slip: float | None = None
         force = _slider_force(p, theta, omega, b, v, factor, pull, damping)
         friction = 0.0 if no_friction else slider_friction(p, theta, factor)
         if m_eff > 0.0:
-            slip = _slip(p, b, v, force, friction) if fixed_slip is None else fixed_slip
+            if fixed_slip is not None:
+                slip = fixed_slip
+            elif v != 0.0:
+                slip = math.copysign(1.0, v)  # _slip's answer for a moving slider, no call
+            else:
+                slip = _slip(p, b, v, force, friction)
             if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
                 return omega_dot, 0.0, 0.0, link_loss
             b_dot = v
