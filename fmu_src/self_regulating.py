@@ -386,11 +386,13 @@ def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float
     return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
-def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, float, float, float]:
+def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, ...]:
     """(gravity_moment [N m], link_inertia J [kg m^2], the spring's moment amplitude k a b
-    [N m], the fastest rate of the link's own dynamics but for its speed [1/s]) with the
-    slider at b: constant while the slider is locked and the payload held, so the last ones
-    are kept with the parameters and reused (the same numbers as computed afresh)."""
+    [N m], the fastest rate of the link's own dynamics but for its speed [1/s], and the
+    outputs' terms balance_error = gravity_moment - k a b [N m], delta_b = b - b0 [m],
+    a^2 + b^2 and 2 a b [m^2] of the spring length) with the slider at b: constant while the
+    slider is locked and the payload held, so the last ones are kept with the parameters and
+    reused (the same numbers as computed afresh)."""
     memo = p._link_memo
     key, terms = memo[0]
     if key[0] == payload and key[1] == b:
@@ -400,7 +402,10 @@ def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, float, 
         return terms
     moment, J = gravity_moment(p, payload, b), link_inertia(p, payload, b)
     stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
-    terms = (moment, J, p.k * p.a * b, max(math.sqrt(stiffness / J), p.d_link / J))
+    spring = p.k * p.a * b
+    terms = (moment, J, spring, max(math.sqrt(stiffness / J), p.d_link / J),
+             # outputs' terms of the slider position alone
+             moment - spring, b - p.b0, p.a * p.a + b * b, 2.0 * p.a * b)
     memo[1] = memo[0]
     memo[0] = ((payload, b), terms)  # one assignment: key and terms change together
     return terms
@@ -433,7 +438,7 @@ def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
 def _mechanical_energy(p: Parameters, u: Inputs, s: State, mass: float) -> float:
     """mechanical_energy with the slider's effective mass [kg] known."""
     theta, omega, b, v, s_cw = s[:5]
-    moment, J, _, _ = _link_terms(p, u.payload, b)
+    moment, J = _link_terms(p, u.payload, b)[:2]
     E_p = moment * math.cos(theta)
     E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
     E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
@@ -505,7 +510,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         return _advance_free_slider(p, u, s, dt)
     theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
     tau, d = u.tau_drive, p.d_link
-    moment, J, spring, rate = _link_terms(p, u.payload, b)
+    moment, J, spring, rate = _link_terms(p, u.payload, b)[:4]
     speed = abs(omega)
     rate = speed if speed > rate else rate  # max(rate, speed), without the builtin's call
     # one sub-step for the usual step (substeps' answer then, without its call)
@@ -796,8 +801,8 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
     _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
-    moment, J, spring, _ = _link_terms(p, payload, b)
-    x2 = p.a * p.a + b * b - 2.0 * p.a * b * cos_t
+    moment, J, spring, _, balance_error, delta_b, a2_b2, two_a_b = _link_terms(p, payload, b)
+    x2 = a2_b2 - two_a_b * cos_t
     x = math.sqrt(0.0 if 0.0 > x2 else x2)  # spring_length (max(x2, 0.0) without its call)
     factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
     E_p = moment * cos_t
@@ -810,5 +815,5 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     tau_gravity = (moment - spring * factor) * sin_t
     at_stop = not slider_locked and (b <= p.b_min or b >= p.b_max)  # slider_at_stop
     # Built by tuple.__new__ in field order: Outputs(...) would add a Python call per step.
-    return _new(Outputs, (theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, moment - spring,
+    return _new(Outputs, (theta, omega, b, delta_b, x, F_t, F_n, tau_gravity, balance_error,
                           E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))
