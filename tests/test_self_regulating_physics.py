@@ -142,11 +142,15 @@ def test_free_slider_shortcut_matches_the_full_state_integration(
 def test_link_terms_kept_with_the_parameters_give_the_numbers_computed_afresh() -> None:
     """The link's terms a parameter set keeps for its last payload and slider position are
     the closed forms (m c + payload w + m_slider b) g, J_link + payload w^2 + m_slider b^2 +
-    J_drive and k a b, and outputs and advance give the same numbers whether they are reused,
-    replaced by other ones, or computed on a fresh copy of the parameters."""
+    J_drive, k a b, their difference, b - b0, a^2 + b^2 and 2 a b, and outputs and advance
+    give the same numbers whether they are reused, replaced by other ones, or computed on a
+    fresh copy of the parameters."""
     p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, J_drive=0.05)
     for payload, b in ((0.0, 0.06), (0.7, 0.08), (0.7, 0.08), (0.7, 0.05), (0.0, 0.05)):
-        moment, J, spring = physics._link_terms(p, payload, b)[:3]
+        moment, J, spring, _, balance, delta_b, a2_b2, two_a_b = physics._link_terms(
+            p, payload, b)
+        assert (balance, delta_b) == (moment - spring, b - p.b0)
+        assert (a2_b2, two_a_b) == pytest.approx((p.a ** 2 + b ** 2, 2 * p.a * b), rel=1e-15)
         assert moment == pytest.approx((p.m * p.c + payload * p.w + p.m_slider * b) * p.g,
                                        rel=1e-15)
         assert J == pytest.approx(p.J_link + payload * p.w ** 2 + p.m_slider * b ** 2
