@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import integrate, integrate_arm
+from fmu_src.integration import STEP_RATE_PRODUCT, integrate, substeps
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -134,9 +134,10 @@ class Parameters:
 
     @cached_property
     def _link_memo(self) -> list:
-        """[((payload, b), _link_terms)]: the last link terms computed with these parameters
-        (a locked slider and a held payload repeat them at every step)."""
-        return [((math.nan, math.nan), ())]
+        """[((payload, b), _link_terms)] * 2: the last two link terms computed with these
+        parameters, the latest first (a locked slider and a held payload repeat them at every
+        step; a payload event reads them before and after it)."""
+        return [((math.nan, math.nan), ())] * 2
 
 
 def validate(params: Parameters) -> None:
@@ -276,9 +277,26 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
                  ) -> Callable[[Sequence[float]], tuple[float, ...]]:
     """The time derivative of the state as a function of the state (read by position; a
     plain tuple in State's field order) for inputs u held and the friction state slip (see
-    _derivatives): the terms constant while the inputs are held are computed once, for the
-    RK4 stages of a whole step."""
-    tau, payload, _, slider_locked, pulley_locked = u
+    _derivatives), built on _slider_rates."""
+    tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
+    rates = _slider_rates(p, u, slip)
+
+    def state_rates(s: Sequence[float]) -> tuple[float, ...]:
+        theta, omega, b, v = s[:4]
+        omega_dot, b_dot, v_dot, loss = rates(theta, omega, b, v)
+        return (omega, omega_dot, b_dot, v_dot, 0.0 if pulley_locked else cw_ratio * b_dot,
+                tau * omega, loss, 0.0)
+    return state_rates
+
+
+def _slider_rates(p: Parameters, u: Inputs, slip: float | None = None
+                  ) -> Callable[[float, float, float, float], tuple[float, float, float, float]]:
+    """(omega', b', v', E_loss') as a function of theta, omega, b and v for inputs u held and
+    the friction state slip (see _derivatives); the other rates follow from these: theta' =
+    omega, s_cw' = (R/r) b' while the pulley turns, W_drive' = tau_drive omega, E_added' = 0.
+    The terms constant while the inputs are held are computed once, for the RK4 stages of a
+    whole step."""
+    tau, payload, _, slider_locked, _ = u
     moment_base = p.m * p.c + payload * p.w      # gravity_moment less m_slider b, times g
     inertia_base = p.J_link + payload * p.w * p.w  # link_inertia less m_slider b^2 + J_drive
     g, k_a, d_link, m_slider, J_drive = p.g, p.k * p.a, p.d_link, p.m_slider, p.J_drive
@@ -287,11 +305,10 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
     if not slider_locked:
         m_eff, pull, damping = slider_mass(p, u), wire_tension(p, u), slider_damping(p, u)
         no_friction = p.mu_slider == 0.0
-        cw_ratio = 0.0 if pulley_locked else p.pulley_ratio
     fixed_slip = slip
 
-    def state_rates(s: Sequence[float]) -> tuple[float, ...]:
-        theta, omega, b, v = s[:4]
+    def slider_rates(theta: float, omega: float, b: float, v: float
+                     ) -> tuple[float, float, float, float]:
         sin_t = math.sin(theta)
         factor = _free_length_factor(p, theta, b) if real_spring else 1.0
         # the link's angular acceleration with the slider at b moving at v along it
@@ -299,16 +316,20 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
         coriolis = coriolis_factor * b * v * omega
         omega_dot = (tau + (moment_base + m_slider * b) * g * sin_t - spring_torque
                      - d_link * omega - coriolis) / (inertia_base + m_slider * b * b + J_drive)
-        drive_power = tau * omega
         link_loss = d_link * omega * omega
         if slider_locked:
-            return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+            return omega_dot, 0.0, 0.0, link_loss
         force = _slider_force(p, theta, omega, b, v, factor, pull, damping)
         friction = 0.0 if no_friction else slider_friction(p, theta, factor)
         if m_eff > 0.0:
-            slip = _slip(p, b, v, force, friction) if fixed_slip is None else fixed_slip
+            if fixed_slip is not None:
+                slip = fixed_slip
+            elif v != 0.0:
+                slip = math.copysign(1.0, v)  # _slip's answer for a moving slider, no call
+            else:
+                slip = _slip(p, b, v, force, friction)
             if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
-                return (omega, omega_dot, 0.0, 0.0, 0.0, drive_power, link_loss, 0.0)
+                return omega_dot, 0.0, 0.0, link_loss
             b_dot = v
             v_dot = (force - slip * friction) / m_eff
             rubbing = slip * friction * v  # power of the friction force -slip friction
@@ -319,10 +340,8 @@ def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
                 b_dot = 0.0
             v_dot = 0.0
             rubbing = friction * abs(b_dot)
-        s_cw_dot = 0.0 if pulley_locked else cw_ratio * b_dot
-        return (omega, omega_dot, b_dot, v_dot, s_cw_dot, drive_power,
-                link_loss + damping * b_dot * b_dot + rubbing, 0.0)
-    return state_rates
+        return omega_dot, b_dot, v_dot, link_loss + damping * b_dot * b_dot + rubbing
+    return slider_rates
 
 
 def _slip(p: Parameters, b: float, v: float, force: float, friction: float) -> float:
@@ -367,45 +386,62 @@ def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float
     return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
 
 
-def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, float, float, float]:
+def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, ...]:
     """(gravity_moment [N m], link_inertia J [kg m^2], the spring's moment amplitude k a b
-    [N m], the fastest rate of the link's own dynamics but for its speed [1/s]) with the
-    slider at b: constant while the slider is locked and the payload held, so the last ones
-    are kept with the parameters and reused (the same numbers as computed afresh)."""
+    [N m], the fastest rate of the link's own dynamics but for its speed [1/s], and the
+    outputs' terms balance_error = gravity_moment - k a b [N m], delta_b = b - b0 [m],
+    a^2 + b^2 and 2 a b [m^2] of the spring length) with the slider at b: constant while the
+    slider is locked and the payload held, so the last ones are kept with the parameters and
+    reused (the same numbers as computed afresh)."""
     memo = p._link_memo
     key, terms = memo[0]
     if key[0] == payload and key[1] == b:
         return terms
+    key, terms = memo[1]
+    if key[0] == payload and key[1] == b:
+        return terms
     moment, J = gravity_moment(p, payload, b), link_inertia(p, payload, b)
     stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
-    terms = (moment, J, p.k * p.a * b, max(math.sqrt(stiffness / J), p.d_link / J))
+    spring = p.k * p.a * b
+    terms = (moment, J, spring, max(math.sqrt(stiffness / J), p.d_link / J),
+             # outputs' terms of the slider position alone
+             moment - spring, b - p.b0, p.a * p.a + b * b, 2.0 * p.a * b)
+    memo[1] = memo[0]
     memo[0] = ((payload, b), terms)  # one assignment: key and terms change together
     return terms
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    rate = max(_link_terms(p, u.payload, s.b)[3], abs(s.omega))
+    # max(a, b) as `b if b > a else a` (the same value; the builtin's call costs more)
+    rate, speed = _link_terms(p, u.payload, s.b)[3], abs(s.omega)
+    rate = speed if speed > rate else rate
     if not u.slider_locked:
         m_eff = slider_mass(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
         damping = slider_damping(p, u)
         if m_eff > 0.0:
-            slider_rate = max(math.sqrt(k_b / m_eff), damping / m_eff)
+            slider_rate, decay = math.sqrt(k_b / m_eff), damping / m_eff
+            slider_rate = decay if decay > slider_rate else slider_rate
         else:
             slider_rate = k_b / damping
-        rate = max(rate, SLIDER_RATE_FACTOR * slider_rate)
+        slider_rate *= SLIDER_RATE_FACTOR
+        rate = slider_rate if slider_rate > rate else rate
     return rate
 
 
 def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
     """E_t + E_cw + E_kin [J] (as `outputs` reports them)."""
+    return _mechanical_energy(p, u, s, p.m_slider if u.slider_locked else slider_mass(p, u))
+
+
+def _mechanical_energy(p: Parameters, u: Inputs, s: State, mass: float) -> float:
+    """mechanical_energy with the slider's effective mass [kg] known."""
     theta, omega, b, v, s_cw = s[:5]
-    moment, J, _, _ = _link_terms(p, u.payload, b)
+    moment, J = _link_terms(p, u.payload, b)[:2]
     E_p = moment * math.cos(theta)
     E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
     E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
-    mass = p.m_slider if u.slider_locked else slider_mass(p, u)
     return E_p + E_e + E_cw + 0.5 * J * omega ** 2 + 0.5 * mass * v * v
 
 
@@ -436,32 +472,11 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
     return clamped._replace(E_loss=s.E_loss + loss)
 
 
-def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """Integrate over one communication step dt [s] with inputs held constant."""
-    if u.slider_locked:
-        # A clamped slider leaves a 1-DOF link: b and s_cw stay put and v = 0. RK4 over the
-        # link (and its ledger) alone gives the same numbers as over the full state, whose
-        # other derivatives are zero, at less cost; the terms constant over the step are
-        # computed once (as _state_rates computes them, so the numbers stay the same).
-        theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
-        tau, d = u.tau_drive, p.d_link
-        moment, J, spring, rate = _link_terms(p, u.payload, b)
-        real_spring = p.L0 > 0.0
-
-        def link(theta: float, omega: float) -> tuple[float, float]:
-            sin_t = math.sin(theta)
-            spring_torque = spring * sin_t
-            if real_spring:
-                spring_torque *= _free_length_factor(p, theta, b)
-            return (tau + moment * sin_t - spring_torque - d * omega) / J, d * omega * omega
-
-        theta, omega, W_drive, E_loss = integrate_arm(
-            link, theta, omega, W_drive, E_loss, tau, dt, max(rate, abs(omega)))
-        return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
+def _advance_free_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """advance with the slider free."""
     rate = characteristic_rate(p, u, s)
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
-        return integrate(_state_rates(p, u), s, dt, rate,
-                         lambda state: _apply_constraints(p, u, state))
+        return _integrate_free_slider(p, u, s, dt, rate)
     # Coulomb friction: the friction state is decided at the start of each sub-step and held
     # through it, so that RK4 sees one smooth right-hand side (and the ledger stays exact).
     slip = [_friction_state(p, u, s)]
@@ -479,6 +494,103 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         return state
 
     return integrate(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
+
+
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant.
+
+    A clamped slider (the usual step, done here without a further call) leaves a 1-DOF
+    link: b and s_cw stay put and v = 0, so RK4 runs over the link and its ledger alone
+    (`integrate_arm`'s scheme), its angular acceleration written out in each stage, with the
+    terms constant over the step computed once (a call and a tuple per stage cost more than
+    the link's arithmetic). The same numbers, bit for bit (same operations in the same
+    order), as `integrate` over the full state with the derivatives of `_state_rates`.
+    """
+    if not u.slider_locked:
+        return _advance_free_slider(p, u, s, dt)
+    theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
+    tau, d = u.tau_drive, p.d_link
+    moment, J, spring, rate = _link_terms(p, u.payload, b)[:4]
+    speed = abs(omega)
+    rate = speed if speed > rate else rate  # max(rate, speed), without the builtin's call
+    # one sub-step for the usual step (substeps' answer then, without its call)
+    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    # the spring's moment is spring sin(theta) (1 - L0/x): the factor is exactly 1.0 for
+    # the ideal spring (and multiplying by 1.0 changes no number)
+    real_spring = p.L0 > 0.0
+    f1 = f2 = f3 = f4 = 1.0
+    for _ in range(n):
+        t2 = theta + half * omega
+        if real_spring:
+            f1, f2 = _free_length_factor(p, theta, b), _free_length_factor(p, t2, b)
+        s1 = math.sin(theta)
+        a1 = (tau + moment * s1 - spring * s1 * f1 - d * omega) / J
+        o2 = omega + half * a1
+        s2 = math.sin(t2)
+        a2 = (tau + moment * s2 - spring * s2 * f2 - d * o2) / J
+        o3 = omega + half * a2
+        t3 = theta + half * o2
+        if real_spring:
+            f3 = _free_length_factor(p, t3, b)
+        s3 = math.sin(t3)
+        a3 = (tau + moment * s3 - spring * s3 * f3 - d * o3) / J
+        o4 = omega + h * a3
+        t4 = theta + h * o3
+        if real_spring:
+            f4 = _free_length_factor(p, t4, b)
+        s4 = math.sin(t4)
+        a4 = (tau + moment * s4 - spring * s4 * f4 - d * o4) / J
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (d * omega * omega + 2.0 * (d * o2 * o2) + 2.0 * (d * o3 * o3)
+                           + d * o4 * o4)
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
+
+
+def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, rate: float
+                           ) -> State:
+    """`integrate` over the state with the derivatives of `_state_rates` and
+    `_apply_constraints` after each sub-step (a free slider with no friction state to hold),
+    bit for bit (same operations in the same order), with the RK4 stages kept in local
+    floats: one call of `_slider_rates` per stage and no tuple per stage, where the tuples,
+    calls and the full-state arithmetic cost more than the slider's own."""
+    rates = _slider_rates(p, u)
+    tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
+    b_min, b_max = p.b_min, p.b_max
+    massive = slider_mass(p, u) != 0.0  # _apply_constraints leaves it alone within the stops
+    theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
+    n = substeps(dt, rate)
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    for _ in range(n):
+        a1, b1, v1, l1 = rates(theta, omega, b, v)
+        o2 = omega + half * a1
+        a2, b2, v2, l2 = rates(theta + half * omega, o2, b + half * b1, v + half * v1)
+        o3 = omega + half * a2
+        a3, b3, v3, l3 = rates(theta + half * o2, o3, b + half * b2, v + half * v2)
+        o4 = omega + h * a3
+        a4, b4, v4, l4 = rates(theta + h * o3, o4, b + h * b3, v + h * v3)
+        # rk4's sums for s_cw, whose rate is 0.0 while the pulley is locked, and E_added
+        # (rate 0.0): adding sixth times the zero sum is adding 0.0
+        if pulley_locked:
+            s_cw += 0.0
+        else:
+            s_cw += sixth * (cw_ratio * b1 + 2.0 * (cw_ratio * b2) + 2.0 * (cw_ratio * b3)
+                             + cw_ratio * b4)
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+        E_added += 0.0
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        b += sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        v += sixth * (v1 + 2.0 * v2 + 2.0 * v3 + v4)
+        if not (massive and b_min <= b <= b_max):
+            theta, omega, b, v, s_cw, W_drive, E_loss, E_added = _apply_constraints(
+                p, u, _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added)))
+    return _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added))
 
 
 def _friction_state(p: Parameters, u: Inputs, s: State) -> float:
@@ -507,6 +619,9 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     away) to E_added; the kinetic energy the events destroy goes to E_loss.
     """
     theta, omega, b, v, s_cw = s[:5]
+    # the slider's effective masses (mechanical_energy's), each computed once
+    mass_before = p.m_slider if before.slider_locked else slider_mass(p, before)
+    mass_after = p.m_slider if after.slider_locked else slider_mass(p, after)
     added = 0.0
     d_payload = after.payload - before.payload
     if d_payload != 0.0:
@@ -520,20 +635,20 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     if d_cw != 0.0:
         added -= d_cw * p.g * s_cw
         if moving_cw and d_cw > 0.0:
-            heavier = Inputs(before.tau_drive, before.payload, after.counterweight_added,
-                             before.slider_locked, before.pulley_locked)
-            v *= slider_mass(p, before) / slider_mass(p, heavier)
+            heavier = _new(Inputs, (before.tau_drive, before.payload, after.counterweight_added,
+                                    before.slider_locked, before.pulley_locked))
+            v *= mass_before / slider_mass(p, heavier)
         elif moving_cw:
             added += 0.5 * d_cw * (p.pulley_ratio * v) ** 2
     if after.slider_locked:
         v = 0.0
     elif not before.slider_locked and not after.pulley_locked and before.pulley_locked:
-        coupled = slider_mass(p, after)
-        v = v * p.m_slider / coupled if coupled > 0.0 else 0.0
-    if not after.slider_locked and slider_mass(p, after) == 0.0:
+        v = v * p.m_slider / mass_after if mass_after > 0.0 else 0.0
+    if not after.slider_locked and mass_after == 0.0:
         v = _damper_speed(p, after, State(theta, omega, b, v))
     new = _new(State, (theta, omega, b, v, s_cw, s.W_drive, s.E_loss, s.E_added + added))
-    loss = mechanical_energy(p, before, s) + added - mechanical_energy(p, after, new)
+    loss = (_mechanical_energy(p, before, s, mass_before) + added
+            - _mechanical_energy(p, after, new, mass_after))
     return _new(State, (*new[:6], s.E_loss + loss, new[7]))
 
 
@@ -686,8 +801,9 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
     _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
-    moment, J, spring, _ = _link_terms(p, payload, b)
-    x = math.sqrt(max(p.a * p.a + b * b - 2.0 * p.a * b * cos_t, 0.0))  # spring_length
+    moment, J, spring, _, balance_error, delta_b, a2_b2, two_a_b = _link_terms(p, payload, b)
+    x2 = a2_b2 - two_a_b * cos_t
+    x = math.sqrt(0.0 if 0.0 > x2 else x2)  # spring_length (max(x2, 0.0) without its call)
     factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
     E_p = moment * cos_t
     E_e = 0.5 * p.k * (x - p.L0) ** 2
@@ -699,5 +815,5 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     tau_gravity = (moment - spring * factor) * sin_t
     at_stop = not slider_locked and (b <= p.b_min or b >= p.b_max)  # slider_at_stop
     # Built by tuple.__new__ in field order: Outputs(...) would add a Python call per step.
-    return _new(Outputs, (theta, omega, b, b - p.b0, x, F_t, F_n, tau_gravity, moment - spring,
+    return _new(Outputs, (theta, omega, b, delta_b, x, F_t, F_n, tau_gravity, balance_error,
                           E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))

@@ -92,10 +92,11 @@ def test_real_spring_free_slider_conserves_energy() -> None:
     assert travel > 1e-3 and drift < 1e-8
 
 
-def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
+@pytest.mark.parametrize("L0", [0.0, 0.01])
+def test_locked_slider_shortcut_matches_the_full_state_integration(L0: float) -> None:
     """advance() integrates only the link while the slider is clamped: same numbers as RK4 on
-    the full state with the general derivatives."""
-    p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, theta0=1.0, omega0=2.0)
+    the full state with the general derivatives, for the ideal and a real spring."""
+    p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=L0, theta0=1.0, omega0=2.0)
     u = physics.Inputs(tau_drive=0.3, payload=0.8)
     fast = full = physics.initial_state(p)
     for dt in (1e-3, 1e-2, 0.1) * 20:
@@ -105,14 +106,51 @@ def test_locked_slider_shortcut_matches_the_full_state_integration() -> None:
         assert fast == full
 
 
+@pytest.mark.parametrize("changes, inputs, b, v", [
+    # regulating (slider and pulley free), a real spring and a slider with mass
+    ({"m_slider": 0.2, "L0": 0.01}, {"payload": 0.8, "counterweight_added": 0.5}, 0.07, 0.1),
+    # slider and counterweight thrown onto b_max, the link driven
+    ({"m_slider": 0.1}, {"tau_drive": 0.3, "counterweight_added": 3.0}, 0.345, 5.0),
+    # massless slider with the pulley locked: first-order creep onto b_min
+    ({}, {"pulley_locked": True}, 0.01, 0.0),
+    # a slider with mass and the pulley locked, thrown onto b_min
+    ({"m_slider": 0.3}, {"pulley_locked": True}, 0.005, -1.0),
+])
+def test_free_slider_shortcut_matches_the_full_state_integration(
+        changes: dict, inputs: dict, b: float, v: float) -> None:
+    """advance() integrates a free slider with no friction in local floats: same numbers, bit
+    for bit, as RK4 on the full state with the general derivatives and the end-stop clamp,
+    within the stops and when it hits one."""
+    p = dataclasses.replace(TABLE_1, theta0=2.5, omega0=1.5, **changes)
+    u = physics.Inputs(**{"slider_locked": False, "pulley_locked": False, **inputs})
+    fast = full = physics.initial_state(p)._replace(b=b, v=v, s_cw=0.01, E_added=0.2)
+    clamped = []
+
+    def constrain(s: physics.State) -> physics.State:
+        after = physics._apply_constraints(p, u, s)
+        clamped.append(after.b != s.b)
+        return after
+    for dt in (1e-3, 1e-2, 0.1) * 10:
+        fast = physics.advance(p, u, fast, dt)
+        full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
+                         physics.characteristic_rate(p, u, full), constrain)
+        assert fast == full
+    assert any(clamped) == (b != 0.07)
+    assert fast.b != b
+
+
 def test_link_terms_kept_with_the_parameters_give_the_numbers_computed_afresh() -> None:
     """The link's terms a parameter set keeps for its last payload and slider position are
     the closed forms (m c + payload w + m_slider b) g, J_link + payload w^2 + m_slider b^2 +
-    J_drive and k a b, and outputs and advance give the same numbers whether they are reused,
-    replaced by other ones, or computed on a fresh copy of the parameters."""
+    J_drive, k a b, their difference, b - b0, a^2 + b^2 and 2 a b, and outputs and advance
+    give the same numbers whether they are reused, replaced by other ones, or computed on a
+    fresh copy of the parameters."""
     p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, J_drive=0.05)
     for payload, b in ((0.0, 0.06), (0.7, 0.08), (0.7, 0.08), (0.7, 0.05), (0.0, 0.05)):
-        moment, J, spring, _ = physics._link_terms(p, payload, b)
+        moment, J, spring, _, balance, delta_b, a2_b2, two_a_b = physics._link_terms(
+            p, payload, b)
+        assert (balance, delta_b) == (moment - spring, b - p.b0)
+        assert (a2_b2, two_a_b) == pytest.approx((p.a ** 2 + b ** 2, 2 * p.a * b), rel=1e-15)
         assert moment == pytest.approx((p.m * p.c + payload * p.w + p.m_slider * b) * p.g,
                                        rel=1e-15)
         assert J == pytest.approx(p.J_link + payload * p.w ** 2 + p.m_slider * b ** 2
