@@ -234,10 +234,11 @@ class Parameters:
     J_drive: float = _as_translational("J_drive")
 
     def __post_init__(self) -> None:
-        # The linkage fields as one Linkage, which the dynamics read at every evaluation; set
-        # here, in __init__: an attribute added later (a cached_property) slows every read
-        # of the fields.
+        # The linkage fields as one Linkage, which the dynamics read at every evaluation,
+        # and what `_arm_terms` keeps; set here, in __init__: an attribute added later (a
+        # cached_property) slows every read of the fields.
         object.__setattr__(self, "linkage", Linkage.of(self))
+        object.__setattr__(self, "_last_terms", [(None, None, ())])
 
     @property
     def J_fixed(self) -> float:
@@ -293,6 +294,25 @@ def _arm_moment(p: Parameters, payload: float) -> float:
     return p.m * p.c + payload * p.w - p.m_fixed_cw * p.c_fixed_cw
 
 
+def _arm_terms(p: Parameters, payload: float, theta: float
+               ) -> tuple[Geometry, float, float, float]:
+    """(geometry, J [kg m^2], dJ/dtheta [kg m^2/rad], tau_gravity [N m]) at theta with the
+    payload [kg].
+
+    The last ones are kept with the parameters, for the very objects theta and payload: the
+    outputs after a step compute them at the state the next step starts from, where its rate
+    and its first RK4 stage need them again.
+    """
+    last = p._last_terms[0]
+    if last[0] is theta and last[1] is payload:
+        return last[2]
+    q = geometry(p.linkage, HALF_PI - theta)
+    J, dJ = _inertia(p, payload, q)
+    terms = (q, J, dJ, p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY))
+    p._last_terms[0] = (theta, payload, terms)   # one assignment: key and terms together
+    return terms
+
+
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
     return _inertia(p, payload, geometry(p.linkage, HALF_PI - theta))
@@ -323,18 +343,25 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     friction loss d_link omega^2 [W]) with the payload and the drive torque held.
 
     It runs four times per RK4 sub-step: the terms the parameters and the payload set are
-    computed once, and _inertia and tau_gravity are written out, operation for operation
-    (the same numbers).
+    computed once, and _arm_terms is written out, operation for operation (the same numbers;
+    tests/test_rocking.py checks it). At the angle _arm_terms computed last (the step's
+    start) it takes its terms.
     """
     k, m2, g, d_link = p.linkage, p.m2, p.g, p.d_link
     J_held = p.J_fixed + payload * p.w ** 2
     arm = _arm_moment(p, payload)
+    last_theta, last_payload, last = p._last_terms[0]
+    if last_payload is not payload:
+        last_theta = None
 
     def rates(theta: float, omega: float) -> tuple[float, float]:
-        _, _, dX, dY, d2X, d2Y, _ = geometry(k, HALF_PI - theta)
-        J = J_held + m2 * (dX * dX + dY * dY)
-        dJ = -2.0 * m2 * (dX * d2X + dY * d2Y)
-        gravity = g * (math.sin(theta) * arm + m2 * dY)
+        if theta is last_theta:
+            _, J, dJ, gravity = last
+        else:
+            _, _, dX, dY, d2X, d2Y, _ = geometry(k, HALF_PI - theta)
+            J = J_held + m2 * (dX * dX + dY * dY)
+            dJ = -2.0 * m2 * (dX * d2X + dY * d2Y)
+            gravity = g * (math.sin(theta) * arm + m2 * dY)
         return ((tau_drive + gravity - d_link * omega - 0.5 * dJ * omega * omega) / J,
                 d_link * omega * omega)
 
@@ -359,8 +386,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    q = geometry(p.linkage, HALF_PI - s.theta)
-    J, dJ = _inertia(p, u.payload, q)
+    q, J, dJ, _ = _arm_terms(p, u.payload, s.theta)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * math.hypot(q.d2X, q.d2Y))
     return max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega) * (1.0 + abs(dJ) / J))
@@ -369,9 +395,9 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
     tau = u.tau_drive
+    rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
     theta, omega, W_drive, E_loss = integrate_arm(
-        _arm_rates(p, u.payload, tau), s.theta, s.omega,
-        s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
+        _arm_rates(p, u.payload, tau), s.theta, s.omega, s.W_drive, s.E_loss, tau, dt, rate)
     return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
 
 
@@ -409,16 +435,13 @@ class Outputs(NamedTuple):
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    phi = HALF_PI - s.theta
-    q = geometry(p.linkage, phi)
-    cos_phi = math.sin(s.theta)
-    M = _moments(u.payload * p.g, p.w, p.m2 * p.g, q.dY, cos_phi)
-    arm = _arm_moment(p, u.payload)
+    theta, omega, payload, g, m2 = s.theta, s.omega, u.payload, p.g, p.m2
+    q, J, _, gravity = _arm_terms(p, payload, theta)
+    M = _moments(payload * g, p.w, m2 * g, q.dY, math.sin(theta))  # sin(theta) = cos(phi)
     # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
     return tuple.__new__(Outputs, (
-        s.theta, s.omega,
-        p.g * (cos_phi * arm + p.m2 * q.dY),                    # tau_gravity
-        p.g * (math.cos(s.theta) * arm + p.m2 * q.Y),           # E_p
-        0.5 * _inertia(p, u.payload, q)[0] * s.omega ** 2,      # E_kin
-        *M, q.X, q.Y, q.psi,                                    # M_g, M_b, M_u, X_cw, Y_cw, psi
+        theta, omega, gravity,
+        g * (math.cos(theta) * _arm_moment(p, payload) + m2 * q.Y),    # E_p
+        0.5 * J * omega ** 2,                                           # E_kin
+        *M, q.X, q.Y, q.psi,                            # M_g, M_b, M_u, X_cw, Y_cw, psi
         s.W_drive, s.E_loss, s.E_added))
