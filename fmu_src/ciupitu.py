@@ -371,6 +371,13 @@ def _arm_terms(p: Parameters, payload: float, theta: float
     return terms
 
 
+def kept_start(last_terms: list, payload: float) -> tuple[float | None, tuple]:
+    """(theta, terms) that a one-link arm's _arm_terms kept last in last_terms, for this very
+    payload object, else (None, ()): the terms a step's first RK4 stage may take."""
+    theta, last_payload, terms = last_terms[0]
+    return (theta, terms) if last_payload is payload else (None, ())
+
+
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
     return _arm_terms(p, payload, theta)[3:5]
@@ -399,9 +406,7 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     At the angle _arm_terms computed last (the step's start) it takes its terms.
     """
     held = _held(p, payload)
-    last_theta, last_payload, last = p._last_terms[0]
-    if last_payload is not payload:
-        last_theta = None
+    last_theta, last = kept_start(p._last_terms, payload)
 
     def rates(theta: float, omega: float) -> tuple[float, float]:
         if theta is last_theta:

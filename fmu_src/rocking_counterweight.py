@@ -297,12 +297,7 @@ def _arm_moment(p: Parameters, payload: float) -> float:
 def _arm_terms(p: Parameters, payload: float, theta: float
                ) -> tuple[Geometry, float, float, float]:
     """(geometry, J [kg m^2], dJ/dtheta [kg m^2/rad], tau_gravity [N m]) at theta with the
-    payload [kg].
-
-    The last ones are kept with the parameters, for the very objects theta and payload: the
-    outputs after a step compute them at the state the next step starts from, where its rate
-    and its first RK4 stage need them again.
-    """
+    payload [kg]; the last ones kept with the parameters, as `ciupitu._arm_terms` keeps its."""
     last = p._last_terms[0]
     if last[0] is theta and last[1] is payload:
         return last[2]
@@ -350,9 +345,7 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     k, m2, g, d_link = p.linkage, p.m2, p.g, p.d_link
     J_held = p.J_fixed + payload * p.w ** 2
     arm = _arm_moment(p, payload)
-    last_theta, last_payload, last = p._last_terms[0]
-    if last_payload is not payload:
-        last_theta = None
+    last_theta, last = ciupitu.kept_start(p._last_terms, payload)
 
     def rates(theta: float, omega: float) -> tuple[float, float]:
         if theta is last_theta:
