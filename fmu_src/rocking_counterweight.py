@@ -310,7 +310,7 @@ def _arm_terms(p: Parameters, payload: float, theta: float
 
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
-    return _inertia(p, payload, geometry(p.linkage, HALF_PI - theta))
+    return _arm_terms(p, payload, theta)[1:3]
 
 
 def potential_energy(p: Parameters, payload: float, theta: float) -> float:
