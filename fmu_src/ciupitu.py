@@ -68,7 +68,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import partial
 from typing import NamedTuple
 
 from fmu_src import ledger
@@ -264,6 +263,12 @@ class Parameters:
         return (self.J_link + self.J_drive + self.m_fixed_cw * self.c_fixed_cw ** 2
                 + self.m2 * (self.AB - self.OA) ** 2)
 
+    def __post_init__(self) -> None:
+        # What `_held` and `_arm_terms` keep with the parameters (added here, in __init__,
+        # so that reading the fields stays fast: an attribute added later slows every read)
+        object.__setattr__(self, "_last_held", [(None, ())])
+        object.__setattr__(self, "_last_terms", [(None, None, ())])
+
 
 def validate(params: Parameters) -> None:
     """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
@@ -313,58 +318,146 @@ def initial_state(params: Parameters) -> State:
     return State(params.theta0, params.omega0)
 
 
-def _net_moment_arm(p: Parameters, payload: float, OB: float) -> float:
-    """m c + payload w - m_fixed_cw c_fixed_cw - m2 OB: E_p = g cos(theta) times this [kg m]."""
-    return p.m * p.c + payload * p.w - p.m_fixed_cw * p.c_fixed_cw - p.m2 * OB
+class _Held(NamedTuple):
+    """Terms of the dynamics that the parameters and a held payload set."""
+
+    OA: float               # m
+    OA2: float              # m^2, OA^2
+    AB2: float              # m^2, AB^2
+    m2: float               # kg
+    g: float                # m/s^2
+    d_link: float           # N m s/rad
+    d_cw: float             # N s/m
+    w: float                # m
+    G2: float               # N, m2 g
+    J_held: float           # kg m^2, J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive
+    arm_held: float         # kg m, m c + payload w - m_fixed_cw c_fixed_cw
+    stiffness_held: float   # kg m, m c + payload w + m_fixed_cw c_fixed_cw
 
 
-def _inertia(p: Parameters, payload: float, OB: float, dOB: float, d2OB: float
-             ) -> tuple[float, float]:
-    """J [kg m^2] and dJ/dtheta [kg m^2/rad] for the counterweight geometry (OB, OB', OB'')."""
-    J = (p.J_link + payload * p.w ** 2 + p.m_fixed_cw * p.c_fixed_cw ** 2 + p.J_drive
-         + p.m2 * (OB * OB + dOB * dOB))
-    return J, -2.0 * p.m2 * dOB * (OB + d2OB)
+def _held(p: Parameters, payload: float) -> _Held:
+    """The terms the parameters and the payload [kg] set: the last ones are kept with the
+    parameters, for the very object payload (an input held over many steps)."""
+    last_payload, held = p._last_held[0]
+    if last_payload is payload:
+        return held
+    mc, payload_moment, mc_fixed_cw = p.m * p.c, payload * p.w, p.m_fixed_cw * p.c_fixed_cw
+    held = _Held(p.OA, p.OA * p.OA, p.AB * p.AB, p.m2, p.g, p.d_link, p.d_cw, p.w, p.m2 * p.g,
+                 p.J_link + payload * p.w ** 2 + p.m_fixed_cw * p.c_fixed_cw ** 2 + p.J_drive,
+                 mc + payload_moment - mc_fixed_cw, mc + payload_moment + mc_fixed_cw)
+    p._last_held[0] = (payload, held)   # one assignment: key and terms together
+    return held
 
 
-def _gravity(p: Parameters, payload: float, theta: float, OB: float, dOB: float) -> float:
-    """Gravity torque about O along theta, -dE_p/dtheta [N m], for OB(theta) and OB'."""
-    return p.g * (math.sin(theta) * _net_moment_arm(p, payload, OB)
-                  - math.cos(theta) * p.m2 * dOB)
+def _arm_terms(p: Parameters, payload: float, theta: float
+               ) -> tuple[float, float, float, float, float, float, float]:
+    """(OB [m], OB' [m/rad], OB'' [m/rad^2], J [kg m^2], dJ/dtheta [kg m^2/rad], damping
+    d(theta) = d_link + d_cw OB'^2 [N m s/rad], tau_gravity [N m]) at theta with the
+    payload [kg].
+
+    The last ones are kept with the parameters, for the very objects theta and payload: the
+    outputs after a step compute them at the state the next step starts from, where its rate
+    and its first RK4 stage need them again.
+    """
+    last = p._last_terms[0]
+    if last[0] is theta and last[1] is payload:
+        return last[2]
+    _, _, _, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = _held(p, payload)
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - theta)
+    terms = (OB, dOB, d2OB, J_held + m2 * (OB * OB + dOB * dOB), -2.0 * m2 * dOB * (OB + d2OB),
+             d_link + d_cw * dOB * dOB,
+             g * (math.sin(theta) * (arm_held - m2 * OB) - math.cos(theta) * m2 * dOB))
+    p._last_terms[0] = (theta, payload, terms)   # one assignment: key and terms together
+    return terms
 
 
-def _damping(p: Parameters, dOB: float) -> float:
-    """d(theta) = d_link + d_cw OB'^2: pivot and counterweight slide friction [N m s/rad]."""
-    return p.d_link + p.d_cw * dOB * dOB
+def kept_start(last_terms: list, payload: float) -> tuple[float | None, tuple]:
+    """(theta, terms) that a one-link arm's _arm_terms kept last in last_terms, for this very
+    payload object, else (None, ()): the terms a step's first RK4 stage may take."""
+    theta, last_payload, terms = last_terms[0]
+    return (theta, terms) if last_payload is payload else (None, ())
 
 
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
-    return _inertia(p, payload, *_geometry(p.OA, p.AB, HALF_PI - theta))
+    return _arm_terms(p, payload, theta)[3:5]
 
 
 def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
     """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
-    OB, dOB, _ = _geometry(p.OA, p.AB, HALF_PI - theta)
-    return _gravity(p, payload, theta, OB, dOB)
+    return _arm_terms(p, payload, theta)[6]
 
 
 def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
     J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega."""
-    return _arm_rates(p, payload, tau_drive, theta, omega)[0]
+    return _arm_rates(p, payload, tau_drive)(theta, omega)[0]
 
 
-def _arm_rates(p: Parameters, payload: float, tau_drive: float, theta: float, omega: float
-               ) -> tuple[float, float]:
-    """The angular acceleration [rad/s^2] (`acceleration`) and the friction loss
-    d(theta) omega^2 [W], with one geometry() evaluation (this runs four times per RK4
-    sub-step)."""
-    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - theta)
-    J, dJ = _inertia(p, payload, OB, dOB, d2OB)
-    damping = _damping(p, dOB)
-    return ((tau_drive + _gravity(p, payload, theta, OB, dOB) - damping * omega
-             - 0.5 * dJ * omega * omega) / J, damping * omega * omega)
+def _arm_rates(p: Parameters, payload: float, tau_drive: float
+               ) -> Callable[[float, float], tuple[float, float]]:
+    """(theta, omega) -> (the angular acceleration [rad/s^2] (`acceleration`), the friction
+    loss d(theta) omega^2 [W]) with the payload and the drive torque held.
+
+    It runs four times per RK4 sub-step, so _arm_terms is written out in it, operation for
+    operation (the same numbers; tests/test_ciupitu.py checks it), with the terms the
+    payload sets computed once: a call and a tuple per stage cost more than the arithmetic.
+    At the angle _arm_terms computed last (the step's start) it takes its terms.
+    """
+    held = _held(p, payload)
+    last_theta, last = kept_start(p._last_terms, payload)
+
+    def rates(theta: float, omega: float) -> tuple[float, float]:
+        if theta is last_theta:
+            _, _, _, J, dJ, damping, gravity = last
+        else:
+            OA, OA2, AB2, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = held
+            phi = HALF_PI - theta
+            sin_p, cos_p = math.sin(phi), math.cos(phi)
+            root = math.sqrt(AB2 - (OA * cos_p) ** 2)
+            d_root = OA2 * sin_p * cos_p / root
+            OB = root - OA * sin_p
+            dOB = d_root - OA * cos_p
+            d2OB = (OA2 * math.cos(2.0 * phi) - d_root * d_root) / root + OA * sin_p
+            J = J_held + m2 * (OB * OB + dOB * dOB)
+            dJ = -2.0 * m2 * dOB * (OB + d2OB)
+            damping = d_link + d_cw * dOB * dOB
+            gravity = g * (math.sin(theta) * (arm_held - m2 * OB) - math.cos(theta) * m2 * dOB)
+        return ((tau_drive + gravity - damping * omega - 0.5 * dJ * omega * omega) / J,
+                damping * omega * omega)
+
+    OA = held[0]
+    if OA == 0.0 and math.copysign(1.0, OA) > 0.0:
+        return _pivoted_rates(held, tau_drive, rates)
+    return rates
+
+
+def _pivoted_rates(held: _Held, tau_drive: float,
+                   rates: Callable[[float, float], tuple[float, float]]
+                   ) -> Callable[[float, float], tuple[float, float]]:
+    """`_arm_rates`'s rates for OA = +0, with fewer operations and the same numbers.
+
+    The bar then pivots at O and the counterweight stays at OB = AB: the written-out terms
+    give OB' = OB'' = +-0, so J, d(theta) and the net moment arm do not change with the
+    angle, and dJ/dtheta and the bar's gravity term are +-0, whose subtraction leaves a
+    non-zero finite sum as it is. Where the sum is zero or not finite, rates computes it.
+    """
+    _, _, AB2, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = held
+    OB = math.sqrt(AB2)                       # root - OA sin(phi) with OA = +0
+    J = J_held + m2 * (OB * OB + 0.0)         # J_held + m2 (OB^2 + OB'^2), OB'^2 = +0
+    damping = d_link + d_cw * 0.0 * 0.0       # d_cw OB'^2 has the sign of d_cw
+    net = arm_held - m2 * OB
+
+    def pivoted(theta: float, omega: float) -> tuple[float, float]:
+        moment = math.sin(theta) * net
+        if moment != 0.0:
+            torque = tau_drive + g * moment - damping * omega
+            if torque != 0.0 and -math.inf < torque < math.inf:
+                return torque / J, damping * omega * omega
+        return rates(theta, omega)
+
+    return pivoted
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
@@ -374,7 +467,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     arm, J omega' gains -payload_rate w^2 omega and E_loss 1/2 payload_rate w^2 omega^2; a
     payload leaving takes its kinetic energy (E_added)."""
     theta, omega = s[0], s[1]
-    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive, theta, omega)
+    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive)(theta, omega)
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
     flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
@@ -385,20 +478,19 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - s.theta)
-    J, dJ = _inertia(p, u.payload, OB, dOB, d2OB)
-    stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
-                       + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
-    return max(math.sqrt(stiffness / J), _damping(p, dOB) / J,
-               abs(s.omega) * (1.0 + abs(dJ) / J))
+    payload = u.payload
+    OB, dOB, d2OB, J, dJ, damping, _ = _arm_terms(p, payload, s.theta)
+    _, _, _, m2, g, _, _, _, _, _, _, stiffness_held = _held(p, payload)
+    stiffness = g * (stiffness_held + m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
+    return max(math.sqrt(stiffness / J), damping / J, abs(s.omega) * (1.0 + abs(dJ) / J))
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    payload, tau = u.payload, u.tau_drive
+    tau = u.tau_drive
+    rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
     theta, omega, W_drive, E_loss = integrate_arm(
-        partial(_arm_rates, p, payload, tau), s.theta, s.omega,
-        s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
+        _arm_rates(p, u.payload, tau), s.theta, s.omega, s.W_drive, s.E_loss, tau, dt, rate)
     return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
 
 
@@ -429,15 +521,15 @@ class Outputs(NamedTuple):
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    phi = HALF_PI - s.theta
-    OB, dOB, d2OB = _geometry(p.OA, p.AB, phi)
-    M = _moments(u.payload * p.g, p.w, p.m2 * p.g, OB, math.sin(s.theta))  # cos(phi)
+    theta, omega, payload = s.theta, s.omega, u.payload
+    OB, dOB, _, J, _, _, gravity = _arm_terms(p, payload, theta)
+    _, _, _, m2, g, _, _, w, G2, _, arm_held, _ = _held(p, payload)
+    M_g, M_b, M_u = _moments(payload * g, w, G2, OB, math.sin(theta))  # cos(phi)
     # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
     return tuple.__new__(Outputs, (
-        s.theta, s.omega, OB,
-        _gravity(p, u.payload, s.theta, OB, dOB),                             # tau_gravity
-        p.g * math.cos(s.theta) * _net_moment_arm(p, u.payload, OB),           # E_p
-        0.5 * _inertia(p, u.payload, OB, dOB, d2OB)[0] * s.omega ** 2,         # E_kin
-        *M,                                                                     # M_g, M_b, M_u
-        p.m2 * p.g * dOB * math.sin(phi),                                       # M_bar
+        theta, omega, OB, gravity,
+        g * math.cos(theta) * (arm_held - m2 * OB),                          # E_p
+        0.5 * J * omega ** 2,                                               # E_kin
+        M_g, M_b, M_u,
+        G2 * dOB * math.sin(HALF_PI - theta),                               # M_bar
         s.W_drive, s.E_loss, s.E_added))

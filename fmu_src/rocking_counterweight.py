@@ -51,8 +51,8 @@ payload events follow the project's other mechanisms: a payload added is picked 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
-from functools import cached_property, partial
 from typing import Any, NamedTuple
 
 from fmu_src import ciupitu, ledger
@@ -114,24 +114,24 @@ def check_linkage(k: Linkage) -> None:
 
 def geometry(k: Linkage, phi: float) -> Geometry:
     """Counterweight position and derivatives at arm angle phi from the horizontal [rad]."""
+    x1A, y1A, XC, YC, AB, BC, r, B_left = k   # one unpacking: a field read costs more
     cos_p, sin_p = math.cos(phi), math.sin(phi)
-    Ax, Ay = k.x1A * cos_p - k.y1A * sin_p, k.x1A * sin_p + k.y1A * cos_p
+    Ax, Ay = x1A * cos_p - y1A * sin_p, x1A * sin_p + y1A * cos_p
     dAx, dAy = -Ay, Ax                      # A' = perp(A); A'' = -A
-    dx, dy = k.XC - Ax, k.YC - Ay
+    dx, dy = XC - Ax, YC - Ay
     D = math.hypot(dx, dy)
-    cos_a = (k.AB * k.AB + D * D - k.BC * k.BC) / (2.0 * k.AB * D)
+    cos_a = (AB * AB + D * D - BC * BC) / (2.0 * AB * D)
     if not -1.0 < cos_a < 1.0:
         raise ValueError(f"the linkage cannot be assembled at phi = {phi} rad")
-    sin_a = math.sqrt(1.0 - cos_a * cos_a) * (1.0 if k.B_left else -1.0)
+    sin_a = math.sqrt(1.0 - cos_a * cos_a) * (1.0 if B_left else -1.0)
     ex, ey = dx / D, dy / D
     ubx, uby = cos_a * ex - sin_a * ey, cos_a * ey + sin_a * ex       # u(beta)
-    udx, udy = (Ax + k.AB * ubx - k.XC) / k.BC, (Ay + k.AB * uby - k.YC) / k.BC  # u(delta)
+    udx, udy = (Ax + AB * ubx - XC) / BC, (Ay + AB * uby - YC) / BC   # u(delta)
     s = ubx * udy - uby * udx                                         # sin(delta - beta)
     c = ubx * udx + uby * udy                                         # cos(beta - delta)
-    db = -(dAx * udx + dAy * udy) / (k.AB * s)
-    dd = -(dAx * ubx + dAy * uby) / (k.BC * s)
-    d2b = (k.AB * db * db * c - k.BC * dd * dd + (Ax * udx + Ay * udy)) / (k.AB * s)
-    r = k.AC2
+    db = -(dAx * udx + dAy * udy) / (AB * s)
+    dd = -(dAx * ubx + dAy * uby) / (BC * s)
+    d2b = (AB * db * db * c - BC * dd * dd + (Ax * udx + Ay * udy)) / (AB * s)
     # in field order, built by tuple.__new__: Geometry(...) is a Python call, and this runs
     # four times a sub-step
     return tuple.__new__(Geometry, (
@@ -233,10 +233,12 @@ class Parameters:
     omega0: float = _as_translational("omega0")
     J_drive: float = _as_translational("J_drive")
 
-    @cached_property
-    def linkage(self) -> Linkage:
-        """The linkage fields (computed once: the dynamics need them at every evaluation)."""
-        return Linkage.of(self)
+    def __post_init__(self) -> None:
+        # The linkage fields as one Linkage, which the dynamics read at every evaluation,
+        # and what `_arm_terms` keeps; set here, in __init__: an attribute added later (a
+        # cached_property) slows every read of the fields.
+        object.__setattr__(self, "linkage", Linkage.of(self))
+        object.__setattr__(self, "_last_terms", [(None, None, ())])
 
     @property
     def J_fixed(self) -> float:
@@ -292,9 +294,23 @@ def _arm_moment(p: Parameters, payload: float) -> float:
     return p.m * p.c + payload * p.w - p.m_fixed_cw * p.c_fixed_cw
 
 
+def _arm_terms(p: Parameters, payload: float, theta: float
+               ) -> tuple[Geometry, float, float, float]:
+    """(geometry, J [kg m^2], dJ/dtheta [kg m^2/rad], tau_gravity [N m]) at theta with the
+    payload [kg]; the last ones kept with the parameters, as `ciupitu._arm_terms` keeps its."""
+    last = p._last_terms[0]
+    if last[0] is theta and last[1] is payload:
+        return last[2]
+    q = geometry(p.linkage, HALF_PI - theta)
+    J, dJ = _inertia(p, payload, q)
+    terms = (q, J, dJ, p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY))
+    p._last_terms[0] = (theta, payload, terms)   # one assignment: key and terms together
+    return terms
+
+
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
     """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
-    return _inertia(p, payload, geometry(p.linkage, HALF_PI - theta))
+    return _arm_terms(p, payload, theta)[1:3]
 
 
 def potential_energy(p: Parameters, payload: float, theta: float) -> float:
@@ -313,18 +329,36 @@ def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
     """Angular acceleration [rad/s^2] from the Lagrange equation
     J theta'' + 1/2 (dJ/dtheta) omega^2 = tau_drive + tau_gravity - d_link omega."""
-    return _arm_rates(p, p.linkage, payload, tau_drive, theta, omega)[0]
+    return _arm_rates(p, payload, tau_drive)(theta, omega)[0]
 
 
-def _arm_rates(p: Parameters, k: Linkage, payload: float, tau_drive: float, theta: float,
-               omega: float) -> tuple[float, float]:
-    """The angular acceleration [rad/s^2] (`acceleration`, for the linkage k of p) and the
-    pivot's friction loss d_link omega^2 [W]."""
-    q = geometry(k, HALF_PI - theta)
-    J, dJ = _inertia(p, payload, q)
-    gravity = p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
-    return ((tau_drive + gravity - p.d_link * omega - 0.5 * dJ * omega * omega) / J,
-            p.d_link * omega * omega)
+def _arm_rates(p: Parameters, payload: float, tau_drive: float
+               ) -> Callable[[float, float], tuple[float, float]]:
+    """(theta, omega) -> (the angular acceleration [rad/s^2] (`acceleration`), the pivot's
+    friction loss d_link omega^2 [W]) with the payload and the drive torque held.
+
+    It runs four times per RK4 sub-step: the terms the parameters and the payload set are
+    computed once, and _arm_terms is written out, operation for operation (the same numbers;
+    tests/test_rocking.py checks it). At the angle _arm_terms computed last (the step's
+    start) it takes its terms.
+    """
+    k, m2, g, d_link = p.linkage, p.m2, p.g, p.d_link
+    J_held = p.J_fixed + payload * p.w ** 2
+    arm = _arm_moment(p, payload)
+    last_theta, last = ciupitu.kept_start(p._last_terms, payload)
+
+    def rates(theta: float, omega: float) -> tuple[float, float]:
+        if theta is last_theta:
+            _, J, dJ, gravity = last
+        else:
+            _, _, dX, dY, d2X, d2Y, _ = geometry(k, HALF_PI - theta)
+            J = J_held + m2 * (dX * dX + dY * dY)
+            dJ = -2.0 * m2 * (dX * d2X + dY * d2Y)
+            gravity = g * (math.sin(theta) * arm + m2 * dY)
+        return ((tau_drive + gravity - d_link * omega - 0.5 * dJ * omega * omega) / J,
+                d_link * omega * omega)
+
+    return rates
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
@@ -334,7 +368,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
     arm (J omega' gains -payload_rate w^2 omega, E_loss 1/2 payload_rate w^2 omega^2); a
     payload leaving takes its kinetic energy with it (E_added)."""
     theta, omega = s[0], s[1]
-    omega_dot, loss = _arm_rates(p, p.linkage, u.payload, u.tau_drive, theta, omega)
+    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive)(theta, omega)
     if rates is None:
         return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
     flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
@@ -345,8 +379,7 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None)
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    q = geometry(p.linkage, HALF_PI - s.theta)
-    J, dJ = _inertia(p, u.payload, q)
+    q, J, dJ, _ = _arm_terms(p, u.payload, s.theta)
     stiffness = p.g * (p.m * p.c + u.payload * p.w + p.m_fixed_cw * p.c_fixed_cw
                        + p.m2 * math.hypot(q.d2X, q.d2Y))
     return max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega) * (1.0 + abs(dJ) / J))
@@ -354,10 +387,10 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    k, payload, tau = p.linkage, u.payload, u.tau_drive
+    tau = u.tau_drive
+    rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
     theta, omega, W_drive, E_loss = integrate_arm(
-        partial(_arm_rates, p, k, payload, tau), s.theta, s.omega,
-        s.W_drive, s.E_loss, tau, dt, characteristic_rate(p, u, s))
+        _arm_rates(p, u.payload, tau), s.theta, s.omega, s.W_drive, s.E_loss, tau, dt, rate)
     return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
 
 
@@ -395,16 +428,13 @@ class Outputs(NamedTuple):
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """All outputs for the state s and inputs u."""
-    phi = HALF_PI - s.theta
-    q = geometry(p.linkage, phi)
-    cos_phi = math.sin(s.theta)
-    M = _moments(u.payload * p.g, p.w, p.m2 * p.g, q.dY, cos_phi)
-    arm = _arm_moment(p, u.payload)
+    theta, omega, payload, g, m2 = s.theta, s.omega, u.payload, p.g, p.m2
+    q, J, _, gravity = _arm_terms(p, payload, theta)
+    M = _moments(payload * g, p.w, m2 * g, q.dY, math.sin(theta))  # sin(theta) = cos(phi)
     # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
     return tuple.__new__(Outputs, (
-        s.theta, s.omega,
-        p.g * (cos_phi * arm + p.m2 * q.dY),                    # tau_gravity
-        p.g * (math.cos(s.theta) * arm + p.m2 * q.Y),           # E_p
-        0.5 * _inertia(p, u.payload, q)[0] * s.omega ** 2,      # E_kin
-        *M, q.X, q.Y, q.psi,                                    # M_g, M_b, M_u, X_cw, Y_cw, psi
+        theta, omega, gravity,
+        g * (math.cos(theta) * _arm_moment(p, payload) + m2 * q.Y),    # E_p
+        0.5 * J * omega ** 2,                                           # E_kin
+        *M, q.X, q.Y, q.psi,                            # M_g, M_b, M_u, X_cw, Y_cw, psi
         s.W_drive, s.E_loss, s.E_added))
