@@ -69,12 +69,12 @@ with E_loss also counting the dampers d_link and d_q and the self-locking screw'
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import rk4, substeps
+from fmu_src.integration import substeps
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -256,24 +256,57 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
     """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
     other mechanisms take it: a payload changes only at events here, so it is not used);
     direction as for `carriage`, None for `motion_direction` at s."""
-    if direction is None:
-        direction = motion_direction(u.F_adjust, s[3])
-    return State._make(_derivatives(p, u, direction, link_inertia(p, u.payload),
-                                    gravity_moment(p, u.payload), s))
-
-
-def _derivatives(p: Parameters, u: Inputs, direction: float, inertia: float, moment: float,
-                 s: Sequence[float]) -> tuple[float, ...]:
-    """`derivatives` as a plain tuple in State's order, for the link's inertia [kg m^2] and
-    gravity moment [N m] of the step (`link_inertia`, `gravity_moment`): the integrator's
-    stages read states by position and need no State."""
     theta, omega, q, q_dot = s[:4]
-    _, _, spring_torque, F_q, _ = _spring(p, theta, p.Y_B0 + q)
-    torque = moment * math.sin(theta) + spring_torque
-    omega_dot = (u.tau_drive + torque - p.d_link * omega) / inertia
-    q_ddot, lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot, direction)
-    return (omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
-            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+    if direction is None:
+        direction = motion_direction(u.F_adjust, q_dot)
+    omega_dot, q_ddot, loss_rate = _stage_rates(p, u, link_inertia(p, u.payload),
+                                                gravity_moment(p, u.payload))(
+        theta, omega, q, q_dot, direction)
+    return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+                 loss_rate, 0.0)
+
+
+def _stage_rates(p: Parameters, u: Inputs, inertia: float, moment: float
+                 ) -> Callable[[float, float, float, float, float], tuple[float, float, float]]:
+    """The rates an RK4 stage needs, (omega', q_dot'', E_loss') as a function of theta,
+    omega, q, q_dot and the carriage's direction (as for `carriage`), for the link's inertia
+    [kg m^2] and gravity moment [N m] of the step (`link_inertia`, `gravity_moment`); the
+    other rates follow (theta' = omega, q' = q_dot, W_drive' = tau_drive omega, W_adjust' =
+    F_adjust q_dot, E_added' = 0).
+
+    `_spring`, the torque and `carriage` written out operation for operation, with the terms
+    that only the parameters and the inputs set read once per step: one call per stage.
+    """
+    sin, cos, hypot = math.sin, math.cos, math.hypot
+    X_B, x1A, neg_x1A, Y_B0 = p.X_B, p.x1A, -p.x1A, p.Y_B0
+    k, F_s0, l_s0 = p.k, p.F_s0, p.l_s0
+    d_link, d_q, M_q, weight_q = p.d_link, p.d_q, p.carriage_inertia, p.m_q * p.g
+    tau_drive, F_adjust = u.tau_drive, u.F_adjust
+    self_locking = p.self_locking
+
+    def rates(theta: float, omega: float, q: float, q_dot: float,
+              direction: float) -> tuple[float, float, float]:
+        Y_B = Y_B0 + q
+        sin_t, cos_t = sin(theta), cos(theta)
+        dy = Y_B - x1A * cos_t
+        l_s = hypot(X_B + x1A * sin_t, dy)
+        F_s = F_s0 + k * (l_s - l_s0)
+        per_length = F_s / l_s if l_s > 0.0 else k
+        torque = moment * sin_t + neg_x1A * per_length * (Y_B * sin_t + X_B * cos_t)
+        omega_dot = (tau_drive + torque - d_link * omega) / inertia
+        load = -per_length * dy - weight_q
+        if not self_locking:
+            q_ddot, lock = (F_adjust + load - d_q * q_dot) / M_q, 0.0
+        else:
+            lock = -load if load * direction > 0.0 else 0.0
+            push = F_adjust + load + lock
+            if q_dot == 0.0 and push * direction <= 0.0:
+                q_ddot, lock = 0.0, -(F_adjust + load)
+            else:
+                q_ddot = (push - d_q * q_dot) / M_q
+        return omega_dot, q_ddot, d_link * omega * omega + d_q * q_dot * q_dot - lock * q_dot
+
+    return rates
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -292,12 +325,33 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     return rate
 
 
-def _rk4_step(p: Parameters, u: Inputs, s: State, h: float, inertia: float,
-              moment: float) -> State:
-    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start; the
-    link's inertia and gravity moment as for `_derivatives`."""
-    direction = motion_direction(u.F_adjust, s.q_dot)
-    return rk4(lambda state: _derivatives(p, u, direction, inertia, moment, state), s, h)
+def _rk4_step(rates: Callable[[float, float, float, float, float],
+                               tuple[float, float, float]],
+              tau_drive: float, F_adjust: float, s: Sequence[float], h: float) -> State:
+    """One RK4 step of size h [s] from s for the stage rates of `_stage_rates`, the screw's
+    regime fixed by the motion at its start: the same numbers as `integration.rk4` over the
+    full state (`derivatives`), bit for bit, with the stages in local floats."""
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
+    direction = q_dot if q_dot != 0.0 else F_adjust    # motion_direction, inlined
+    half, sixth = 0.5 * h, h / 6.0
+    a1, b1, l1 = rates(theta, omega, q, q_dot, direction)
+    o2, v2 = omega + half * a1, q_dot + half * b1
+    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, direction)
+    o3, v3 = omega + half * a2, q_dot + half * b2
+    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, direction)
+    o4, v4 = omega + h * a3, q_dot + h * b3
+    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, direction)
+    return tuple.__new__(State, (
+        theta + sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4),
+        omega + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        q + sixth * (q_dot + 2.0 * v2 + 2.0 * v3 + v4),
+        q_dot + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
+        W_drive + sixth * (tau_drive * omega + 2.0 * (tau_drive * o2) + 2.0 * (tau_drive * o3)
+                           + tau_drive * o4),
+        W_adjust + sixth * (F_adjust * q_dot + 2.0 * (F_adjust * v2) + 2.0 * (F_adjust * v3)
+                            + F_adjust * v4),
+        E_loss + sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4),
+        E_added + sixth * 0.0))    # E_added' = 0 (-0.0 turns +0.0, as in rk4)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -310,16 +364,17 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """
     n = substeps(dt, characteristic_rate(p, u, s))
     h = dt / n
-    inertia, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
+    rates = _stage_rates(p, u, link_inertia(p, u.payload), gravity_moment(p, u.payload))
+    tau_drive, F_adjust = u.tau_drive, u.F_adjust
     for _ in range(n):
-        new = _rk4_step(p, u, s, h, inertia, moment)
+        new = _rk4_step(rates, tau_drive, F_adjust, s, h)
         if p.self_locking and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
-            stopped = _rk4_step(p, u, s, h_stop, inertia, moment)
+            stopped = _rk4_step(rates, tau_drive, F_adjust, s, h_stop)
             stopped = stopped._replace(
                 q_dot=0.0,
                 E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
-            new = _rk4_step(p, u, stopped, h - h_stop, inertia, moment)
+            new = _rk4_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
         s = new
     return s
 
