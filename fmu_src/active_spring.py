@@ -90,6 +90,8 @@ class Parameters:
     Franchetti's Table 1 link and spring on it (ours): the spring's link joint at the slider
     position b0 = 0.06 m, the frame joint above O at a = 0.1 m, which balances the bare link
     ((m c) g = k x1A Y_B0); a 0.5 kg carriage, damping 100 N s/m (time constant 5 ms).
+
+    Derived: carriage_inertia = m_q + m_drive_q, the inertia of the prismatic joint [kg].
     """
 
     m: float = parameter(3.0, "kg", "Link mass (the paper's m1)", min=0.0)
@@ -125,10 +127,15 @@ class Parameters:
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link "
                                "(J_rotor N^2)", min=0.0)
 
-    @property
-    def carriage_inertia(self) -> float:
-        """Inertia of the prismatic joint, m_q + m_drive_q [kg]."""
-        return self.m_q + self.m_drive_q
+    def __post_init__(self) -> None:
+        # derived constants and what `outputs` keeps for the next step's rate, set here, in
+        # __init__: an attribute added later (a cached_property) slows every read of the fields
+        object.__setattr__(self, "carriage_inertia", self.m_q + self.m_drive_q)
+        object.__setattr__(self, "_kept_spring", [(None, 0.0, 0.0)])
+        # what `_stage_rates` reads, in one tuple
+        object.__setattr__(self, "_stage_constants", (
+            self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0, self.d_link,
+            self.d_q, self.carriage_inertia, self.m_q * self.g, self.self_locking))
 
     @property
     def free_length(self) -> float:
@@ -278,11 +285,9 @@ def _stage_rates(p: Parameters, u: Inputs, inertia: float, moment: float
     that only the parameters and the inputs set read once per step: one call per stage.
     """
     sin, cos, hypot = math.sin, math.cos, math.hypot
-    X_B, x1A, neg_x1A, Y_B0 = p.X_B, p.x1A, -p.x1A, p.Y_B0
-    k, F_s0, l_s0 = p.k, p.F_s0, p.l_s0
-    d_link, d_q, M_q, weight_q = p.d_link, p.d_q, p.carriage_inertia, p.m_q * p.g
+    (X_B, x1A, neg_x1A, Y_B0, k, F_s0, l_s0, d_link, d_q, M_q, weight_q,
+     self_locking) = p._stage_constants
     tau_drive, F_adjust = u.tau_drive, u.F_adjust
-    self_locking = p.self_locking
 
     def rates(theta: float, omega: float, q: float, q_dot: float,
               direction: float) -> tuple[float, float, float]:
@@ -312,7 +317,9 @@ def _stage_rates(p: Parameters, u: Inputs, inertia: float, moment: float
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
     J = link_inertia(p, u.payload)
-    l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
+    kept_state, l_s, F_s = p._kept_spring[0]
+    if kept_state is not s:     # `outputs` keeps the spring of the state a step starts from
+        l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
     reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
     per_length = abs(F_s) / l_s if l_s > 0.0 else p.k
     stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
@@ -421,13 +428,17 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
     Y_B = p.Y_B0 + q
     l_s, F_s, spring_torque, F_q, spring_moment = _spring(p, theta, Y_B)
+    p._kept_spring[0] = (s, l_s, F_s)
     moment = gravity_moment(p, u.payload)
     E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
     E_e = elastic_energy(p, l_s)
     E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
-    _, F_lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot,
-                         motion_direction(u.F_adjust, q_dot))
+    F_adjust = u.F_adjust
+    _, F_lock = carriage(p, F_adjust, F_q - p.m_q * p.g, q_dot,
+                         q_dot if q_dot != 0.0 else F_adjust)   # motion_direction, inlined
     F_hold = 0.0 if p.self_locking else p.m_q * p.g - F_q
-    return Outputs(theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque,
-                   F_q, F_lock, F_hold, moment - spring_moment, E_p, E_e, E_p + E_e, E_kin,
-                   W_drive, W_adjust, E_loss, E_added)
+    # built at C level: Outputs(...) is a Python call
+    return tuple.__new__(Outputs, (
+        theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque, F_q,
+        F_lock, F_hold, moment - spring_moment, E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust,
+        E_loss, E_added))
