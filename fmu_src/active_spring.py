@@ -74,7 +74,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import substeps
+from fmu_src.integration import STEP_RATE_PRODUCT, substeps
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -316,14 +316,25 @@ def _stage_rates(p: Parameters, u: Inputs, inertia: float, moment: float
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    J = link_inertia(p, u.payload)
+    return _rate(p, u, s, link_inertia(p, u.payload), gravity_moment(p, u.payload))
+
+
+def _rate(p: Parameters, u: Inputs, s: State, J: float, moment: float) -> float:
+    """`characteristic_rate` for the link's inertia J [kg m^2] and gravity moment [N m] of
+    the step (`link_inertia`, `gravity_moment`); the larger of two rates by comparison (as
+    `max` takes it) instead of a call."""
     kept_state, l_s, F_s = p._kept_spring[0]
     if kept_state is not s:     # `outputs` keeps the spring of the state a step starts from
         l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
     reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
     per_length = abs(F_s) / l_s if l_s > 0.0 else p.k
-    stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
-    rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
+    stiffness = abs(moment) + p.x1A * reach * (p.k + per_length)
+    rate = math.sqrt(stiffness / J)
+    damping_rate, speed = p.d_link / J, abs(s.omega)
+    if damping_rate > rate:
+        rate = damping_rate
+    if speed > rate:
+        rate = speed
     if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
         M_q = p.carriage_inertia
         carriage_rate = max(p.d_q / M_q, math.sqrt((p.k + per_length) / M_q),
@@ -369,9 +380,12 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     at rest (the kinetic energy of the interpolation's residual speed goes to E_loss) and
     the rest of the sub-step starts from rest.
     """
-    n = substeps(dt, characteristic_rate(p, u, s))
+    inertia, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
+    rate = _rate(p, u, s, inertia, moment)
+    # one sub-step for the usual step (substeps' answer then, without its call)
+    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
     h = dt / n
-    rates = _stage_rates(p, u, link_inertia(p, u.payload), gravity_moment(p, u.payload))
+    rates = _stage_rates(p, u, inertia, moment)
     tau_drive, F_adjust = u.tau_drive, u.F_adjust
     for _ in range(n):
         new = _rk4_step(rates, tau_drive, F_adjust, s, h)
