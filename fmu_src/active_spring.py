@@ -71,7 +71,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from fmu_src import ledger
 from fmu_src.integration import STEP_RATE_PRODUCT, substeps
@@ -132,6 +132,7 @@ class Parameters:
         # __init__: an attribute added later (a cached_property) slows every read of the fields
         object.__setattr__(self, "carriage_inertia", self.m_q + self.m_drive_q)
         object.__setattr__(self, "_kept_spring", [(None, 0.0, 0.0)])
+        object.__setattr__(self, "_kept_payload", [(None, 0.0, 0.0, None)])   # _payload_terms
         # what `_stage_rates` reads, in one tuple
         object.__setattr__(self, "_stage_constants", (
             self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0, self.d_link,
@@ -266,31 +267,45 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
     theta, omega, q, q_dot = s[:4]
     if direction is None:
         direction = motion_direction(u.F_adjust, q_dot)
-    omega_dot, q_ddot, loss_rate = _stage_rates(p, u, link_inertia(p, u.payload),
-                                                gravity_moment(p, u.payload))(
-        theta, omega, q, q_dot, direction)
+    omega_dot, q_ddot, loss_rate = _payload_terms(p, u.payload)[2](
+        theta, omega, q, q_dot, direction, u.tau_drive, u.F_adjust)
     return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
                  loss_rate, 0.0)
 
 
-def _stage_rates(p: Parameters, u: Inputs, inertia: float, moment: float
-                 ) -> Callable[[float, float, float, float, float], tuple[float, float, float]]:
+if TYPE_CHECKING:   # annotations only: Python 3.8 cannot subscript tuple and Callable
+    StageRates = Callable[[float, float, float, float, float, float, float],
+                         tuple[float, float, float]]
+
+
+def _payload_terms(p: Parameters, payload: float) -> tuple[float, float, StageRates]:
+    """The link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`) and the stage rates (`_stage_rates`) for the payload [kg], kept with
+    the parameters while the payload stays the same (equal floats give the same terms)."""
+    kept = p._kept_payload[0]
+    if kept[0] != payload:
+        inertia, moment = link_inertia(p, payload), gravity_moment(p, payload)
+        kept = p._kept_payload[0] = (payload, inertia, moment,
+                                     _stage_rates(p, inertia, moment))
+    return kept[1], kept[2], kept[3]
+
+
+def _stage_rates(p: Parameters, inertia: float, moment: float) -> StageRates:
     """The rates an RK4 stage needs, (omega', q_dot'', E_loss') as a function of theta,
-    omega, q, q_dot and the carriage's direction (as for `carriage`), for the link's inertia
-    [kg m^2] and gravity moment [N m] of the step (`link_inertia`, `gravity_moment`); the
-    other rates follow (theta' = omega, q' = q_dot, W_drive' = tau_drive omega, W_adjust' =
-    F_adjust q_dot, E_added' = 0).
+    omega, q, q_dot, the carriage's direction (as for `carriage`), tau_drive and F_adjust,
+    for the link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`); the other rates follow (theta' = omega, q' = q_dot, W_drive' =
+    tau_drive omega, W_adjust' = F_adjust q_dot, E_added' = 0).
 
     `_spring`, the torque and `carriage` written out operation for operation, with the terms
-    that only the parameters and the inputs set read once per step: one call per stage.
+    that only the parameters and the payload set read once: one call per stage.
     """
     sin, cos, hypot = math.sin, math.cos, math.hypot
     (X_B, x1A, neg_x1A, Y_B0, k, F_s0, l_s0, d_link, d_q, M_q, weight_q,
      self_locking) = p._stage_constants
-    tau_drive, F_adjust = u.tau_drive, u.F_adjust
 
-    def rates(theta: float, omega: float, q: float, q_dot: float,
-              direction: float) -> tuple[float, float, float]:
+    def rates(theta: float, omega: float, q: float, q_dot: float, direction: float,
+              tau_drive: float, F_adjust: float) -> tuple[float, float, float]:
         Y_B = Y_B0 + q
         sin_t, cos_t = sin(theta), cos(theta)
         dy = Y_B - x1A * cos_t
@@ -343,22 +358,23 @@ def _rate(p: Parameters, u: Inputs, s: State, J: float, moment: float) -> float:
     return rate
 
 
-def _rk4_step(rates: Callable[[float, float, float, float, float],
-                               tuple[float, float, float]],
-              tau_drive: float, F_adjust: float, s: Sequence[float], h: float) -> State:
+def _rk4_step(rates: StageRates, tau_drive: float, F_adjust: float, s: Sequence[float],
+              h: float) -> State:
     """One RK4 step of size h [s] from s for the stage rates of `_stage_rates`, the screw's
     regime fixed by the motion at its start: the same numbers as `integration.rk4` over the
     full state (`derivatives`), bit for bit, with the stages in local floats."""
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
     direction = q_dot if q_dot != 0.0 else F_adjust    # motion_direction, inlined
     half, sixth = 0.5 * h, h / 6.0
-    a1, b1, l1 = rates(theta, omega, q, q_dot, direction)
+    a1, b1, l1 = rates(theta, omega, q, q_dot, direction, tau_drive, F_adjust)
     o2, v2 = omega + half * a1, q_dot + half * b1
-    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, direction)
+    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, direction, tau_drive,
+                       F_adjust)
     o3, v3 = omega + half * a2, q_dot + half * b2
-    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, direction)
+    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, direction, tau_drive,
+                       F_adjust)
     o4, v4 = omega + h * a3, q_dot + h * b3
-    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, direction)
+    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, direction, tau_drive, F_adjust)
     return tuple.__new__(State, (
         theta + sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4),
         omega + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
@@ -380,12 +396,11 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     at rest (the kinetic energy of the interpolation's residual speed goes to E_loss) and
     the rest of the sub-step starts from rest.
     """
-    inertia, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
+    inertia, moment, rates = _payload_terms(p, u.payload)
     rate = _rate(p, u, s, inertia, moment)
     # one sub-step for the usual step (substeps' answer then, without its call)
     n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
     h = dt / n
-    rates = _stage_rates(p, u, inertia, moment)
     tau_drive, F_adjust = u.tau_drive, u.F_adjust
     for _ in range(n):
         new = _rk4_step(rates, tau_drive, F_adjust, s, h)

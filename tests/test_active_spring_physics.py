@@ -197,7 +197,7 @@ def test_stage_rates_are_the_spring_and_carriage_laws(params: dict, inputs: tupl
     for bit, and `advance`'s RK4 sub-step equals `integration.rk4` over `derivatives`, at
     the case's state and at 40 angles and speeds around it (rounding shows in some)."""
     p, u = physics.Parameters(**params), physics.Inputs(*inputs)
-    rates = physics._stage_rates(p, u, physics.link_inertia(p, u.payload),
+    rates = physics._stage_rates(p, physics.link_inertia(p, u.payload),
                                  physics.gravity_moment(p, u.payload))
     theta0, omega0, q, q_dot = start
     direction = physics.motion_direction(u.F_adjust, q_dot)
