@@ -69,12 +69,12 @@ with E_loss also counting the dampers d_link and d_q and the self-locking screw'
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import rk4, substeps
+from fmu_src.integration import STEP_RATE_PRODUCT, substeps
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -90,6 +90,8 @@ class Parameters:
     Franchetti's Table 1 link and spring on it (ours): the spring's link joint at the slider
     position b0 = 0.06 m, the frame joint above O at a = 0.1 m, which balances the bare link
     ((m c) g = k x1A Y_B0); a 0.5 kg carriage, damping 100 N s/m (time constant 5 ms).
+
+    Derived: carriage_inertia = m_q + m_drive_q, the inertia of the prismatic joint [kg].
     """
 
     m: float = parameter(3.0, "kg", "Link mass (the paper's m1)", min=0.0)
@@ -125,10 +127,16 @@ class Parameters:
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link "
                                "(J_rotor N^2)", min=0.0)
 
-    @property
-    def carriage_inertia(self) -> float:
-        """Inertia of the prismatic joint, m_q + m_drive_q [kg]."""
-        return self.m_q + self.m_drive_q
+    def __post_init__(self) -> None:
+        # derived constants and what `outputs` keeps for the next step's rate, set here, in
+        # __init__: an attribute added later (a cached_property) slows every read of the fields
+        object.__setattr__(self, "carriage_inertia", self.m_q + self.m_drive_q)
+        object.__setattr__(self, "_kept_spring", [(None, 0.0, 0.0)])
+        object.__setattr__(self, "_kept_payload", [(None, 0.0, 0.0, None)])   # _payload_terms
+        # what `_stage_rates` reads, in one tuple
+        object.__setattr__(self, "_stage_constants", (
+            self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0, self.d_link,
+            self.d_q, self.carriage_inertia, self.m_q * self.g, self.self_locking))
 
     @property
     def free_length(self) -> float:
@@ -256,34 +264,92 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
     """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
     other mechanisms take it: a payload changes only at events here, so it is not used);
     direction as for `carriage`, None for `motion_direction` at s."""
-    if direction is None:
-        direction = motion_direction(u.F_adjust, s[3])
-    return State._make(_derivatives(p, u, direction, link_inertia(p, u.payload),
-                                    gravity_moment(p, u.payload), s))
-
-
-def _derivatives(p: Parameters, u: Inputs, direction: float, inertia: float, moment: float,
-                 s: Sequence[float]) -> tuple[float, ...]:
-    """`derivatives` as a plain tuple in State's order, for the link's inertia [kg m^2] and
-    gravity moment [N m] of the step (`link_inertia`, `gravity_moment`): the integrator's
-    stages read states by position and need no State."""
     theta, omega, q, q_dot = s[:4]
-    _, _, spring_torque, F_q, _ = _spring(p, theta, p.Y_B0 + q)
-    torque = moment * math.sin(theta) + spring_torque
-    omega_dot = (u.tau_drive + torque - p.d_link * omega) / inertia
-    q_ddot, lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot, direction)
-    return (omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
-            p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+    if direction is None:
+        direction = motion_direction(u.F_adjust, q_dot)
+    omega_dot, q_ddot, loss_rate = _payload_terms(p, u.payload)[2](
+        theta, omega, q, q_dot, direction, u.tau_drive, u.F_adjust)
+    return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+                 loss_rate, 0.0)
+
+
+if TYPE_CHECKING:   # annotations only: Python 3.8 cannot subscript tuple and Callable
+    StageRates = Callable[[float, float, float, float, float, float, float],
+                         tuple[float, float, float]]
+
+
+def _payload_terms(p: Parameters, payload: float) -> tuple[float, float, StageRates]:
+    """The link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`) and the stage rates (`_stage_rates`) for the payload [kg], kept with
+    the parameters while the payload stays the same (equal floats give the same terms)."""
+    kept = p._kept_payload[0]
+    if kept[0] != payload:
+        inertia, moment = link_inertia(p, payload), gravity_moment(p, payload)
+        kept = p._kept_payload[0] = (payload, inertia, moment,
+                                     _stage_rates(p, inertia, moment))
+    return kept[1], kept[2], kept[3]
+
+
+def _stage_rates(p: Parameters, inertia: float, moment: float) -> StageRates:
+    """The rates an RK4 stage needs, (omega', q_dot'', E_loss') as a function of theta,
+    omega, q, q_dot, the carriage's direction (as for `carriage`), tau_drive and F_adjust,
+    for the link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`); the other rates follow (theta' = omega, q' = q_dot, W_drive' =
+    tau_drive omega, W_adjust' = F_adjust q_dot, E_added' = 0).
+
+    `_spring`, the torque and `carriage` written out operation for operation, with the terms
+    that only the parameters and the payload set read once: one call per stage.
+    """
+    sin, cos, hypot = math.sin, math.cos, math.hypot
+    (X_B, x1A, neg_x1A, Y_B0, k, F_s0, l_s0, d_link, d_q, M_q, weight_q,
+     self_locking) = p._stage_constants
+
+    def rates(theta: float, omega: float, q: float, q_dot: float, direction: float,
+              tau_drive: float, F_adjust: float) -> tuple[float, float, float]:
+        Y_B = Y_B0 + q
+        sin_t, cos_t = sin(theta), cos(theta)
+        dy = Y_B - x1A * cos_t
+        l_s = hypot(X_B + x1A * sin_t, dy)
+        F_s = F_s0 + k * (l_s - l_s0)
+        per_length = F_s / l_s if l_s > 0.0 else k
+        torque = moment * sin_t + neg_x1A * per_length * (Y_B * sin_t + X_B * cos_t)
+        omega_dot = (tau_drive + torque - d_link * omega) / inertia
+        load = -per_length * dy - weight_q
+        if not self_locking:
+            q_ddot, lock = (F_adjust + load - d_q * q_dot) / M_q, 0.0
+        else:
+            lock = -load if load * direction > 0.0 else 0.0
+            push = F_adjust + load + lock
+            if q_dot == 0.0 and push * direction <= 0.0:
+                q_ddot, lock = 0.0, -(F_adjust + load)
+            else:
+                q_ddot = (push - d_q * q_dot) / M_q
+        return omega_dot, q_ddot, d_link * omega * omega + d_q * q_dot * q_dot - lock * q_dot
+
+    return rates
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    J = link_inertia(p, u.payload)
-    l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
+    return _rate(p, u, s, link_inertia(p, u.payload), gravity_moment(p, u.payload))
+
+
+def _rate(p: Parameters, u: Inputs, s: State, J: float, moment: float) -> float:
+    """`characteristic_rate` for the link's inertia J [kg m^2] and gravity moment [N m] of
+    the step (`link_inertia`, `gravity_moment`); the larger of two rates by comparison (as
+    `max` takes it) instead of a call."""
+    kept_state, l_s, F_s = p._kept_spring[0]
+    if kept_state is not s:     # `outputs` keeps the spring of the state a step starts from
+        l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
     reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
     per_length = abs(F_s) / l_s if l_s > 0.0 else p.k
-    stiffness = abs(gravity_moment(p, u.payload)) + p.x1A * reach * (p.k + per_length)
-    rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
+    stiffness = abs(moment) + p.x1A * reach * (p.k + per_length)
+    rate = math.sqrt(stiffness / J)
+    damping_rate, speed = p.d_link / J, abs(s.omega)
+    if damping_rate > rate:
+        rate = damping_rate
+    if speed > rate:
+        rate = speed
     if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
         M_q = p.carriage_inertia
         carriage_rate = max(p.d_q / M_q, math.sqrt((p.k + per_length) / M_q),
@@ -292,12 +358,34 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     return rate
 
 
-def _rk4_step(p: Parameters, u: Inputs, s: State, h: float, inertia: float,
-              moment: float) -> State:
-    """One RK4 step of size h [s], the screw's regime fixed by the motion at its start; the
-    link's inertia and gravity moment as for `_derivatives`."""
-    direction = motion_direction(u.F_adjust, s.q_dot)
-    return rk4(lambda state: _derivatives(p, u, direction, inertia, moment, state), s, h)
+def _rk4_step(rates: StageRates, tau_drive: float, F_adjust: float, s: Sequence[float],
+              h: float) -> State:
+    """One RK4 step of size h [s] from s for the stage rates of `_stage_rates`, the screw's
+    regime fixed by the motion at its start: the same numbers as `integration.rk4` over the
+    full state (`derivatives`), bit for bit, with the stages in local floats."""
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
+    direction = q_dot if q_dot != 0.0 else F_adjust    # motion_direction, inlined
+    half, sixth = 0.5 * h, h / 6.0
+    a1, b1, l1 = rates(theta, omega, q, q_dot, direction, tau_drive, F_adjust)
+    o2, v2 = omega + half * a1, q_dot + half * b1
+    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, direction, tau_drive,
+                       F_adjust)
+    o3, v3 = omega + half * a2, q_dot + half * b2
+    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, direction, tau_drive,
+                       F_adjust)
+    o4, v4 = omega + h * a3, q_dot + h * b3
+    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, direction, tau_drive, F_adjust)
+    return tuple.__new__(State, (
+        theta + sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4),
+        omega + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        q + sixth * (q_dot + 2.0 * v2 + 2.0 * v3 + v4),
+        q_dot + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
+        W_drive + sixth * (tau_drive * omega + 2.0 * (tau_drive * o2) + 2.0 * (tau_drive * o3)
+                           + tau_drive * o4),
+        W_adjust + sixth * (F_adjust * q_dot + 2.0 * (F_adjust * v2) + 2.0 * (F_adjust * v3)
+                            + F_adjust * v4),
+        E_loss + sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4),
+        E_added + sixth * 0.0))    # E_added' = 0 (-0.0 turns +0.0, as in rk4)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -308,18 +396,21 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     at rest (the kinetic energy of the interpolation's residual speed goes to E_loss) and
     the rest of the sub-step starts from rest.
     """
-    n = substeps(dt, characteristic_rate(p, u, s))
+    inertia, moment, rates = _payload_terms(p, u.payload)
+    rate = _rate(p, u, s, inertia, moment)
+    # one sub-step for the usual step (substeps' answer then, without its call)
+    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
     h = dt / n
-    inertia, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
+    tau_drive, F_adjust = u.tau_drive, u.F_adjust
     for _ in range(n):
-        new = _rk4_step(p, u, s, h, inertia, moment)
+        new = _rk4_step(rates, tau_drive, F_adjust, s, h)
         if p.self_locking and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
-            stopped = _rk4_step(p, u, s, h_stop, inertia, moment)
+            stopped = _rk4_step(rates, tau_drive, F_adjust, s, h_stop)
             stopped = stopped._replace(
                 q_dot=0.0,
                 E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
-            new = _rk4_step(p, u, stopped, h - h_stop, inertia, moment)
+            new = _rk4_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
         s = new
     return s
 
@@ -366,13 +457,17 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
     Y_B = p.Y_B0 + q
     l_s, F_s, spring_torque, F_q, spring_moment = _spring(p, theta, Y_B)
+    p._kept_spring[0] = (s, l_s, F_s)
     moment = gravity_moment(p, u.payload)
     E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
     E_e = elastic_energy(p, l_s)
     E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
-    _, F_lock = carriage(p, u.F_adjust, F_q - p.m_q * p.g, q_dot,
-                         motion_direction(u.F_adjust, q_dot))
+    F_adjust = u.F_adjust
+    _, F_lock = carriage(p, F_adjust, F_q - p.m_q * p.g, q_dot,
+                         q_dot if q_dot != 0.0 else F_adjust)   # motion_direction, inlined
     F_hold = 0.0 if p.self_locking else p.m_q * p.g - F_q
-    return Outputs(theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque,
-                   F_q, F_lock, F_hold, moment - spring_moment, E_p, E_e, E_p + E_e, E_kin,
-                   W_drive, W_adjust, E_loss, E_added)
+    # built at C level: Outputs(...) is a Python call
+    return tuple.__new__(Outputs, (
+        theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque, F_q,
+        F_lock, F_hold, moment - spring_moment, E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust,
+        E_loss, E_added))

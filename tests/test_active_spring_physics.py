@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import json
 import math
+from functools import partial
 
 import pytest
 
 from fmu_src import active_spring as physics
+from fmu_src import integration
 from harness import active_design, cli
 
 G = 9.81
@@ -176,6 +178,47 @@ def test_balanced_link_accelerates_uniformly_under_a_constant_torque() -> None:
     s, _ = run(p, [(0.02, 0.0, 0.0)], 1000)
     assert s.theta == pytest.approx(0.5 + 0.02 / (2 * 0.16), rel=1e-12)
 
+
+# ---- the integrator's written-out stages ----------------------------------------------------
+
+STAGE_CASES = [   # (parameters, inputs, state): carriage at rest, held, moving, back-drivable
+    ({}, (0.1, 0.0, 0.5), (1.0, 0.3, 0.0, 0.0)),
+    ({}, (0.1, -5.0, 0.0), (1.0, 0.3, 0.01, 0.0)),
+    ({}, (-0.4, 30.0, 0.5), (0.7, -1.2, 0.02, 0.15)),
+    ({**REAL_SPRING, "m_drive_q": 0.3}, (0.2, -20.0, 0.5), (2.5, 0.8, -0.01, -0.2)),
+    ({**REAL_SPRING, "self_locking": False}, (0.2, 3.0, 0.0), (-0.3, 0.5, 0.03, 0.1)),
+]
+
+
+@pytest.mark.parametrize(("params", "inputs", "start"), STAGE_CASES)
+def test_stage_rates_are_the_spring_and_carriage_laws(params: dict, inputs: tuple,
+                                                      start: tuple) -> None:
+    """`derivatives` (the stages' rates written out) equals `tau_gravity` and `carriage` bit
+    for bit, and `advance`'s RK4 sub-step equals `integration.rk4` over `derivatives`, at
+    the case's state and at 40 angles and speeds around it (rounding shows in some)."""
+    p, u = physics.Parameters(**params), physics.Inputs(*inputs)
+    rates = physics._stage_rates(p, physics.link_inertia(p, u.payload),
+                                 physics.gravity_moment(p, u.payload))
+    theta0, omega0, q, q_dot = start
+    direction = physics.motion_direction(u.F_adjust, q_dot)
+    for theta, omega in [(theta0 + 0.37 * i, omega0 * (1.0 + 0.11 * i)) for i in range(40)]:
+        s = physics.State(theta, omega, q, q_dot, 0.1, 0.2, 0.3, -0.0)
+        Y_B = p.Y_B0 + q
+        q_ddot, lock = physics.carriage(
+            p, u.F_adjust, physics.spring(p, theta, Y_B).F_q - p.m_q * G, q_dot, direction)
+        omega_dot = ((u.tau_drive + physics.tau_gravity(p, u.payload, theta, Y_B)
+                      - p.d_link * omega) / physics.link_inertia(p, u.payload))
+        loss_rate = p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot
+        assert tuple(physics.derivatives(p, u, s)) == (omega, omega_dot, q_dot, q_ddot,
+                                                       u.tau_drive * omega,
+                                                       u.F_adjust * q_dot, loss_rate, 0.0)
+        h = 0.05   # long enough for the increments to show the rounding of their sums
+        reference = integration.rk4(partial(physics.derivatives, p, u, direction=direction),
+                                    s, h)
+        step = physics._rk4_step(rates, u.tau_drive, u.F_adjust, s, h)
+        assert type(step) is physics.State
+        assert [(x, math.copysign(1.0, x)) for x in step] == [
+            (x, math.copysign(1.0, x)) for x in reference]
 
 # ---- active-design: eq. 27 ----------------------------------------------------------------
 
