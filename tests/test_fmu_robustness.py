@@ -70,6 +70,23 @@ def test_huge_drive_torque_step_then_refusal_keeps_the_state() -> None:
         refused_step(fmu, DT)  # refused again: not NaN, not a hang
 
 
+def test_massless_frictionless_released_slider_is_refused_by_name() -> None:
+    """m_slider = 0 and d_slider = 0, slider released with the pulley locked: nothing sets the
+    slider's motion (m v' = F - d v has no answer), so the step is refused naming both
+    parameters, the state stays, and locking the slider again lets the run go on."""
+    params = {"m_slider": 0.0, "d_slider": 0.0, "theta0": 2.0}
+    with open_fmu(fmu_build.fmu_path(SRB), params) as fmu:
+        before = fmu.get(fmu.names("output"))
+        fmu.set({"slider_locked": False, "pulley_locked": True})
+        message = refused_step(fmu)
+        assert "m_slider = 0.0 kg with the pulley locked" in message
+        assert "d_slider = 0.0 N.s/m" in message
+        assert fmu.get(fmu.names("output")) == before
+        fmu.set({"slider_locked": True})
+        fmu.step(0.0, DT)
+        assert fmu.get(["b"])["b"] == before["b"]
+
+
 @pytest.mark.parametrize("parameters", [
     {"J_link": 1e-40}, {"d_link": 1e6}, {"k": 1e14}, {"m": 1e12, "c": 1e6},
 ], ids=["J_link=1e-40", "d_link=1e6", "k=1e14", "m c=1e18"])
