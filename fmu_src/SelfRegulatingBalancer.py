@@ -70,13 +70,6 @@ class SelfRegulatingBalancer(MechanismSlave):
         if u.counterweight_added < -p.M0:
             raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
-        if (not u.slider_locked and p.d_slider == 0.0 and physics.slider_mass(p, u) == 0.0
-                and physics.slider_damping(p, u) == 0.0):
-            raise ValueError(
-                f"the released slider has neither mass nor damping (m_slider = {p.m_slider} "
-                f"kg{' with the pulley locked' if u.pulley_locked else ''}, d_slider = "
-                f"{p.d_slider} N.s/m): its motion is undefined; set m_slider > 0 or "
-                "d_slider > 0")
         self.step_with(u, dt)
         at_stop = self.output_values.slider_at_stop
         if at_stop and not self.stop_reported:

@@ -217,6 +217,18 @@ def slider_mass(p: Parameters, u: Inputs) -> float:
             + p.J_pulley / (p.r * p.r))
 
 
+def _free_slider_inertia(p: Parameters, u: Inputs) -> tuple[float, float]:
+    """(slider_mass, slider_damping) of the released slider; ValueError naming m_slider and
+    d_slider when both vanish, since nothing then determines its motion."""
+    m_eff, damping = slider_mass(p, u), slider_damping(p, u)
+    if m_eff == 0.0 and damping == 0.0:
+        raise ValueError(
+            f"the released slider has neither mass nor damping (m_slider = {p.m_slider} "
+            f"kg{' with the pulley locked' if u.pulley_locked else ''}, d_slider = "
+            f"{p.d_slider} N.s/m): its motion is undefined; set m_slider > 0 or d_slider > 0")
+    return m_eff, damping
+
+
 def slider_damping(p: Parameters, u: Inputs) -> float:
     """Viscous damping of the slider, with the pulley's bearing reflected while it turns
     [N s/m]."""
@@ -303,7 +315,7 @@ def _slider_rates(p: Parameters, u: Inputs, slip: float | None = None
     coriolis_factor = 2.0 * m_slider
     real_spring = p.L0 > 0.0
     if not slider_locked:
-        m_eff, pull, damping = slider_mass(p, u), wire_tension(p, u), slider_damping(p, u)
+        (m_eff, damping), pull = _free_slider_inertia(p, u), wire_tension(p, u)
         no_friction = p.mu_slider == 0.0
     fixed_slip = slip
 
@@ -417,9 +429,8 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     rate, speed = _link_terms(p, u.payload, s.b)[3], abs(s.omega)
     rate = speed if speed > rate else rate
     if not u.slider_locked:
-        m_eff = slider_mass(p, u)
+        m_eff, damping = _free_slider_inertia(p, u)
         k_b = p.k + p.m_slider * s.omega ** 2
-        damping = slider_damping(p, u)
         if m_eff > 0.0:
             slider_rate, decay = math.sqrt(k_b / m_eff), damping / m_eff
             slider_rate = decay if decay > slider_rate else slider_rate
@@ -447,10 +458,10 @@ def _mechanical_energy(p: Parameters, u: Inputs, s: State, mass: float) -> float
 
 def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
     """Speed of a free massless slider with the pulley locked, set by the forces [m/s]."""
-    factor = _free_length_factor(p, s.theta, s.b)
+    factor, damping = _free_length_factor(p, s.theta, s.b), _free_slider_inertia(p, u)[1]
     v = _creep_speed(_slider_force(p, s.theta, s.omega, s.b, 0.0, factor, wire_tension(p, u),
-                                   slider_damping(p, u)),
-                     slider_friction(p, s.theta, factor), slider_damping(p, u))
+                                   damping),
+                     slider_friction(p, s.theta, factor), damping)
     return 0.0 if _at_stop(p, s.b, v) else v
 
 
