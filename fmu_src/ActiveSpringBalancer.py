@@ -22,7 +22,6 @@ class ActiveSpringBalancer(MechanismSlave):
     moves along the vertical (Ciupitu 2018, Section 3)."""
 
     physics = physics
-    parameters_type = physics.Parameters
     hidden_state = ("state", "previous_inputs", "compression_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=5.0, step_size=1e-3)
 

@@ -19,7 +19,6 @@ class PrismaticCompensator(MechanismSlave):
     """2-DoF RP arm with the spring gravity compensator of Demian and Klimchik (2022)."""
 
     physics = physics
-    parameters_type = physics.Parameters
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=8.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:

@@ -27,7 +27,6 @@ class SelfRegulatingBalancer(MechanismSlave):
     a pulley-counterweight (Franchetti et al. 2021)."""
 
     physics = physics
-    parameters_type = physics.Parameters
     hidden_state = ("state", "previous_inputs", "stop_reported", "off_angle_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=35.0, step_size=1e-3)
 

@@ -494,11 +494,8 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
 
 
-def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
-    """The state just after the inputs change at a communication point: a payload caught
-    from rest or released (`ledger.change_payload`, docs/energy_ledger.md)."""
-    return ledger.change_payload(s, before.payload, after.payload, p.w, p.g,
-                                 lambda payload: inertia(p, payload, s.theta)[0])
+# a payload caught from rest or released at a communication point (docs/energy_ledger.md)
+switch_inputs = ledger.payload_switch(inertia)
 
 
 class Outputs(NamedTuple):

@@ -42,6 +42,7 @@ from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import ScalarVariable
 
@@ -596,6 +597,11 @@ class MechanismSlave(ModelSlave):
     physics: Any
     hidden_state = ("state", "previous_inputs")
 
+    @property
+    def parameters_type(self) -> type:
+        """The physics module's Parameters: the FMU's parameters."""
+        return self.physics.Parameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.state = None
@@ -656,13 +662,35 @@ class MechanismSlave(ModelSlave):
         self.previous_inputs = self.physics.Inputs(*hidden["previous_inputs"])
 
 
+# The output rows every payload arm has (PayloadArmSlave.output_table), by name.
+ARM_OUTPUTS = {row[0]: row for row in (
+    ("theta", "rad", "Arm angle from the upward vertical, counter-clockwise positive "
+                     "(the paper's phi = pi/2 - theta)"),
+    ("omega", "rad/s", "Arm angular velocity"),
+    ("E_p", "J", "Gravitational potential energy of link, payload and both counterweights"),
+    ("E_kin", "J", "Kinetic energy of link, payload, counterweights and drive rotor"),
+    ("M_g", "N.m", "Payload moment about O, -payload g w cos(phi) (eq. 8, paper's sign)"),
+    ("M_u", "N.m", "Unbalanced moment M_b + M_g (eq. 16)"),
+    ("W_drive", "J", "Cumulative work of tau_drive on the arm"),
+    ("E_loss", "J", "Cumulative energy dissipated: pivot friction, payload picked up while "
+                    "moving"),
+    ("E_added", "J", "Cumulative energy brought in (+) or taken out (-) by payload joining or "
+                     "leaving; E_p + E_kin + E_loss - W_drive - E_added is constant"),
+)}
+
+
 class PayloadArmSlave(MechanismSlave):
     """A one-link arm with a drive torque and a payload at distance w: inputs tau_drive and
     payload (physics.Inputs(tau_drive, payload)); outputs from the subclass's table."""
 
-    # (name, unit, description) per output, and the inputs each depends on (ModelStructure)
+    # (name, unit, description) per output (ARM_OUTPUTS has the rows every arm shares), and
+    # the inputs each depends on (ModelStructure): the payload's moment, inertia and weight
     output_table: tuple[tuple[str, str, str], ...] = ()
-    input_dependencies: dict[str, tuple[str, ...]] = {}
+    input_dependencies: dict[str, tuple[str, ...]] = {
+        name: ("payload",) for name in ("tau_gravity", "E_p", "E_kin", "M_g", "M_u")}
+    # 1 ms is the harness's communication step; 20 s spans several strokes of a rocking
+    # cycle and many periods of a default arm's free swing
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -8,7 +8,7 @@ one-link arms share: a payload that joins or leaves at a communication point.
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple, TypeVar
+from typing import Any, Callable, NamedTuple, TypeVar
 
 # a NamedTuple state with fields theta [rad], omega [rad/s], E_loss [J] and E_added [J]
 S = TypeVar("S")
@@ -57,3 +57,14 @@ def payload_flow(rate: float, w: float, g: float, theta: float, omega: float,
     kinetic = 0.5 * (w * omega) ** 2
     return PayloadFlow(-gain * w * w * omega / inertia, gain * kinetic,
                        rate * g * w * math.cos(theta) + drop * kinetic)
+
+
+def payload_switch(inertia: Callable[[Any, float, float], tuple]) -> Callable:
+    """`switch_inputs` of a one-link arm whose one event input is its payload at distance p.w,
+    given the arm's inertia(p, payload, theta) (its first item the moment of inertia about
+    the pivot [kg m2]): the payload caught from rest or released (`change_payload`)."""
+    def switch_inputs(p: Any, before: Any, after: Any, s: S) -> S:
+        """The state just after the payload changes at a communication point."""
+        return change_payload(s, before.payload, after.payload, p.w, p.g,
+                              lambda payload: inertia(p, payload, s.theta)[0])
+    return switch_inputs

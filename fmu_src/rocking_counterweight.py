@@ -400,11 +400,8 @@ def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
             + 0.5 * inertia(p, payload, s.theta)[0] * s.omega ** 2)
 
 
-def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
-    """The state just after the inputs change at a communication point: a payload caught
-    from rest or released (`ledger.change_payload`, docs/energy_ledger.md)."""
-    return ledger.change_payload(s, before.payload, after.payload, p.w, p.g,
-                                 lambda payload: inertia(p, payload, s.theta)[0])
+# a payload caught from rest or released at a communication point (docs/energy_ledger.md)
+switch_inputs = ledger.payload_switch(inertia)
 
 
 class Outputs(NamedTuple):

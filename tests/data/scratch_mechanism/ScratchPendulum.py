@@ -25,7 +25,6 @@ class ScratchPendulum(MechanismSlave):
     """A damped pendulum driven at its pivot."""
 
     physics = physics
-    parameters_type = physics.Parameters
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=5.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:
