@@ -139,3 +139,9 @@ def assert_reproduces_committed_series(scenario: Scenario, run: RunResult,
     committed = read_result(results.RESULTS_DIR / scenario.name / f"{run.variant}.csv")
     comparisons = compare(committed, run.series, signals, rtol=1e-6, atol=1e-9)
     assert all(c.passed for c in comparisons), report(comparisons)
+
+
+def write(path: Path, frame: pd.DataFrame) -> Path:
+    """frame written to path as a result CSV (no index column); the path."""
+    frame.to_csv(path, index=False)
+    return path

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import write
 
 from harness import cli, results, scenarios
 from harness.errors import UserError
@@ -213,11 +214,6 @@ def test_concurrent_writers_are_serialised(tmp_path: Path) -> None:
 
 
 # ---- compare (section 2)
-
-def write(path: Path, frame: pd.DataFrame) -> Path:
-    frame.to_csv(path, index=False)
-    return path
-
 
 @pytest.fixture
 def reference(tmp_path: Path) -> Path:
