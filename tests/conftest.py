@@ -3,6 +3,7 @@ regression checks against the committed results."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -145,3 +146,23 @@ def write(path: Path, frame: pd.DataFrame) -> Path:
     """frame written to path as a result CSV (no index column); the path."""
     frame.to_csv(path, index=False)
     return path
+
+
+# A step may cost at most MAX_SUBSTEPS RK4 sub-steps: well under a second on any machine
+# this runs on (the default models take about 10 us per sub-step).
+STEP_TIME_LIMIT = 5.0
+
+
+def refused_step(fmu: CoSimFMU, time_point: float = 0.0, step_size: float = 1e-3) -> str:
+    """Take a step that must be refused with Discard within STEP_TIME_LIMIT, logging one
+    Error message without a traceback; that message."""
+    logged = len(fmu.messages)
+    start = time.perf_counter()
+    with pytest.raises(FMICallException) as failure:
+        fmu.step(time_point, step_size)
+    assert time.perf_counter() - start < STEP_TIME_LIMIT
+    assert failure.value.status == FMI_DISCARD
+    new = [m.message for m in fmu.messages[logged:] if m.status == "Error"]
+    assert len(new) == 1
+    assert "Traceback" not in new[0]
+    return new[0]

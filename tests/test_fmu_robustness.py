@@ -8,7 +8,15 @@ import math
 import time
 
 import pytest
-from conftest import FMI_DISCARD, FMI_FATAL, errors, failed_initialisation, open_fmu
+from conftest import (
+    FMI_DISCARD,
+    FMI_FATAL,
+    STEP_TIME_LIMIT,
+    errors,
+    failed_initialisation,
+    open_fmu,
+    refused_step,
+)
 
 from fmu_src import self_regulating
 from fmu_src.integration import MAX_SUBSTEPS, SubstepBoundError, substeps
@@ -17,23 +25,6 @@ from harness.fmi import CoSimFMU, FMICallException
 
 SRB, PRISMATIC, CIUPITU = "SelfRegulatingBalancer", "PrismaticCompensator", "CiupituBalancer"
 DT = 1e-3
-# A step may cost at most MAX_SUBSTEPS RK4 sub-steps: well under a second on any machine
-# this runs on (the default models take about 10 us per sub-step).
-STEP_TIME_LIMIT = 5.0
-
-
-def refused_step(fmu: CoSimFMU, time_point: float = 0.0, step_size: float = DT) -> str:
-    """Take a step that must be refused with Discard within STEP_TIME_LIMIT; its message."""
-    logged = len(fmu.messages)
-    start = time.perf_counter()
-    with pytest.raises(FMICallException) as failure:
-        fmu.step(time_point, step_size)
-    assert time.perf_counter() - start < STEP_TIME_LIMIT
-    assert failure.value.status == FMI_DISCARD
-    new = [m.message for m in fmu.messages[logged:] if m.status == "Error"]
-    assert len(new) == 1
-    assert "Traceback" not in new[0]
-    return new[0]
 
 
 # ---- section 1: bounded work per step
