@@ -14,23 +14,24 @@ its state and inputs (`refresh_outputs`), an output read after an input was set 
 first, so a host sees a changed payload in tau_gravity at once, not one step later. Outputs
 declared independent of the inputs then read the same, which the tests check input by input.
 
-Error reporting: pythonfmu turns any Python exception into fmi2Fatal and a False return
-of do_step into fmi2Discard; it has no route to fmi2Error. So a bad parameter fails
-fmi2ExitInitializationMode with fmi2Fatal (the instance cannot be used, as the standard
-requires after Error as well), and a bad input or step size fails fmi2DoStep with
-fmi2Discard. In both cases an Error-status log message names the variable and its range.
+Error reporting: a refusal that ends the call is a ValueError whose message names the
+variable and its range; the FMU's runtime (harness/runtime/fmi2_runtime.c on Linux) returns
+fmi2Error and logs "<fmi2 function>: ValueError: <message>" (pythonfmu's win64 binary returns
+fmi2Fatal with the same message). So a bad parameter fails fmi2ExitInitializationMode and a
+fixed parameter set after initialisation fails fmi2SetReal. A bad input or step size fails
+fmi2DoStep with fmi2Discard (do_step returns False) after an Error-status log message.
 
 A refused step leaves the instance as it was before the call: `do_step` refuses a step
 whose work would exceed the integrator's bound (`fmu_src.integration.MAX_SUBSTEPS`), whose
 arithmetic fails, or whose outputs would not be finite, and restores the state. Fixed and
-calculated parameters cannot be set after initialisation (their setters raise, which
-pythonfmu reports as fmi2Fatal); a restored FMU state is validated like a fresh
-initialisation.
+calculated parameters cannot be set after initialisation (their setters raise); a restored
+FMU state is validated like a fresh initialisation.
 """
 
 from __future__ import annotations
 
 import builtins
+import contextlib
 import math
 import os
 import sys
@@ -118,7 +119,8 @@ class ModelSlave(Fmi2Slave):
         # is imported by now. (pythonfmu's builder removes its own entry itself.)
         if self.resources in sys.path and os.path.exists(
                 os.path.join(self.resources, "slavemodule.txt")):
-            sys.path.remove(self.resources)
+            with contextlib.suppress(ValueError):  # another thread's instance took it out
+                sys.path.remove(self.resources)
         self.author = "Gravity balancer co-simulation project"
         self.license = "MIT"
         self.info: dict[str, VariableInfo] = {}
@@ -176,7 +178,6 @@ class ModelSlave(Fmi2Slave):
             else:
                 setattr(self, name, value)
                 return
-            self.fail(problem)
             raise ValueError(problem)
         return set_parameter
 
@@ -356,7 +357,7 @@ class ModelSlave(Fmi2Slave):
 
     # ---- FMI life cycle -----------------------------------------------------------
     def fail(self, message: str) -> None:
-        """Log an Error-status message (the caller then returns False or raises)."""
+        """Log an Error-status message (the caller then returns False: fmi2Discard)."""
         self.log(message, Fmi2Status.error)
 
     def warn(self, message: str) -> None:
@@ -371,12 +372,10 @@ class ModelSlave(Fmi2Slave):
             params = self.read_parameters()
             self.validate(params)
         except ValueError as error:
-            self.fail(f"invalid parameter: {error}")
-            raise
+            raise ValueError(f"invalid parameter: {error}") from None
         problem = self._input_problem()  # the initial outputs use the inputs' start values
         if problem is not None:
-            self.fail(f"initialisation failed: {problem}")
-            raise ValueError(problem)
+            raise ValueError(f"initialisation failed: {problem}")
         try:
             self.params = params
             self.initialise(params)
@@ -385,8 +384,7 @@ class ModelSlave(Fmi2Slave):
             problem = _arithmetic_problem(error)
         if problem is not None:
             self.params = None
-            self.fail(f"initialisation failed: {problem}")
-            raise ValueError(problem)
+            raise ValueError(f"initialisation failed: {problem}")
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         # one chained test for the usual call (also false for NaN); _refuse_call says why not
@@ -533,9 +531,9 @@ class ModelSlave(Fmi2Slave):
             if problem is not None:
                 raise self._state_problem(problem)
 
-    def _state_problem(self, problem: str) -> ValueError:
-        self.fail(f"FMU state refused: {problem}")
-        return ValueError(problem)
+    @staticmethod
+    def _state_problem(problem: str) -> ValueError:
+        return ValueError(f"FMU state refused: {problem}")
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         for name, value in hidden.items():

@@ -5,13 +5,16 @@ Each benchmark is a function (steps, repeats) -> table; BENCHMARKS maps the CSV 
 `fmu_step`: the cost of one communication step of SelfRegulatingBalancer stepped by FMPy,
 with the calls the co-simulation master makes per step (harness.master: setReal tau_drive,
 doStep, getReal theta and omega), next to the same loop over `BenchFloor`, a pythonfmu
-FMU that only copies its input to its output: the floor that FMI and the embedded
-interpreter impose on any pythonfmu FMU.
+FMU that only copies its input to its output, with pythonfmu's own binary: the floor that
+pythonfmu imposes on any FMU made with it. `BenchFloorRuntime` is the same slave on our
+runtime (harness/runtime), as every FMU of the product is.
 
-`native_step`: the same step loop (setReal, doStep, one getReal) of each mechanism FMU run
-by the C host of tests/native_host with an empty environment, as a tool that is not a Python
-process runs it (the FMU's loader brings Python in), against FMPy: CPU time per step of each and
-their ratio.
+`native_step`: the same step loop (setReal, doStep, one getReal) of the floors and of each
+mechanism FMU run by the C host of tests/native_host, as a tool that is not a Python process
+runs it, against FMPy: CPU time per step of each and their ratio, and the C host's cost
+against the stock floor's in the C host. Our FMUs run with an empty environment (the runtime
+brings Python in); the stock floor as pythonfmu requires, libpython preloaded and PYTHONHOME
+set.
 
 `cosim`: wall time of every variant of every shipped scenario at 1 ms, as a real-time
 factor (simulated / wall time), next to the cost of the FMU's own steps in it (steps times
@@ -41,6 +44,7 @@ from __future__ import annotations
 import argparse
 import re
 import subprocess
+import sys
 import tempfile
 import time
 import zipfile
@@ -86,13 +90,16 @@ def mechanism_loop(model: str, joints: tuple[Port, ...]) -> StepLoop:
                     tuple(name for joint in joints for name in (joint.position, joint.flow)))
 
 
-# native_step: the mechanism FMUs (harness.registry); fmu_step: the same and the floor
+# the mechanism FMUs (harness.registry), and the floor: the trivial slave on pythonfmu's own
+# binary (the stock floor every ratio is taken to) and on our runtime
 MECHANISM_LOOPS = {model: mechanism_loop(model, r.joints())
                    for model, r in registry.mechanisms().items()}
+FLOOR = "BenchFloor"
 STEP_LOOPS = {
-    "BenchFloor": StepLoop(
-        lambda: fmu_build.fmu_path("BenchFloor", FLOOR_BUILD_DIR, FLOOR_SOURCE_DIR),
-        "u", ("y",)),
+    FLOOR: StepLoop(lambda: fmu_build.fmu_path(FLOOR, FLOOR_BUILD_DIR / "stock",
+                                               FLOOR_SOURCE_DIR, runtime=False), "u", ("y",)),
+    "BenchFloorRuntime": StepLoop(
+        lambda: fmu_build.fmu_path(FLOOR, FLOOR_BUILD_DIR, FLOOR_SOURCE_DIR), "u", ("y",)),
     **MECHANISM_LOOPS,
 }
 
@@ -134,7 +141,7 @@ def fmu_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
     finally:
         for fmu in fmus.values():
             fmu.close()
-    floor = best["BenchFloor"]
+    floor = best[FLOOR]
     return pd.DataFrame({
         "model": list(best),
         "step_size": STEP_SIZE,
@@ -150,9 +157,20 @@ def native_host() -> Path:
     return fmu_build.compiled(NATIVE_HOST_SOURCE, NATIVE_HOST_BUILD)
 
 
-def native_seconds_per_step(host: Path, fmu: Path, loop: StepLoop, steps: int) -> float:
+def stock_environment() -> dict[str, str]:
+    """What a host that is not a Python process needs for pythonfmu's own binary: the
+    building interpreter's libpython preloaded and its prefix as PYTHONHOME."""
+    library = fmu_build.libpython()
+    if library is None:
+        raise UserError("the stock floor needs a shared-library CPython (libpython) to run in "
+                        "the C host")
+    return {"LD_PRELOAD": str(library), "PYTHONHOME": sys.base_prefix}
+
+
+def native_seconds_per_step(host: Path, fmu: Path, loop: StepLoop, steps: int,
+                            environment: dict[str, str] | None = None) -> float:
     """Mean CPU time of one step [s] of the C host's loop over an unzipped copy of the FMU,
-    from t = 0, in an empty environment."""
+    from t = 0, in the given environment (default: an empty one)."""
     md = read_model_description(fmu)
     refs = {v.name: v.valueReference for v in md.modelVariables}
     with tempfile.TemporaryDirectory(prefix="native_") as folder:
@@ -161,27 +179,32 @@ def native_seconds_per_step(host: Path, fmu: Path, loop: StepLoop, steps: int) -
             [str(host), "-b", str(refs[loop.input]), folder, md.coSimulation.modelIdentifier,
              md.guid, str(steps * STEP_SIZE), str(STEP_SIZE),
              *(str(refs[n]) for n in loop.outputs)],
-            env={}, capture_output=True, text=True, check=True)
+            env=environment or {}, capture_output=True, text=True, check=True)
     return float(re.search(r"^cpu_seconds_per_step (\S+)$", done.stderr, re.MULTILINE).group(1))
 
 
 def native_step(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
-    """Best-of-repeats cost of one 1 ms step of each mechanism FMU [us]: in the C host, in
-    FMPy, and their ratio. Both start from the initialised FMU at t = 0, so they run the same
-    trajectory."""
+    """Best-of-repeats cost of one 1 ms step of the floors and of each mechanism FMU [us]: in
+    the C host, in FMPy, and their ratio, and the C host's cost over the stock floor's in the C
+    host. Both start from the initialised FMU at t = 0, so they run the same trajectory."""
     host = native_host()
     rows = []
-    for model, loop in MECHANISM_LOOPS.items():
+    for model, loop in STEP_LOOPS.items():
+        environment = stock_environment() if model == FLOOR else None
         native, python = float("inf"), float("inf")
         for _ in range(repeats):
-            native = min(native, native_seconds_per_step(host, loop.fmu_path(), loop, steps))
+            native = min(native, native_seconds_per_step(host, loop.fmu_path(), loop, steps,
+                                                         environment))
             with CoSimFMU(loop.fmu_path(), instance_name=f"bench.{model}") as fmu:
                 fmu.initialize()
                 python = min(python, seconds_per_step(fmu, loop, steps))
         rows.append({"model": model, "step_size": STEP_SIZE, "steps": steps,
                      "repeats": repeats, "us_per_step_c_host": 1e6 * native,
                      "us_per_step_fmpy": 1e6 * python, "ratio_c_host_to_fmpy": native / python})
-    return pd.DataFrame(rows)
+    table = pd.DataFrame(rows)
+    table["ratio_c_host_to_floor"] = (table.us_per_step_c_host
+                                      / table.us_per_step_c_host[table.model == FLOOR].iloc[0])
+    return table
 
 
 def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
@@ -192,7 +215,7 @@ def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
     the run's step count times the model's best fmu_step cost where that was measured.
     """
     step_cost = (fmu_step(steps, repeats).set_index("model").us_per_step * 1e-6).to_dict()
-    floor = step_cost["BenchFloor"]
+    floor = step_cost[FLOOR]
     rows = []
     for name in scenarios.available():
         scenario = scenarios.load(name)

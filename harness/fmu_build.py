@@ -16,10 +16,12 @@ onto `<model>.fmu` only when the FMU and its documentation are complete, so an i
 failed build never leaves a broken FMU behind (and a concurrent reader sees the old or the
 new FMU, never a partial one).
 
-Every FMU's linux64 binary is our loader (`harness/loader/fmi2_loader.c`, compiled here with
-`python -m ziglang cc` for glibc 2.17 and later): it loads the libpython the FMU was built
-with, recorded in `resources/python.txt`, when the host is not a Python process, then forwards
-every FMI call to pythonfmu's binary, installed beside it as `<model>.pythonfmu.so`.
+Every FMU's linux64 binary is our FMI 2.0 runtime (`harness/runtime/fmi2_runtime.c`, C only,
+compiled here with `python -m ziglang cc` for glibc 2.17 and later): it implements every FMI
+function over pythonfmu's Python API, loading the libpython the FMU was built with (recorded in
+`resources/python.txt`, with the FMU's GUID) when the host is not a Python process.
+pythonfmu's own linux64 binary is not shipped; its win64 binary is. `build(..., runtime=False)`
+keeps pythonfmu's binaries as they are: the benchmark's stock floor.
 
 The ScenarioSequencer plays the scenario embedded in its module `sequencer_scenario`: the
 committed `fmu_src/sequencer_scenario.py` (franchetti2021), or, with `--sequencer-scenario
@@ -28,9 +30,9 @@ build's staging folder only, so the source tree keeps its default.
 
 A build is by content: every FMU records in `resources/build_inputs.sha256` the digest of
 everything that goes into it (`fmu_inputs`: the slave script and the fmu_src modules it
-imports, the embedded scenario, the loader's source and compiler, the building interpreter's
+imports, the embedded scenario, the runtime's source and compiler, the building interpreter's
 record, the versions of the tools that write it and this build code), and `fmu_path` or
-`build-fmus` rebuild it only when that digest changes; the loader and the bench's C host
+`build-fmus` rebuild it only when that digest changes; the runtime and the bench's C host
 record theirs beside the binary (`compiled`). Timestamps play no part, so a fresh clone, a
 `touch` or a copy neither hides a change nor forces a rebuild, and an unchanged FMU keeps its
 bytes and GUID. `build-fmus --force` rebuilds regardless.
@@ -51,6 +53,7 @@ import sysconfig
 import tempfile
 import zipfile
 from pathlib import Path
+from xml.etree import ElementTree
 
 import fmpy
 from pythonfmu.builder import FmuBuilder
@@ -64,12 +67,12 @@ DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
 MODELS = registry.models(SOURCE_DIR)  # those that declare a registration (harness.registry)
 SEQUENCER = "ScenarioSequencer"
-LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "fmi2_loader.c"
-LOADER_BUILD = DEFAULT_DEST.parent / "loader" / "fmi2_loader.so"
-# the oldest glibc the loader runs on (pythonfmu's own binary needs 2.32)
-LOADER_TARGET = "x86_64-linux-gnu.2.17"
-LOADER_OPTIONS = ("-shared", "-fPIC", "-s")
-PYTHON_RECORD = "resources/python.txt"  # read by the loader: keep the keys in step
+RUNTIME_SOURCE = Path(__file__).resolve().parent / "runtime" / "fmi2_runtime.c"
+RUNTIME_BUILD = DEFAULT_DEST.parent / "runtime" / "fmi2_runtime.so"
+# the oldest glibc the runtime runs on (pythonfmu's own binary needs 2.32)
+RUNTIME_TARGET = "x86_64-linux-gnu.2.17"
+RUNTIME_OPTIONS = ("-shared", "-fPIC", "-s")
+PYTHON_RECORD = "resources/python.txt"  # read by the runtime: keep the keys in step
 INPUTS_RECORD = "resources/build_inputs.sha256"  # fmu_inputs of the FMU's build
 # the code that writes an FMU besides its fmu_src modules, and the tools whose output it holds
 BUILD_CODE = (Path(__file__), Path(fmu_docs.__file__), Path(osp.__file__),
@@ -118,9 +121,9 @@ def sequencer_module(scenario: str | Path) -> str:
 
 def zig_cc(source: Path, output: Path, *options: str) -> Path:
     """Compile a C file with `python -m ziglang cc` (a registry package, no system compiler)
-    for LOADER_TARGET, FMPy's FMI 2.0 headers on the include path; written atomically."""
+    for RUNTIME_TARGET, FMPy's FMI 2.0 headers on the include path; written atomically."""
     return write_atomic(output, lambda partial: subprocess.run(
-        [sys.executable, "-m", "ziglang", "cc", "-target", LOADER_TARGET, "-O2", "-Wall",
+        [sys.executable, "-m", "ziglang", "cc", "-target", RUNTIME_TARGET, "-O2", "-Wall",
          f"-I{Path(fmpy.__file__).parent / 'c-code'}", *options, str(source), "-o",
          str(partial)], check=True), mode=0o755)
 
@@ -162,7 +165,7 @@ def stale(output: Path, inputs: str) -> bool:
 def compile_inputs(source: Path, *options: str) -> str:
     """Digest of what `zig_cc(source, output, *options)` depends on: the source, the options,
     the target, the tools (ziglang, FMPy's headers) and this module (zig_cc's own flags)."""
-    return digest(source, LOADER_TARGET, *options, tool_versions(), Path(__file__))
+    return digest(source, RUNTIME_TARGET, *options, tool_versions(), Path(__file__))
 
 
 def compiled(source: Path, output: Path, *options: str) -> Path:
@@ -177,60 +180,74 @@ def compiled(source: Path, output: Path, *options: str) -> Path:
     return output
 
 
-def loader_binary(output: Path = LOADER_BUILD) -> Path:
-    """The compiled loader, recompiled when its inputs change."""
-    return compiled(LOADER_SOURCE, output, *LOADER_OPTIONS)
+def runtime_binary(output: Path = RUNTIME_BUILD) -> Path:
+    """The compiled runtime, recompiled when its inputs change."""
+    return compiled(RUNTIME_SOURCE, output, *RUNTIME_OPTIONS)
+
+
+def libpython() -> Path | None:
+    """The libpython of this interpreter; None when it is not a shared-library build."""
+    if not sysconfig.get_config_var("Py_ENABLE_SHARED"):
+        return None
+    return Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("INSTSONAME")
 
 
 def python_record() -> str:
     """resources/python.txt: the libpython of the interpreter building the FMU (empty when it
     is not a shared-library build), its version and its installation prefix."""
-    shared = sysconfig.get_config_var("Py_ENABLE_SHARED")
-    library = (Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("INSTSONAME")
-               if shared else "")
-    return (f"libpython={library}\nversion={platform.python_version()}\n"
+    return (f"libpython={libpython() or ''}\nversion={platform.python_version()}\n"
             f"prefix={sys.base_prefix}\n")
 
 
-def install_loader(fmu: Path, model: str, inputs: str) -> None:
-    """Make the loader the FMU's linux64 binary, pythonfmu's binary <model>.pythonfmu.so
-    beside it, record the building interpreter's libpython in resources/python.txt and the
-    digest of the build's inputs in INPUTS_RECORD."""
-    binary = f"binaries/linux64/{model}.so"
+def model_guid(fmu: Path) -> str:
+    """The GUID in the FMU's modelDescription.xml."""
     with zipfile.ZipFile(fmu) as archive:
-        entries = [(info, archive.read(info)) for info in archive.infolist()]
+        return ElementTree.fromstring(archive.read("modelDescription.xml")).get("guid")
+
+
+def install_runtime(fmu: Path, model: str, inputs: str, runtime: bool = True) -> None:
+    """Make the runtime the FMU's linux64 binary in place of pythonfmu's (unless runtime is
+    False), record the building interpreter's libpython and the FMU's GUID in
+    resources/python.txt and the digest of the build's inputs in INPUTS_RECORD."""
+    binary = f"binaries/linux64/{model}.so"
+    record = f"{python_record()}guid={model_guid(fmu)}\n"
+    with zipfile.ZipFile(fmu) as archive:
+        entries = [(info, archive.read(info)) for info in archive.infolist()
+                   if not runtime or info.filename != binary]
     with zipfile.ZipFile(fmu, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for info, data in entries:
-            if info.filename == binary:
-                info.filename = f"binaries/linux64/{model}.pythonfmu.so"
             archive.writestr(info, data)
-        archive.write(loader_binary(), binary)
-        archive.writestr(PYTHON_RECORD, python_record())
+        if runtime:
+            archive.write(runtime_binary(), binary)
+        archive.writestr(PYTHON_RECORD, record)
         archive.writestr(INPUTS_RECORD, inputs)
 
 
-def fmu_inputs(model: str, source_dir: Path = SOURCE_DIR, embedded: str | None = None) -> str:
+def fmu_inputs(model: str, source_dir: Path = SOURCE_DIR, embedded: str | None = None,
+               runtime: bool = True) -> str:
     """Digest of everything that goes into the FMU of source_dir/<model>.py: the script, the
     fmu_src modules it imports, the embedded `sequencer_scenario` source (if any), the
-    loader's inputs, the building interpreter's record, the tools' versions and BUILD_CODE."""
+    runtime's inputs (or that pythonfmu's binary stays), the building interpreter's record,
+    the tools' versions and BUILD_CODE."""
+    binary = (compile_inputs(RUNTIME_SOURCE, *RUNTIME_OPTIONS) if runtime
+              else "pythonfmu's binaries")
     return digest(source_dir / f"{model}.py", *dependencies(model, source_dir),
-                  "" if embedded is None else embedded, compile_inputs(LOADER_SOURCE,
-                                                                       *LOADER_OPTIONS),
-                  python_record(), tool_versions(), *BUILD_CODE)
+                  "" if embedded is None else embedded, binary, python_record(),
+                  tool_versions(), *BUILD_CODE)
 
 
 def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
-          sequencer_scenario: str | Path | None = None) -> Path:
+          sequencer_scenario: str | Path | None = None, runtime: bool = True) -> Path:
     """Build the slave script source_dir/<model>.py, with its documentation, into
     dest/<model>.fmu (atomically) and return that path, whether or not it is stale.
 
     sequencer_scenario (ScenarioSequencer only): the scenario (shipped name or TOML file) the
-    FMU plays instead of the committed default.
+    FMU plays instead of the committed default. runtime False: pythonfmu's own binaries.
     """
     if sequencer_scenario is not None and model != SEQUENCER:
         raise UserError(f"a sequencer scenario is for the {SEQUENCER}, not {model}")
     embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
-    inputs = fmu_inputs(model, source_dir, embedded)  # before reading them to build
+    inputs = fmu_inputs(model, source_dir, embedded, runtime)  # before reading them
     dest.mkdir(parents=True, exist_ok=True)
     script = source_dir / f"{model}.py"
     modules = dependencies(model, source_dir)
@@ -250,7 +267,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
                 project_files=[package] if modules else [],
                 canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 canHandleVariableCommunicationStepSize=True)
-            install_loader(partial, model, inputs)
+            install_runtime(partial, model, inputs, runtime)
             # the documentation reads the staged modules: those the FMU carries
             fmu_docs.add_documentation(partial, script,
                                        [package / module.name for module in modules])
@@ -261,24 +278,25 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
 
 
 def update(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
-           sequencer_scenario: str | Path | None = None, force: bool = False) -> bool:
+           sequencer_scenario: str | Path | None = None, force: bool = False,
+           runtime: bool = True) -> bool:
     """Build dest/<model>.fmu (see `build`) if forced or stale, that is, unless it records
     the digest of its current inputs (`fmu_inputs`); True if it was built. An up-to-date
     FMU whose OSP model description is missing gets it written again."""
     embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
     fmu = dest / f"{model}.fmu"
-    if not force and not stale(fmu, fmu_inputs(model, source_dir, embedded)):
+    if not force and not stale(fmu, fmu_inputs(model, source_dir, embedded, runtime)):
         if not (dest / f"{model}{osp.SUFFIX}").exists():  # deleted beside an up-to-date FMU
             osp.write_model_description(fmu)
         return False
-    build(model, dest, source_dir, sequencer_scenario)
+    build(model, dest, source_dir, sequencer_scenario, runtime)
     return True
 
 
 def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
-             sequencer_scenario: str | Path | None = None) -> Path:
+             sequencer_scenario: str | Path | None = None, runtime: bool = True) -> Path:
     """Path of the built FMU dest/<model>.fmu, built first if stale (`update`)."""
-    update(model, dest, source_dir, sequencer_scenario)
+    update(model, dest, source_dir, sequencer_scenario, runtime=runtime)
     return dest / f"{model}.fmu"
 
 

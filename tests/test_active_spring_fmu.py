@@ -233,6 +233,6 @@ def test_model_description_declares_units_and_bounds() -> None:
 
 
 def test_invalid_parameter_is_reported() -> None:
-    """A parameter out of range fails initialisation with fmi2Fatal and a message naming it
+    """A parameter out of range fails initialisation with fmi2Error and a message naming it
     and its range."""
     assert "k = 0.0 N/m is outside (0.0, inf)" in failed_initialisation(MODEL, {"k": 0.0})

@@ -21,9 +21,9 @@ def snapshot(paths: list[Path]) -> dict[str, tuple[int, bytes]]:
 
 def test_a_second_build_rewrites_nothing(capsys: pytest.CaptureFixture[str]) -> None:
     """`make fmu` twice: the second run reports every FMU unchanged and leaves every file of
-    build/fmus and the loader as they were, to the byte and the nanosecond."""
+    build/fmus and the runtime as they were, to the byte and the nanosecond."""
     assert cli.main(["build-fmus"]) == 0
-    files = [fmu_build.LOADER_BUILD, *(fmu_build.DEFAULT_DEST / f"{m}{suffix}"
+    files = [fmu_build.RUNTIME_BUILD, *(fmu_build.DEFAULT_DEST / f"{m}{suffix}"
                                        for m in fmu_build.MODELS
                                        for suffix in (".fmu", "_OspModelDescription.xml"))]
     before = snapshot(files)

@@ -10,11 +10,12 @@ import time
 import pytest
 from conftest import (
     FMI_DISCARD,
-    FMI_FATAL,
+    FMI_ERROR,
     STEP_TIME_LIMIT,
     errors,
     failed_initialisation,
     open_fmu,
+    refusal,
     refused_step,
 )
 
@@ -176,14 +177,16 @@ def test_step_before_initialisation_is_refused() -> None:
 ])
 def test_parameters_cannot_change_after_initialisation(name: str, value: float,
                                                        expected: str) -> None:
-    """setReal on a fixed or calculated parameter used to return OK and be ignored; now it is
-    refused (pythonfmu's only error status from a setter is Fatal) with a message."""
+    """setReal on a fixed or calculated parameter is refused with fmi2Error and a message, and
+    the value stays."""
     fmu = open_fmu(fmu_build.fmu_path(SRB))
     try:
+        before = fmu.get([name])
         with pytest.raises(FMICallException) as failure:
             fmu.set({name: value})
-        assert failure.value.status == FMI_FATAL and fmu.fatal
-        assert expected in errors(fmu)[-1]
+        assert failure.value.status == FMI_ERROR and not fmu.fatal
+        assert expected in refusal(errors(fmu)[-1], "fmi2SetReal")
+        assert fmu.get([name]) == before
     finally:
         fmu.close()
 

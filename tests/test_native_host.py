@@ -2,7 +2,7 @@
 
 tests/native_host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
 CLI, fmuCheck or OMSimulator is. It runs here with an empty environment (no LD_PRELOAD,
-PYTHONHOME or PYTHONPATH): the FMU's own loader (harness/loader/fmi2_loader.c) must find
+PYTHONHOME or PYTHONPATH): the FMU's own runtime (harness/runtime/fmi2_runtime.c) must find
 Python by itself, with the interpreter the FMU was built with or any CPython 3.8 or later
 named by BALANCER_FMU_LIBPYTHON, and give the numbers FMPy gives.
 """
@@ -22,7 +22,7 @@ import fmpy
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import FMI_FATAL, FMI_OK, open_fmu, run
+from conftest import FMI_DISCARD, FMI_ERROR, FMI_OK, open_fmu, run
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
@@ -41,7 +41,7 @@ LIBPYTHON_GLOBS = ("/usr/lib/x86_64-linux-gnu/libpython3.*.so.1.0",
                    f"{Path.home()}/.pyenv/versions/*/lib/libpython3.*.so.1.0")
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
-                                reason="the loader and the C host are for Linux")
+                                reason="the runtime and the C host are for Linux")
 
 
 def libpythons() -> list[Path]:
@@ -165,7 +165,7 @@ def test_a_libpython_older_than_3_8_is_refused_by_name(
 
 def test_without_the_recorded_libpython_the_linker_search_is_tried(
         host: Path, unzipped: dict[str, Path], tmp_path: Path) -> None:
-    """The FMU moved to a machine without its build's interpreter: the loader falls back on
+    """The FMU moved to a machine without its build's interpreter: the runtime falls back on
     the libpython3.X.so.1.0 the dynamic linker finds, and names each one when none loads."""
     model = "SelfRegulatingBalancer"
     folder = tmp_path / model
@@ -189,20 +189,24 @@ def test_without_the_recorded_libpython_the_linker_search_is_tried(
         assert all(f"libpython3.{m}.so.1.0: " in done.stderr for m in range(8, 15))
 
 
-def test_the_loader_exports_every_fmi2_function_of_pythonfmus_binary(
-        unzipped: dict[str, Path]) -> None:
+def test_the_runtime_exports_every_fmi2_function(unzipped: dict[str, Path]) -> None:
     header = (Path(fmpy.__file__).parent / "c-code" / "fmi2Functions.h").read_text()
     names = re.findall(r"#define (fmi2\w+) +fmi2FullName", header)
     binaries = unzipped["SelfRegulatingBalancer"] / "binaries" / "linux64"
-    loader = ctypes.CDLL(str(binaries / "SelfRegulatingBalancer.so"))
-    pythonfmu = ctypes.CDLL(str(binaries / "SelfRegulatingBalancer.pythonfmu.so"))
-    exported = [name for name in names if hasattr(pythonfmu, name)]
-    assert "fmi2DoStep" in exported and len(exported) > 30
-    assert [name for name in exported if not hasattr(loader, name)] == []
+    runtime = ctypes.CDLL(str(binaries / "SelfRegulatingBalancer.so"))
+    assert "fmi2DoStep" in names and len(names) > 40  # Model Exchange's included
+    model_exchange = {"fmi2EnterEventMode", "fmi2NewDiscreteStates",
+                      "fmi2EnterContinuousTimeMode", "fmi2CompletedIntegratorStep",
+                      "fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetDerivatives",
+                      "fmi2GetEventIndicators", "fmi2GetContinuousStates",
+                      "fmi2GetNominalsOfContinuousStates"}
+    assert [name for name in names if name not in model_exchange
+            and not hasattr(runtime, name)] == []
+    assert sorted(p.name for p in binaries.iterdir()) == ["SelfRegulatingBalancer.so"]
 
 
 def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
-    """In FMPy the loader uses the running interpreter: one libpython mapped, ours."""
+    """In FMPy the runtime uses the running interpreter: one libpython mapped, ours."""
     fmu = open_fmu(srb_fmu)
     try:
         maps = Path("/proc/self/maps").read_text()
@@ -212,27 +216,26 @@ def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
     assert len(mapped) <= 1, mapped  # none when this interpreter is statically linked
 
 
-def test_every_call_after_fatal_returns_fatal_without_crashing(
+def test_a_refused_initialisation_leaves_the_host_running(
         host: Path, unzipped: dict[str, Path]) -> None:
-    """J_link = -1 fails with Fatal (at the latest in initialisation); the step and the reads
-    that follow return Fatal from the loader, where pythonfmu alone crashed the host (exit
-    139)."""
+    """J_link = -1 fails initialisation with fmi2Error and the one line naming the parameter;
+    the step and the reads that follow are refused by the slave (fmi2Discard) or answered,
+    never a crash (pythonfmu's binary ended the host here with exit 139)."""
     model = "SelfRegulatingBalancer"
     done = subprocess.run(host_command(host, model, unzipped[model], {"J_link": -1.0}, ("-k",)),
                           env={}, capture_output=True, text=True, timeout=60)
     assert done.returncode == 8, done.stderr  # the host's exit status after failed calls
     statuses = re.findall(r"^(fmi2\w+) returned status (\d)$", done.stderr, re.MULTILINE)
-    outputs = len(real_outputs(model))
-    assert statuses[-1 - outputs:] == [("fmi2DoStep", "4"), *[("fmi2GetReal", "4")] * outputs]
-    assert {status for _, status in statuses} == {"4"}
-    # every call after the first Fatal is refused by the loader, with a message
-    assert done.stderr.count("returned fmi2Fatal") == len(statuses) - 1
-    assert "J_link" in done.stderr  # the FMU's own message names the parameter
+    assert statuses == [("fmi2ExitInitializationMode", "3"), ("fmi2DoStep", "2")]
+    (line,) = [line for line in done.stderr.splitlines()
+               if "fmi2ExitInitializationMode: ValueError: invalid parameter: J_link" in line]
+    assert "status 3" in line
+    assert "before initialisation" in done.stderr  # the refused step says why
 
 
-def test_in_fmpy_every_call_after_fatal_returns_fatal(srb_fmu: Path) -> None:
-    """The same guard in a Python host, through FMPy's raw calls, down to fmi2FreeInstance."""
-    fmu = CoSimFMU(srb_fmu, instance_name="fatal")
+def test_in_fmpy_a_refused_initialisation_leaves_the_instance_freeable(srb_fmu: Path) -> None:
+    """The same in a Python host, through FMPy's raw calls, down to fmi2FreeInstance."""
+    fmu = CoSimFMU(srb_fmu, instance_name="refused")
     slave, theta = fmu.slave, fmu.references(["theta"])
     calls = [lambda: slave.setupExperiment(startTime=0.0),
              lambda: slave.setReal(fmu.references(["J_link"]), [-1.0]),
@@ -245,22 +248,21 @@ def test_in_fmpy_every_call_after_fatal_returns_fatal(srb_fmu: Path) -> None:
             statuses.append(FMI_OK)
         except FMICallException as error:
             statuses.append(error.status)
-    first = statuses.index(FMI_FATAL)
-    assert first <= calls.index(slave.exitInitializationMode)
-    assert statuses[first:] == [FMI_FATAL] * (len(calls) - first)
-    refused = [m.message for m in fmu.messages if "returned fmi2Fatal" in m.message]
-    assert len(refused) == len(calls) - first - 1
-    slave.freeInstance()  # the loader frees only its own part: no crash
+    assert statuses == [FMI_OK, FMI_OK, FMI_OK, FMI_ERROR, FMI_DISCARD, FMI_OK, FMI_OK]
+    slave.freeInstance()
     shutil.rmtree(fmu.slave.unzipDirectory, ignore_errors=True)
 
 
 def test_bench_times_each_mechanism_in_the_c_host_and_in_fmpy(tmp_path: Path) -> None:
-    """`python -m harness bench --only native_step` (shortened): a row per mechanism FMU with
-    both costs and their ratio."""
+    """`python -m harness bench --only native_step` (shortened): a row per floor and per
+    mechanism FMU with both costs and their ratio, and the ratio to the stock floor."""
     assert cli.main(["bench", "--steps", "200", "--repeats", "1", "--only", "native_step",
                      "--out", str(tmp_path)]) == 0
     table = pd.read_csv(tmp_path / "native_step.csv")
-    assert list(table["model"]) == list(registry.mechanisms())
+    assert list(table["model"]) == ["BenchFloor", "BenchFloorRuntime",
+                                    *registry.mechanisms()]
+    floor = table.set_index("model").us_per_step_c_host["BenchFloor"]
+    assert np.allclose(table["ratio_c_host_to_floor"], table["us_per_step_c_host"] / floor)
     assert (table[["us_per_step_c_host", "us_per_step_fmpy"]] > 0).all().all()
     assert np.allclose(table["ratio_c_host_to_fmpy"],
                        table["us_per_step_c_host"] / table["us_per_step_fmpy"])

@@ -220,7 +220,7 @@ def test_state_get_set_restores_parameters_and_motion(fmu: CoSimFMU) -> None:
 
 
 def test_invalid_parameter_is_reported() -> None:
-    """A parameter out of range fails initialisation with fmi2Fatal and a message naming it
+    """A parameter out of range fails initialisation with fmi2Error and a message naming it
     and its range."""
     message = failed_initialisation("PrismaticCompensator", {"m2": 0.0})
     assert "m2 = 0.0 kg is outside (0.0, inf)" in message

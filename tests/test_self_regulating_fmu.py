@@ -336,8 +336,8 @@ def test_stuck_slider_does_not_creep(srb_fmu: Path) -> None:
 ], ids=["k<0", "a=0", "a<0", "r=0", "R<0", "m<0", "b0>b_max", "b0<b_min", "c=nan"])
 def test_bad_parameter_fails_initialisation(srb_fmu: Path, parameters: dict[str, float],
                                             name: str, allowed: str) -> None:
-    """fmi2ExitInitializationMode fails with fmi2Fatal (pythonfmu has no route to fmi2Error)
-    after an Error message naming the variable and its allowed range."""
+    """fmi2ExitInitializationMode fails with fmi2Error and a message naming the variable and
+    its allowed range."""
     error = failed_initialisation("SelfRegulatingBalancer", parameters)
     assert f"{name} = " in error and allowed in error
 

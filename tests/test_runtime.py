@@ -1,0 +1,477 @@
+"""The FMUs' own FMI 2.0 runtime (harness/runtime/fmi2_runtime.c) under stress, in a C host.
+
+tests/native_host/fmi2_stress.c loads unzipped FMUs as a long-running importing tool does,
+with an empty environment unless stated: load and unload cycles with state round trips
+(also under valgrind), thousands of instances and of short-lived host threads (resident
+memory must not grow), two host threads stepping at once, instances driven into fmi2Fatal
+(no mapping may leak), a printf-formatting logger fed messages full of '%', hostile resource
+URIs and arguments, and broken Python installations: every refusal is a NULL instance or a
+status with a message, never a crash or a hang.
+
+The probe slaves (tests/data/runtime_slaves) are built into a temporary folder:
+RuntimeProbe fails on demand (its Integer input `mode`), NoMethodsOfItsOwn inherits every
+method of its class.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import re
+import shutil
+import subprocess
+import sys
+import textwrap
+import urllib.parse
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from conftest import FMI_ERROR, SRB
+from fmpy import read_model_description
+
+from harness import fmu_build
+
+TESTS = Path(__file__).resolve().parent
+STRESS_SOURCE = TESTS / "native_host" / "fmi2_stress.c"
+SLAVES = TESTS / "data" / "runtime_slaves"
+PROBE, INHERITED = "RuntimeProbe", "NoMethodsOfItsOwn"
+TIMEOUT = 60  # [s] for one run of the host: a refusal must never hang
+FIFO_TIMEOUT = 20  # [s] a FIFO named as libpython must be refused at once, not opened
+VALGRIND_TIMEOUT = 3600
+# the probe's messages (tests/data/runtime_slaves/RuntimeProbe.py); the runtime must pass
+# them through as text, not as printf formats
+PRINTF_MESSAGE = "probe: 70.7 % of the gravity moment, %s %n %d"
+VALUE_ERROR = "probe: value error 100 % sure %s %n"
+# the probe's `mode` values
+NORMAL, RAISE_VALUE_ERROR, RAISE_MEMORY_ERROR, DISCARD, LOG_PRINTF = range(5)
+# a message of the host's logger: "[category] instance status N: message"
+LOGGED = re.compile(r"^\[([^\]\n]*)\] (\S+) status (\d): ", re.MULTILINE)
+# resident memory growth allowed
+MAX_BYTES_PER_CYCLE = 1024
+MAX_BYTES_PER_THREAD = 200
+MAX_NEW_MAPPINGS = 2
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="the runtime and the C host are for Linux")
+
+
+@dataclass(frozen=True)
+class Unzipped:
+    """An unzipped FMU as the stress host takes it."""
+
+    folder: Path
+    model: str
+    guid: str
+    refs: dict[str, int]
+
+    def args(self, *options: str) -> list[str]:
+        """DIR MODEL GUID and the FMU's options (r:VR, d:VR=VALUE, i:VR=VALUE)."""
+        return [str(self.folder), self.model, self.guid, *options]
+
+    @property
+    def resources(self) -> Path:
+        return self.folder / "resources"
+
+
+def unzip(fmu: Path, folder: Path) -> Unzipped:
+    zipfile.ZipFile(fmu).extractall(folder)
+    md = read_model_description(fmu)
+    return Unzipped(folder, md.coSimulation.modelIdentifier, md.guid,
+                    {v.name: v.valueReference for v in md.modelVariables})
+
+
+@pytest.fixture(scope="module")
+def stress(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The stress host, compiled with the compiler the FMU build uses."""
+    return fmu_build.zig_cc(STRESS_SOURCE, tmp_path_factory.mktemp("stress") / "fmi2_stress",
+                            "-lpthread", "-ldl")
+
+
+@pytest.fixture(scope="module")
+def probe_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The probe slaves built (as `make fmu` builds the shipped ones) into a temporary folder."""
+    dest = tmp_path_factory.mktemp("runtime_slaves")
+    return {model: fmu_build.build(model, dest, SLAVES) for model in (PROBE, INHERITED)}
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory: pytest.TempPathFactory, probe_fmus: dict[str, Path]
+         ) -> dict[str, Unzipped]:
+    """The SelfRegulatingBalancer and the probes, unzipped."""
+    paths = {SRB: fmu_build.fmu_path(SRB), **probe_fmus}
+    return {model: unzip(path, tmp_path_factory.mktemp(model)) for model, path in paths.items()}
+
+
+@pytest.fixture(scope="module")
+def hostile(tmp_path_factory: pytest.TempPathFactory) -> Unzipped:
+    """The SelfRegulatingBalancer unzipped into a folder whose name has 'ü', '+' and a space."""
+    folder = tmp_path_factory.mktemp("hostile") / "Fahrstuhl ü+1 Gegengewicht"
+    return unzip(fmu_build.fmu_path(SRB), folder)
+
+
+def stress_run(stress: Path, *args: str, env: dict[str, str] | None = None,
+               timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
+    """One run of the stress host, with an empty environment unless env is given."""
+    return subprocess.run([str(stress), *args], env={} if env is None else env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def stress_ok(stress: Path, *args: str, env: dict[str, str] | None = None) -> str:
+    """The stdout of a run that must succeed (exit 0); fails with its stderr otherwise."""
+    done = stress_run(stress, *args, env=env)
+    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-4000:]}"
+    return done.stdout
+
+
+def messages(stderr: str) -> list[tuple[int, str]]:
+    """The (status, message) of every message the host's logger wrote, a message running
+    to the next one or to the end (so a message may span lines)."""
+    starts = list(LOGGED.finditer(stderr))
+    ends = [m.start() for m in starts[1:]] + [len(stderr)]
+    return [(int(m.group(3)), stderr[m.end():end].rstrip("\n")) for m, end in zip(starts, ends)]
+
+
+def measure(stdout: str, key: str) -> float:
+    match = re.search(rf"^{key} (\S+)$", stdout, re.MULTILINE)
+    assert match, stdout
+    return float(match.group(1))
+
+
+def instantiate(stress: Path, fmu: Unzipped, *options: str, env: dict[str, str] | None = None,
+                timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
+    """`fmi2_stress instantiate`; the host must exit 0 (a crash is an exit status above 0)."""
+    done = stress_run(stress, "instantiate", *fmu.args(), *options, env=env, timeout=timeout)
+    assert done.returncode == 0, f"exit {done.returncode}\n{done.stdout}\n{done.stderr[-4000:]}"
+    return done
+
+
+def assert_refused(done: subprocess.CompletedProcess[str]) -> str:
+    """The instance is NULL and the FMU said why on stderr; that stderr."""
+    assert done.stdout.splitlines()[:1] == ["instance NULL"], done.stdout + done.stderr
+    assert messages(done.stderr) or done.stderr.strip(), "refused without a message"
+    return done.stderr
+
+
+def assert_runs(done: subprocess.CompletedProcess[str]) -> None:
+    assert done.stdout.splitlines()[:1] == ["instance OK"], done.stdout + done.stderr
+    assert "run OK" in done.stdout.splitlines(), done.stdout + done.stderr
+
+
+def srb_moving(fmu: Unzipped) -> list[str]:
+    """Options that make the SelfRegulatingBalancer move (its registration's moving run:
+    k = 0) and read its angle, speed and slider position."""
+    return [f"d:{fmu.refs['k']}=0", *(f"r:{fmu.refs[n]}" for n in ("theta", "omega", "x"))]
+
+
+def probe_mode(fmu: Unzipped, mode: int) -> str:
+    return f"i:{fmu.refs['mode']}={mode}"
+
+
+# --- load/unload cycles -------------------------------------------------------------------
+
+
+def test_cycles_of_two_fmus_load_run_save_restore_and_unload(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    probe = fmus[PROBE]
+    stdout = stress_ok(stress, "cycles", "5", "200", *fmus[SRB].args(),
+                       *probe.args(f"d:{probe.refs['u']}=2", f"r:{probe.refs['y']}"))
+    assert stdout.splitlines() == ["cycles done"]
+
+
+def valgrind_command(stress: Path, *args: str) -> list[str]:
+    """The stress host under valgrind: every memory error and every definite leak fails it
+    (exit status 99); only definite leaks are listed (Python keeps much "possibly lost").
+    Run by `python -m pytest -m slow tests/test_runtime.py -k valgrind`."""
+    return ["valgrind", "--error-exitcode=99", "--leak-check=full",
+            "--errors-for-leak-kinds=definite", "--show-leak-kinds=definite", str(stress),
+            *args]
+
+
+VALGRIND_ENV = {"PYTHONMALLOC": "malloc"}  # every allocation seen by valgrind
+# where shared-library CPythons live (as in test_native_host): the alternatives to the
+# FMU's own interpreter when that one is not clean under valgrind itself
+LIBPYTHON_GLOBS = ("/usr/lib/x86_64-linux-gnu/libpython3.*.so.1.0",
+                   "/usr/local/lib/libpython3.*.so.1.0",
+                   f"{Path.home()}/.pyenv/versions/*/lib/libpython3.*.so.1.0")
+
+
+def recorded_libpython(fmu: Unzipped) -> Path | None:
+    """The libpython the FMU was built with (resources/python.txt), if it records one."""
+    record = (fmu.resources / "python.txt").read_text()
+    found = re.search(r"^libpython=(.+)$", record, re.MULTILINE)
+    return Path(found.group(1)) if found else None
+
+
+@functools.cache
+def clean_under_valgrind(libpython: Path) -> bool:
+    """Whether the interpreter of libpython (PREFIX/bin/python3.X beside PREFIX/lib) runs
+    an import without any valgrind error. CPython 3.11.7, for one, reads an uninitialised
+    digit in int.from_bytes: hundreds of errors before any FMU code runs."""
+    minor = re.fullmatch(r"libpython3\.(\d+)\.so\.1\.0", libpython.name)
+    prefix = libpython.parent.parent if libpython.parent.name == "lib" else Path("/usr")
+    python = prefix / "bin" / f"python3.{minor.group(1)}" if minor else None
+    if python is None or int(minor.group(1)) < 8 or not python.exists():
+        return False
+    done = subprocess.run(["valgrind", "--error-exitcode=99", str(python), "-c",
+                           "import importlib.util, json"], env=VALGRIND_ENV,
+                          capture_output=True, text=True, timeout=VALGRIND_TIMEOUT)
+    return done.returncode == 0
+
+
+def valgrind_environment(fmu: Unzipped) -> dict[str, str]:
+    """VALGRIND_ENV, and BALANCER_FMU_LIBPYTHON naming a CPython clean under valgrind when
+    the FMU's own interpreter is not (its errors are not the runtime's); skips without one."""
+    own = recorded_libpython(fmu)
+    if own is not None and clean_under_valgrind(own):
+        return dict(VALGRIND_ENV)
+    others = sorted({p.resolve() for g in LIBPYTHON_GLOBS for p in Path("/").glob(g[1:])})
+    for libpython in others:
+        if libpython != (own.resolve() if own else None) and clean_under_valgrind(libpython):
+            return {**VALGRIND_ENV, "BALANCER_FMU_LIBPYTHON": str(libpython)}
+    pytest.skip(f"no CPython runs clean under valgrind here (the FMU's: {own})")
+
+
+def valgrind_report(stderr: str) -> str:
+    """valgrind's first error records and its summaries, for a failure message."""
+    lines = stderr.splitlines()
+    summary = [line for line in lines if re.search(r"(SUMMARY|lost|reachable):", line)]
+    return "\n".join(lines[:120] + ["..."] + summary[-8:])
+
+
+@pytest.mark.slow
+def test_valgrind_finds_no_error_and_no_definite_leak_in_50_cycles(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    if shutil.which("valgrind") is None:
+        pytest.skip("valgrind is not installed")
+    probe = fmus[PROBE]
+    done = subprocess.run(
+        valgrind_command(stress, "cycles", "50", "200", *fmus[SRB].args(),
+                         *probe.args(f"d:{probe.refs['u']}=2")),
+        env=valgrind_environment(probe), capture_output=True, text=True,
+        timeout=VALGRIND_TIMEOUT)
+    report = valgrind_report(done.stderr)
+    assert done.returncode == 0, f"exit {done.returncode}\n{report}"
+    assert done.stdout.splitlines() == ["cycles done"]
+    assert "ERROR SUMMARY: 0 errors" in done.stderr, report
+    lost = re.findall(r"definitely lost: ([\d,]+) bytes", done.stderr)
+    assert all(n == "0" for n in lost), report
+
+
+# --- resident memory ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cycles", [300, pytest.param(2000, marks=pytest.mark.slow)])
+def test_instance_cycles_do_not_grow_resident_memory(
+        stress: Path, fmus: dict[str, Unzipped], cycles: int) -> None:
+    stdout = stress_ok(stress, "rss", str(cycles), *fmus[PROBE].args())
+    assert measure(stdout, "rss_bytes_per_cycle") <= MAX_BYTES_PER_CYCLE
+
+
+@pytest.mark.parametrize("threads", [2000, pytest.param(20000, marks=pytest.mark.slow)])
+def test_short_lived_host_threads_do_not_grow_resident_memory(
+        stress: Path, fmus: dict[str, Unzipped], threads: int) -> None:
+    stdout = stress_ok(stress, "short-threads", str(threads), *fmus[PROBE].args())
+    assert measure(stdout, "rss_bytes_per_thread") <= MAX_BYTES_PER_THREAD
+
+
+# --- host threads -------------------------------------------------------------------------
+
+
+def thread_values(stdout: str) -> list[tuple[int, float]]:
+    found = re.findall(r"^thread (\d) value (\S+)$", stdout, re.MULTILINE)
+    return [(int(thread), float(value)) for thread, value in found]
+
+
+@pytest.mark.parametrize("pair", ["two balancers", "a balancer and a probe"])
+def test_two_host_threads_step_at_once_as_one_thread_does(
+        stress: Path, fmus: dict[str, Unzipped], pair: str) -> None:
+    srb, probe = fmus[SRB], fmus[PROBE]
+    second = (srb.args(*srb_moving(srb)) if pair == "two balancers" else
+              probe.args(f"d:{probe.refs['u']}=3", f"r:{probe.refs['y']}"))
+    fmu_args = [*srb.args(*srb_moving(srb)), *second]
+    threaded = thread_values(stress_ok(stress, "threads", *fmu_args))
+    serial = thread_values(stress_ok(stress, "serial", *fmu_args))
+    assert [thread for thread, _ in threaded] == [0, 0, 0, *[1] * (len(threaded) - 3)]
+    assert threaded == serial
+    assert serial[0][1] != 0.0  # the balancer moved
+    if pair != "two balancers":
+        assert serial[-1] == (1, 3.0)
+
+
+# --- fmi2Fatal ----------------------------------------------------------------------------
+
+
+def test_fatal_instances_are_refused_and_freed_without_leaking_mappings(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    probe = fmus[PROBE]
+    stdout = stress_ok(stress, "fatal", "500", *probe.args(probe_mode(probe,
+                                                                       RAISE_MEMORY_ERROR)))
+    first, last = measure(stdout, "maps_first"), measure(stdout, "maps_last")
+    assert last - first <= MAX_NEW_MAPPINGS, stdout
+
+
+# --- messages -----------------------------------------------------------------------------
+
+
+def test_a_logged_message_reaches_a_printf_logger_as_its_text(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    """The runtime passes every message as a format without directives (each % as %%): a
+    host's logger that formats it like printf prints the message exactly."""
+    probe = fmus[PROBE]
+    done = instantiate(stress, probe, probe_mode(probe, LOG_PRINTF))
+    assert_runs(done)
+    assert PRINTF_MESSAGE in [message for _, message in messages(done.stderr)], done.stderr
+
+
+def test_an_exception_in_do_step_is_an_error_with_its_message(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    probe = fmus[PROBE]
+    done = instantiate(stress, probe, probe_mode(probe, RAISE_VALUE_ERROR))
+    assert f"doStep status {FMI_ERROR}" in done.stdout.splitlines(), done.stdout + done.stderr
+    logged = [message for _, message in messages(done.stderr) if VALUE_ERROR in message]
+    assert len(logged) == 1, done.stderr
+    assert "ValueError" in logged[0]
+
+
+# --- resource URIs ------------------------------------------------------------------------
+
+
+GOOD_URIS = {
+    "percent-encoded": lambda p: "file://" + urllib.parse.quote(str(p)),
+    "raw": lambda p: "file://" + str(p),
+    "file:/abs": lambda p: "file:" + str(p),
+    "file:/abs encoded": lambda p: "file:" + urllib.parse.quote(str(p)),
+    "localhost": lambda p: "file://localhost" + str(p),
+    "localhost encoded": lambda p: "file://localhost" + urllib.parse.quote(str(p)),
+}
+
+
+@pytest.mark.parametrize("form", GOOD_URIS)
+def test_every_form_of_a_file_uri_finds_the_resources(
+        stress: Path, hostile: Unzipped, form: str) -> None:
+    uri = GOOD_URIS[form](hostile.resources)
+    assert_runs(instantiate(stress, hostile, "--uri", uri))
+
+
+BAD_URIS = {
+    "missing folder": lambda p: "file://" + urllib.parse.quote(str(p / "missing")),
+    "no slavemodule.txt": lambda p: "file://" + urllib.parse.quote(str(p.parent)),
+    "http": lambda p: "http://host/x",
+    "other host": lambda p: "file://otherhost" + urllib.parse.quote(str(p)),
+    "empty": lambda p: "",
+    "relative": lambda p: "relative/path",
+}
+
+
+@pytest.mark.parametrize("case", BAD_URIS)
+def test_an_unusable_resource_uri_gives_null_with_a_message(
+        stress: Path, hostile: Unzipped, case: str) -> None:
+    assert_refused(instantiate(stress, hostile, "--uri", BAD_URIS[case](hostile.resources)))
+
+
+# --- arguments ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("flag", ["--null-name", "--null-guid", "--null-uri"])
+def test_a_null_argument_gives_null_with_a_message(
+        stress: Path, fmus: dict[str, Unzipped], flag: str) -> None:
+    assert_refused(instantiate(stress, fmus[SRB], flag))
+
+
+def test_model_exchange_is_refused_naming_co_simulation(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    stderr = assert_refused(instantiate(stress, fmus[SRB], "--type", "me"))
+    assert re.search(r"co-?simulation", stderr, re.IGNORECASE), stderr
+
+
+def test_a_wrong_guid_is_refused_naming_both_guids(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    wrong = "00000000-0000-0000-0000-000000000000"
+    stderr = assert_refused(instantiate(stress, fmus[SRB], "--guid", wrong))
+    assert wrong in stderr and fmus[SRB].guid in stderr, stderr
+
+
+def test_a_step_after_terminate_is_an_error_with_a_message(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    done = instantiate(stress, fmus[PROBE], "--after-terminate")
+    assert_runs(done)
+    assert f"doStep after terminate status {FMI_ERROR}" in done.stdout.splitlines(), done.stdout
+    assert messages(done.stderr), "no message"  # the probe logs nothing else
+
+
+# --- broken Python installations ----------------------------------------------------------
+
+
+def other_python_prefix() -> Path | None:
+    """A pyenv CPython 3.8 installation, unless it is this interpreter's."""
+    found = sorted((Path.home() / ".pyenv" / "versions").glob("3.8.*"))
+    found = [p for p in found if p.resolve() != Path(sys.base_prefix).resolve()]
+    return found[0] if found else None
+
+
+@pytest.mark.parametrize("case", ["missing folder", "regular file", "Python 3.8 prefix"])
+def test_a_wrong_pythonhome_gives_null_naming_it(
+        stress: Path, fmus: dict[str, Unzipped], tmp_path: Path, case: str) -> None:
+    if case == "missing folder":
+        home = tmp_path / "no" / "python"
+    elif case == "regular file":
+        home = tmp_path / "python"
+        home.write_text("not a Python installation\n")
+    else:
+        home = other_python_prefix()
+        if home is None:
+            pytest.skip("no other CPython's prefix (~/.pyenv/versions/3.8.*)")
+    stderr = assert_refused(instantiate(stress, fmus[SRB], env={"PYTHONHOME": str(home)}))
+    assert "PYTHONHOME" in stderr and str(home) in stderr, stderr
+
+
+def test_a_fifo_named_as_libpython_is_refused_without_opening_it(
+        stress: Path, fmus: dict[str, Unzipped], tmp_path: Path) -> None:
+    fifo = tmp_path / "libpython3.11.so.1.0"
+    os.mkfifo(fifo)
+    try:
+        done = instantiate(stress, fmus[SRB], env={"BALANCER_FMU_LIBPYTHON": str(fifo)},
+                           timeout=FIFO_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"the host hung for {FIFO_TIMEOUT} s on a FIFO named as libpython")
+    stderr = assert_refused(done)
+    assert str(fifo) in stderr, stderr
+
+
+# --- a Python host ------------------------------------------------------------------------
+
+
+INHERITED_RUNS = textwrap.dedent("""
+    import shutil
+    import sys
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    path = sys.argv[1]
+    md = read_model_description(path)
+    folder = extract(path)
+    (t,) = [v.valueReference for v in md.modelVariables if v.name == "t"]
+    for k in range(100):
+        slave = FMU2Slave(guid=md.guid, unzipDirectory=folder,
+                          modelIdentifier=md.coSimulation.modelIdentifier,
+                          instanceName=f"inherited{k}")
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        slave.doStep(0.0, 1e-3)
+        assert slave.getReal([t]) == [1e-3], slave.getReal([t])
+        slave.terminate()
+        slave.freeInstance()
+    shutil.rmtree(folder, ignore_errors=True)
+    print("done")
+""")
+
+
+def test_a_class_with_only_inherited_methods_runs_in_fmpy(probe_fmus: dict[str, Path]) -> None:
+    done = subprocess.run([sys.executable, "-c", INHERITED_RUNS, str(probe_fmus[INHERITED])],
+                          capture_output=True, text=True, timeout=TIMEOUT)
+    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-4000:]}"
+    assert done.stdout.splitlines() == ["done"]
