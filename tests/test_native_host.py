@@ -205,6 +205,30 @@ def test_the_runtime_exports_every_fmi2_function(unzipped: dict[str, Path]) -> N
     assert sorted(p.name for p in binaries.iterdir()) == ["SelfRegulatingBalancer.so"]
 
 
+# what a linux64 binary may need: glibc's libraries and the dynamic linker, nothing newer than
+# glibc 2.17 (RHEL 7, Ubuntu 14.04) and no C++ runtime
+ALLOWED_LIBRARIES = {"libc.so.6", "libdl.so.2", "libpthread.so.0", "libm.so.6",
+                     "ld-linux-x86-64.so.2"}
+OLDEST_GLIBC = (2, 17)
+
+
+@pytest.mark.skipif(shutil.which("readelf") is None, reason="no readelf (binutils)")
+@pytest.mark.parametrize("model", CASES)
+def test_the_shipped_binary_runs_on_glibc_2_17_without_a_cpp_runtime(
+        unzipped: dict[str, Path], model: str) -> None:
+    binary = unzipped[model] / "binaries" / "linux64" / f"{model}.so"
+    dynamic = subprocess.run(["readelf", "-d", str(binary)], capture_output=True, text=True,
+                             check=True).stdout
+    needed = set(re.findall(r"\(NEEDED\)\s+Shared library: \[([^\]]+)\]", dynamic))
+    assert "libc.so.6" in needed and needed <= ALLOWED_LIBRARIES, needed
+    versions = subprocess.run(["readelf", "-V", str(binary)], capture_output=True, text=True,
+                              check=True).stdout
+    glibc = {tuple(int(part) for part in v.split("."))
+             for v in re.findall(r"Name: GLIBC_([0-9.]+)", versions)}
+    assert glibc and max(glibc) <= OLDEST_GLIBC, sorted(glibc)
+    assert "GLIBCXX" not in versions and "CXXABI" not in versions
+
+
 def test_a_python_host_loads_no_second_libpython(srb_fmu: Path) -> None:
     """In FMPy the runtime uses the running interpreter: one libpython mapped, ours."""
     fmu = open_fmu(srb_fmu)
