@@ -142,7 +142,7 @@ static const char HELPER_SOURCE[] =
     "def slave_class(resources, module_name):\n"
     "    '''The Fmi2Slave subclass of the slave module (pythonfmu's rule: of the concrete\n"
     "    classes the module defines, the one deepest below Fmi2Slave).'''\n"
-    "    if resources not in sys.path:\n"
+    "    if module_name not in sys.modules and resources not in sys.path:\n"
     "        sys.path.insert(0, resources)\n"
     "    module = importlib.import_module(module_name)\n"
     "    members = [m for m in vars(module).values() if isinstance(m, type) and _depth(m) > 0\n"

@@ -36,10 +36,10 @@ step_sizes = st.floats(min_value=-15.0, max_value=1.0).map(lambda e: 10.0 ** e)
 
 CASE_TIMEOUT = 60.0   # s: a case that takes longer counts as a hang
 CALL_LIMIT = 5.0      # s: the most one FMI call may take (MAX_SUBSTEPS RK4 sub-steps)
-# An instance that returned Fatal keeps its copy of pythonfmu's binary loaded (freeing it
-# could crash the host), about 13 memory mappings each: a process meets the kernel's
-# limit (vm.max_map_count, 65530) after some 5000 such instances ("failed to map segment"
-# when the next FMU loads), so the child that runs the cases is replaced after this many.
+# FMPy keeps the binary of every FMU it extracted loaded, a few memory mappings each: a
+# process meets the kernel's limit (vm.max_map_count, 65530) after some thousands ("failed
+# to map segment" when the next FMU loads), so the child that runs the cases is replaced
+# after this many.
 CASES_PER_PROCESS = 500
 
 
