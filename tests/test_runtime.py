@@ -478,3 +478,19 @@ def test_a_class_with_only_inherited_methods_runs_in_fmpy(probe_fmus: dict[str, 
                           capture_output=True, text=True, timeout=TIMEOUT)
     assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-4000:]}"
     assert done.stdout.splitlines() == ["done"]
+
+
+def test_cosim_runs_with_a_temporary_folder_whose_name_needs_percent_encoding(
+        tmp_path: Path) -> None:
+    """FMPy extracts each FMU under TMPDIR and percent-encodes the resource URI: a "ü", a "+"
+    and a space in that folder's name (pythonfmu's binary decoded only %20: exit 139)."""
+    temporary = tmp_path / "tmp ü+x"
+    temporary.mkdir()
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "harness", "cosim", "--scenario", "franchetti2021",
+         "--variants", "unbalanced", "--workers", "1", "--out", str(out)],
+        env={**os.environ, "TMPDIR": str(temporary)}, capture_output=True, text=True,
+        timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert (out / "franchetti2021" / "summary.csv").is_file()

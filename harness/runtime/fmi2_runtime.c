@@ -735,6 +735,8 @@ static int create_slave(Instance *in) {
                                                      : "fmi2Instantiate (the slave class)");
     drain_log(in);
     log_text(&in->sink, status > fmi2Error ? status : fmi2Fatal, NULL, in->failure);
+    free(in->failure);  /* logged */
+    in->failure = NULL;
     release_slave(in);
     return 0;
 }
