@@ -36,6 +36,10 @@ record, the versions of the tools that write it and this build code), and `fmu_p
 record theirs beside the binary (`compiled`). Timestamps play no part, so a fresh clone, a
 `touch` or a copy neither hides a change nor forces a rebuild, and an unchanged FMU keeps its
 bytes and GUID. `build-fmus --force` rebuilds regardless.
+
+A build is reproducible: the GUID is derived from that digest (`content_guid`), the model
+description carries no generation time, and the archive's entries are sorted, dated
+1980-01-01 and of mode 0644, so the same inputs give the same FMU to the byte.
 """
 
 from __future__ import annotations
@@ -46,11 +50,13 @@ import functools
 import hashlib
 import importlib.metadata
 import platform
+import re
 import shutil
 import subprocess
 import sys
 import sysconfig
 import tempfile
+import uuid
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree
@@ -199,28 +205,64 @@ def python_record() -> str:
             f"prefix={sys.base_prefix}\n")
 
 
+MODEL_DESCRIPTION = "modelDescription.xml"
+# every entry of a built FMU: one date (the earliest a zip can hold) and one mode
+ENTRY_DATE = (1980, 1, 1, 0, 0, 0)
+ENTRY_MODE = 0o100644
+
+
+def content_guid(inputs: str) -> str:
+    """The GUID of an FMU built from the inputs of digest `inputs`: the same inputs, the same
+    GUID (a name-based UUID of the digest)."""
+    return str(uuid.uuid5(uuid.NAMESPACE_URL, f"urn:gravity-balancer-fmu:{inputs}"))
+
+
 def model_guid(fmu: Path) -> str:
     """The GUID in the FMU's modelDescription.xml."""
     with zipfile.ZipFile(fmu) as archive:
-        return ElementTree.fromstring(archive.read("modelDescription.xml")).get("guid")
+        return ElementTree.fromstring(archive.read(MODEL_DESCRIPTION)).get("guid")
+
+
+def reproducible_description(text: str, guid: str) -> str:
+    """pythonfmu's model description with the content GUID and without the generation time
+    (an optional attribute), as it is otherwise."""
+    text, guids = re.subn(r'\bguid="[^"]*"', f'guid="{guid}"', text, count=1)
+    if guids != 1:
+        raise ValueError("the model description has no guid attribute")
+    return re.sub(r'\s+generationDateAndTime="[^"]*"', "", text, count=1)
+
+
+def write_archive(fmu: Path, entries: dict[str, bytes]) -> None:
+    """The FMU's archive with these entries, sorted, each dated ENTRY_DATE with ENTRY_MODE."""
+    with zipfile.ZipFile(fmu, "w") as archive:
+        for name in sorted(entries):
+            info = zipfile.ZipInfo(name, ENTRY_DATE)
+            info.external_attr = ENTRY_MODE << 16
+            info.create_system = 3  # Unix: the mode bits count
+            archive.writestr(info, entries[name], compress_type=zipfile.ZIP_DEFLATED)
+
+
+def archive_entries(fmu: Path) -> dict[str, bytes]:
+    """The files of an FMU's archive by name."""
+    with zipfile.ZipFile(fmu) as archive:
+        return {info.filename: archive.read(info) for info in archive.infolist()
+                if not info.is_dir()}
 
 
 def install_runtime(fmu: Path, model: str, inputs: str, runtime: bool = True) -> None:
     """Make the runtime the FMU's linux64 binary in place of pythonfmu's (unless runtime is
-    False), record the building interpreter's libpython and the FMU's GUID in
-    resources/python.txt and the digest of the build's inputs in INPUTS_RECORD."""
-    binary = f"binaries/linux64/{model}.so"
-    record = f"{python_record()}guid={model_guid(fmu)}\n"
-    with zipfile.ZipFile(fmu) as archive:
-        entries = [(info, archive.read(info)) for info in archive.infolist()
-                   if not runtime or info.filename != binary]
-    with zipfile.ZipFile(fmu, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-        for info, data in entries:
-            archive.writestr(info, data)
-        if runtime:
-            archive.write(runtime_binary(), binary)
-        archive.writestr(PYTHON_RECORD, record)
-        archive.writestr(INPUTS_RECORD, inputs)
+    False), give the model description the content GUID, record the building interpreter's
+    libpython and that GUID in resources/python.txt and the digest of the build's inputs in
+    INPUTS_RECORD."""
+    guid = content_guid(inputs)
+    entries = archive_entries(fmu)
+    entries[MODEL_DESCRIPTION] = reproducible_description(
+        entries[MODEL_DESCRIPTION].decode(), guid).encode()
+    if runtime:
+        entries[f"binaries/linux64/{model}.so"] = runtime_binary().read_bytes()
+    entries[PYTHON_RECORD] = f"{python_record()}guid={guid}\n".encode()
+    entries[INPUTS_RECORD] = inputs.encode()
+    write_archive(fmu, entries)
 
 
 def fmu_inputs(model: str, source_dir: Path = SOURCE_DIR, embedded: str | None = None,
@@ -271,6 +313,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
             # the documentation reads the staged modules: those the FMU carries
             fmu_docs.add_documentation(partial, script,
                                        [package / module.name for module in modules])
+            write_archive(partial, archive_entries(partial))  # its entries as the others
     # pythonfmu takes a destination ending in .fmu as the file to write
     write_atomic(fmu, write_fmu, suffix=".fmu")
     osp.write_model_description(fmu)  # <Model>_OspModelDescription.xml beside it, for OSP

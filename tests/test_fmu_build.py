@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 import time
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -105,7 +106,27 @@ def test_a_changed_module_rebuilds_exactly_the_fmus_that_import_it(sources: Path
     assert fmu_build.fmu_path(models[0], dest, sources) == fmus[0]
     assert snapshot(fmus) == after
     assert fmu_build.update(models[1], dest, sources, force=True)
-    assert snapshot(fmus)["DcMotorDrive.fmu"][1] != before["DcMotorDrive.fmu"][1]
+    forced = snapshot(fmus)["DcMotorDrive.fmu"]
+    assert forced[0] != before["DcMotorDrive.fmu"][0]  # written again,
+    assert forced[1] == before["DcMotorDrive.fmu"][1]  # to the same bytes (reproducible)
+
+
+def test_the_same_inputs_give_the_same_fmu_to_the_byte(sources: Path, tmp_path: Path) -> None:
+    """Two forced builds in two folders: identical bytes, the GUID derived from the recorded
+    digest, no generation time, every entry of mode 0644 (readable by every user of a shared
+    installation)."""
+    model = "DcMotorDrive"
+    first = fmu_build.build(model, tmp_path / "one", sources)
+    second = fmu_build.build(model, tmp_path / "two", sources)
+    assert first.read_bytes() == second.read_bytes()
+    md = read_model_description(first)
+    assert md.guid == fmu_build.content_guid(fmu_build.recorded_inputs(first))
+    assert md.generationDateAndTime is None
+    with zipfile.ZipFile(first) as archive:
+        record = archive.read("resources/python.txt").decode()
+        modes = {info.filename: info.external_attr >> 16 for info in archive.infolist()}
+    assert f"guid={md.guid}\n" in record
+    assert set(modes.values()) == {0o100644}, modes
 
 
 def test_a_binary_is_recompiled_when_its_inputs_change(tmp_path: Path) -> None:
