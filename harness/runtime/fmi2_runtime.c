@@ -1294,11 +1294,17 @@ static fmi2Status no_status(Instance *in, const char *function, fmi2StatusKind k
     return fmi2Discard;
 }
 
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    (void)value;
-    fmi2Status refused = admit((Instance *)c, "fmi2GetStatus", ANY_PHASE);
-    return refused != fmi2OK ? refused : no_status((Instance *)c, "fmi2GetStatus", s);
-}
+/* The inquiries this FMU does not answer: every kind of a type. */
+#define NO_STATUS(Type, fmiType) \
+    fmi2Status fmi2Get##Type(fmi2Component c, const fmi2StatusKind s, fmiType *value) { \
+        (void)value; \
+        fmi2Status refused = admit((Instance *)c, "fmi2Get" #Type, ANY_PHASE); \
+        return refused != fmi2OK ? refused : no_status((Instance *)c, "fmi2Get" #Type, s); \
+    }
+
+NO_STATUS(Status, fmi2Status)
+NO_STATUS(IntegerStatus, fmi2Integer)
+NO_STATUS(StringStatus, fmi2String)
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
     fmi2Status refused = admit((Instance *)c, "fmi2GetRealStatus", ANY_PHASE);
@@ -1307,12 +1313,6 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
         return no_status((Instance *)c, "fmi2GetRealStatus", s);
     *value = ((Instance *)c)->last_successful_time;
     return fmi2OK;
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    (void)value;
-    fmi2Status refused = admit((Instance *)c, "fmi2GetIntegerStatus", ANY_PHASE);
-    return refused != fmi2OK ? refused : no_status((Instance *)c, "fmi2GetIntegerStatus", s);
 }
 
 /* fmi2Terminated is false: a refused step (fmi2Discard) leaves the slave as it was, ready for
@@ -1324,12 +1324,6 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
         return no_status((Instance *)c, "fmi2GetBooleanStatus", s);
     *value = fmi2False;
     return fmi2OK;
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    (void)value;
-    fmi2Status refused = admit((Instance *)c, "fmi2GetStringStatus", ANY_PHASE);
-    return refused != fmi2OK ? refused : no_status((Instance *)c, "fmi2GetStringStatus", s);
 }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }

@@ -327,6 +327,17 @@ static int mode_cycles(int argc, char **argv) {
     return 0;
 }
 
+/* "MODE N FMU": the count N and the one loaded FMU (usage unless the count is at least min). */
+static long count_and_fmu(int argc, char **argv, long min, Fmu *fmu) {
+    if (argc < 6) usage(argv[0]);
+    long n = parse_count(argv[2], argv[0]);
+    int a = 3;
+    parse_fmu(argc, argv, &a, fmu);
+    if (a != argc || n < min) usage(argv[0]);
+    load(fmu);
+    return n;
+}
+
 static void instance_cycle(Fmu *fmu) {
     fmi2Component c = start(fmu, "rss");
     steps(fmu, c, CYCLE_STEPS, NULL);
@@ -334,13 +345,8 @@ static void instance_cycle(Fmu *fmu) {
 }
 
 static int mode_rss(int argc, char **argv) {
-    if (argc < 6) usage(argv[0]);
-    long n = parse_count(argv[2], argv[0]);
-    int a = 3;
     Fmu fmu;
-    parse_fmu(argc, argv, &a, &fmu);
-    if (a != argc || n == 0) usage(argv[0]);
-    load(&fmu);
+    long n = count_and_fmu(argc, argv, 1, &fmu);
     for (int k = 0; k < WARM_UP; k++) instance_cycle(&fmu);
     double before = resident_bytes();
     for (long k = 0; k < n; k++) instance_cycle(&fmu);
@@ -430,13 +436,8 @@ static void short_threads(Reader *reader, long n) {
 }
 
 static int mode_short_threads(int argc, char **argv) {
-    if (argc < 6) usage(argv[0]);
-    long n = parse_count(argv[2], argv[0]);
-    int a = 3;
     Fmu fmu;
-    parse_fmu(argc, argv, &a, &fmu);
-    if (a != argc || n == 0) usage(argv[0]);
-    load(&fmu);
+    long n = count_and_fmu(argc, argv, 1, &fmu);
     Reader reader = {&fmu, start(&fmu, "main")};
     short_threads(&reader, WARM_UP);
     double before = resident_bytes();
@@ -456,13 +457,8 @@ static void expect_fatal(const char *function, fmi2Status status, long instance)
 }
 
 static int mode_fatal(int argc, char **argv) {
-    if (argc < 6) usage(argv[0]);
-    long n = parse_count(argv[2], argv[0]), first = -1;
-    int a = 3;
     Fmu fmu;
-    parse_fmu(argc, argv, &a, &fmu);
-    if (a != argc || n < FATAL_FIRST) usage(argv[0]);
-    load(&fmu);
+    long n = count_and_fmu(argc, argv, FATAL_FIRST, &fmu), first = -1;
     fmi2Real values[MAX_REFS];
     for (long k = 0; k < n; k++) {
         fmi2Component c = start(&fmu, "fatal");
