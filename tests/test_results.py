@@ -8,8 +8,11 @@ import contextlib
 import errno
 import fcntl
 import multiprocessing
+import multiprocessing.synchronize
 import os
 import shutil
+import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -44,9 +47,9 @@ def scenario(tmp_path: Path) -> scenarios.Scenario:
 
 def made_up_run(scenario: scenarios.Scenario, variant: str, energy: float) -> RunResult:
     """A one-joint run with E_drawn = energy [J] (no simulation: write_run needs only this)."""
-    time = np.linspace(0.0, scenario.duration, 5)
+    times = np.linspace(0.0, scenario.duration, 5)
     return RunResult(scenario.name, variant, "SelfRegulatingBalancer", 1e-3,
-                     pd.DataFrame({"time": time, "theta": np.full(5, 1.0),
+                     pd.DataFrame({"time": times, "theta": np.full(5, 1.0),
                                    **dict.fromkeys(("tau_drive", "i", "P_elec", "E_drawn"),
                                                    np.linspace(0.0, energy, 5))}),
                      {"E_in": energy, "E_drawn": energy}, {}, {},
@@ -122,6 +125,28 @@ def test_a_stale_staging_folder_is_removed_and_a_live_one_kept(
         assert not stale.exists() and (live / "summary.csv").read_text() == "half"
     assert sorted(p.name for p in out.iterdir()) == [f"{STAGING_PREFIX}live", "many.png",
                                                      "summary.csv", "v0.csv"]
+
+
+def _stage_and_wait(out: Path, staged: multiprocessing.synchronize.Event) -> None:
+    with results.locked(out), results.staging(out) as folder:
+        (folder / "summary.csv").write_text("half")
+        staged.set()
+        time.sleep(60)
+
+
+def test_a_writer_sigkilled_while_staging_leaves_a_folder_the_next_write_removes(
+        tmp_path: Path, scenario: scenarios.Scenario) -> None:
+    out = tmp_path / "set"
+    context = multiprocessing.get_context("fork")
+    staged = context.Event()
+    writer = context.Process(target=_stage_and_wait, args=(out, staged))
+    writer.start()
+    assert staged.wait(30)
+    os.kill(writer.pid, signal.SIGKILL)
+    writer.join(30)
+    assert len(list(out.glob(f"{STAGING_PREFIX}*"))) == 1
+    results.write_run([made_up_run(scenario, "v0", 1.0)], scenario, out)
+    assert not list(out.glob(f"{STAGING_PREFIX}*"))
 
 
 def _write_one(scenario: scenarios.Scenario, variant: str, out: Path) -> None:
