@@ -1,8 +1,10 @@
 """`python -m harness compare REFERENCE.csv RESULT.csv`: signal-by-signal comparison.
 
 The result must cover the reference's time range (to within half a sample of each end),
-share at least one signal with it and hold no NaN in the compared signals; otherwise the
-comparison is refused with a message saying what is missing.
+share at least one signal with it and hold only finite values (no NaN, no +-inf: one infinite
+reference sample would make the allowed deviation infinite) in `time` and the compared
+signals; otherwise the comparison is refused with a message saying what is missing, or naming
+the file, the column and the row (counted from 1 after the header) of the first bad value.
 
 Two checks per signal, both on the result interpolated to the reference's time points:
 - tolerance: |result - reference| <= atol + rtol * max |reference| at every point;
@@ -52,14 +54,32 @@ def read_result(path: Path) -> pd.DataFrame:
     bad = [c for c in frame.columns if not pd.api.types.is_numeric_dtype(frame[c])]
     if bad:
         raise UserError(f"{path}: non-numeric column(s) {', '.join(bad)}")
+    _check_finite(frame, ["time"], str(path))
     if not np.all(np.diff(frame.time.to_numpy()) > 0):
         raise UserError(f"{path}: time is not strictly increasing")
     return frame
 
 
+def _check_finite(frame: pd.DataFrame, columns: list[str], source: str) -> None:
+    """UserError naming source, the columns and the first row holding NaN or +-inf."""
+    values = frame[columns].to_numpy(float)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row, column = np.argwhere(bad)[0]
+        named = [c for c, hit in zip(columns, bad.any(axis=0), strict=True) if hit]
+        kinds = sorted({"NaN" if np.isnan(v) else f"{v:+g}" for v in values[bad]})
+        raise UserError(f"{source} has {' and '.join(kinds)} in signal(s) "
+                        f"{', '.join(named)}, first {columns[column]} = "
+                        f"{values[row, column]:g} at row {row + 1}: "
+                        "every compared value must be finite")
+
+
 def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | None = None,
-            rtol: float = 1e-3, atol: float = 1e-9) -> list[SignalComparison]:
-    """Compare the named signals (default: every signal the two tables share)."""
+            rtol: float = 1e-3, atol: float = 1e-9,
+            sources: tuple[str, str] = ("the reference", "the result")
+            ) -> list[SignalComparison]:
+    """Compare the named signals (default: every signal the two tables share); sources name
+    the two tables in messages (their files)."""
     if not (rtol >= 0 and atol >= 0):
         raise UserError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
     shared = [c for c in reference.columns[1:] if c in result.columns]
@@ -74,10 +94,8 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
                         f"{', '.join(shared)}")
     t_ref, t_res = reference.time.to_numpy(float), result.time.to_numpy(float)
     _check_coverage(t_ref, t_res)
-    for name, table in (("reference", reference), ("result", result)):
-        holes = [s for s in signals if table[s].isna().any()]
-        if holes:
-            raise UserError(f"the {name} has NaN in signal(s) {', '.join(holes)}")
+    for source, table in zip(sources, (reference, result), strict=True):
+        _check_finite(table, signals, source)
     inside = (t_ref >= t_res[0]) & (t_ref <= t_res[-1])
     out = []
     for name in signals:
@@ -148,7 +166,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     reference, result = read_result(args.reference), read_result(args.result)
     signals = args.signals.split(",") if args.signals else None
-    comparisons = compare(reference, result, signals, args.rtol, args.atol)
+    comparisons = compare(reference, result, signals, args.rtol, args.atol,
+                          (f"reference {args.reference}", f"result {args.result}"))
     print(report(comparisons))
     if args.plot:
         print(plot(reference, result, comparisons, args.plot))

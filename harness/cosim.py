@@ -123,14 +123,14 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--workers = {args.workers} must be at least 1")
     names = scenarios.available() if args.scenario == "all" else [args.scenario]
     plans = []
-    for name in names:  # every scenario, option and output folder checked before any run
+    for name in names:  # every scenario, option, output folder and summary checked first
         scenario = scenarios.load(name)
         check_step(args.step, scenario.duration)
         variants = selected_variants(scenario, args.variants)
         for name in variants:
             variant = scenario.variant(name)
             master.check_names(scenario, variant, scenario.parameters | variant.parameters)
-        results.check_writable(args.out / scenario.name)
+        results.check_result_set(args.out / scenario.name)
         plans.append((scenario, variants))
     run_all(plans, args.step, args.out, args.workers, args.quiet)
     return 0

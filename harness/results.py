@@ -6,16 +6,19 @@ booleans as 0/1. Every file is written atomically (harness.io), so a crash never
 half-written result.
 
 A scenario's folder is one result set: `write_run` merges the variants just run into it
-(their CSVs replaced, the other variants' rows and curves kept), makes every file in a
-staging folder first and then renames them into place in one burst, summary last, and holds
-an exclusive lock on the folder meanwhile, so concurrent runs into one folder are serialised
-instead of overwriting each other's rows.
+(their CSVs replaced, every other row of the summary kept, whatever its columns: the table
+gets the union of both layouts), makes every file in a staging folder first and then renames
+them into place in one burst, summary last, and holds an exclusive lock on the folder
+meanwhile, so concurrent runs into one folder are serialised instead of overwriting each
+other's rows. A staging folder is locked too while it is in use; one that nobody holds (its
+writer was killed) is removed by the next write.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -31,12 +34,18 @@ from matplotlib.lines import Line2D  # noqa: E402
 
 from harness import registry  # noqa: E402
 from harness.errors import UserError  # noqa: E402
-from harness.io import save_figure, write_csv  # noqa: E402
+from harness.io import check_target, save_figure, write_csv  # noqa: E402
 from harness.master import RunResult, suffix  # noqa: E402
 from harness.metrics import METRICS, efficaciousness  # noqa: E402
 from harness.scenarios import Scenario  # noqa: E402
 
+try:
+    import fcntl
+except ImportError:  # not POSIX: no locks, so no serialisation and no stale-staging cleanup
+    fcntl = None
+
 RESULTS_DIR = Path(__file__).resolve().parent.parent / "results"
+STAGING_PREFIX = ".staging."  # write_run's staging folders inside a result set
 SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size")
 # mechanism outputs a summary reports at the end of the run, where a variant's model has them
 # (NaN, an empty cell, for the others): W_adjust, the cumulative work of an adjusting actuator
@@ -53,18 +62,30 @@ def summary_columns(results: list[RunResult]) -> list[str]:
     return ["variant", *metrics, "eps", "W_phases", "eps_W", *outputs, "model", "step_size"]
 
 
-def _summary_row(run: RunResult, per_joint: bool) -> dict[str, object]:
-    """A run's metrics, its SUMMARY_OUTPUTS at the end and, with per_joint, a one-joint run's
-    drive metrics also under the joint-suffixed names of several-joint runs."""
+def _summary_row(run: RunResult) -> dict[str, object]:
+    """A run's metrics, its SUMMARY_OUTPUTS at the end and, for a one-joint run, its drive
+    metrics also under the joint-suffixed names of several-joint runs (kept where the table
+    has those columns)."""
     (joint, *others) = run.joint_phase_work or [None]
     suffixed = ({f"{name}_{joint}": value for name, value in run.metrics.items()}
-                if per_joint and joint is not None and not others else {})
+                if joint is not None and not others else {})
     return {**run.metrics, **suffixed,
             **{name: float(run.series[name].iloc[-1]) for name in SUMMARY_OUTPUTS
                if name in run.series}}
 
 
-def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> pd.DataFrame:
+def merged_columns(layout: Sequence[str], columns: Sequence[str]) -> list[str]:
+    """The union of two summary layouts: layout's columns in its order, each other column
+    inserted after the one it follows in columns."""
+    merged = list(layout)
+    for previous, column in zip([None, *columns], columns, strict=False):
+        if column not in merged:
+            merged.insert(0 if previous is None else merged.index(previous) + 1, column)
+    return merged
+
+
+def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str],
+            layout: Sequence[str] = ()) -> pd.DataFrame:
     """One row per variant with the metrics of docs/results.md and the per-phase work.
 
     Where some variants drive several joints and others one (franchetti2021's
@@ -77,14 +98,17 @@ def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str]) -> 
     over strokes. eps (on E_drawn, docs/results.md) and eps_W (on W_phases) are computed
     against the baseline: one variant name, or a baseline per variant (Scenario.baselines);
     NaN where the baseline was not run.
+
+    layout: the columns of the result set these rows join (write_run); the table then has
+    the union of layout and its own columns (merged_columns), NaN where a run has no value.
     """
     results = list(results)
-    per_joint = any(len(r.joint_phase_work) > 1 for r in results)
-    rows = [{"variant": r.variant, **_summary_row(r, per_joint),
+    rows = [{"variant": r.variant, **_summary_row(r),
              "W_phases": sum(abs(w) for works in r.joint_phase_work.values()
                              for w in works.values()),
              "model": r.model, "step_size": r.step_size} for r in results]
-    return with_eps(pd.DataFrame(rows), baseline)[summary_columns(results)]
+    columns = merged_columns(layout, summary_columns(results))
+    return with_eps(pd.DataFrame(rows), baseline).reindex(columns=columns)
 
 
 def with_eps(table: pd.DataFrame, baseline: str | Mapping[str, str]) -> pd.DataFrame:
@@ -118,17 +142,34 @@ def check_writable(out_dir: Path) -> None:
                         f"({error.strerror or error})") from None
 
 
+def read_summary(path: Path) -> pd.DataFrame | None:
+    """The summary table of a result set, None if there is none yet; UserError naming the
+    file when it is empty, not a CSV, or lacks a variant or model in a row or repeats one."""
+    if not path.exists():
+        return None
+    start_anew = "move it away to start a new result set"
+    table = _read_csv(path, dtype={"variant": str, "model": str})
+    for column in ("variant", "model"):
+        if column not in table or table[column].isna().any():
+            raise UserError(f"{path} has no {column} column or an empty {column} cell: "
+                            f"{start_anew}")
+    repeated = sorted(set(table.variant[table.variant.duplicated()]))
+    if repeated:
+        raise UserError(f"{path} lists variant(s) {', '.join(repeated)} twice: {start_anew}")
+    return table
+
+
+def check_result_set(out_dir: Path) -> None:
+    """UserError unless out_dir is writable and a summary.csv there is readable
+    (read_summary): checked before a simulation."""
+    check_writable(out_dir)
+    read_summary(out_dir / "summary.csv")
+
+
 @contextlib.contextmanager
-def locked(out_dir: Path) -> Iterator[None]:
-    """Hold an exclusive lock on the folder (flock on the folder itself, so no lock file is
-    left behind and a killed writer releases it): concurrent writers wait their turn."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no serialisation of concurrent writers
-        yield
-        return
-    fd = os.open(out_dir, os.O_RDONLY)
+def _flocked(path: Path) -> Iterator[None]:
+    """Hold an exclusive flock on a file or folder (released when its holder dies)."""
+    fd = os.open(path, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
         yield
@@ -136,46 +177,105 @@ def locked(out_dir: Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
+@contextlib.contextmanager
+def locked(out_dir: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the folder (flock on the folder itself, so no lock file is
+    left behind and a killed writer releases it): concurrent writers wait their turn."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with contextlib.nullcontext() if fcntl is None else _flocked(out_dir):
+        yield
+
+
+@contextlib.contextmanager
+def staging(out_dir: Path) -> Iterator[Path]:
+    """A new staging folder in out_dir, locked while in use (so that remove_stale_staging
+    tells it from one left by a killed writer) and removed after."""
+    with tempfile.TemporaryDirectory(dir=out_dir, prefix=STAGING_PREFIX) as tmp:
+        with contextlib.nullcontext() if fcntl is None else _flocked(Path(tmp)):
+            yield Path(tmp)
+
+
+def remove_stale_staging(out_dir: Path) -> list[Path]:
+    """Remove the staging folders in out_dir that no live process holds (a writer killed
+    while staging, e.g. by SIGKILL, leaves its folder, but its lock died with it); return
+    those removed. Called with the folder lock held, so no writer is between making and
+    locking one; a folder that cannot be removed stays (hidden, it holds no result)."""
+    if fcntl is None:
+        return []
+    removed = []
+    for folder in sorted(out_dir.glob(f"{STAGING_PREFIX}*")):
+        if folder.is_symlink() or not folder.is_dir():
+            continue
+        try:
+            fd = os.open(folder, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            shutil.rmtree(folder, ignore_errors=True)  # holding its lock meanwhile
+            if not folder.exists():
+                removed.append(folder)
+        except BlockingIOError:
+            pass  # held by a live writer
+        finally:
+            os.close(fd)
+    return removed
+
+
 def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path) -> list[Path]:
     """Write <variant>.csv for each run, then the plot and summary.csv of the whole result set
-    in out_dir: variants run before (with a summary row and a CSV there) are kept, eps is
-    recomputed over all rows. A failure before the renames leaves the old set untouched;
-    the summary is renamed last: it lists what the set holds."""
-    with locked(out_dir), tempfile.TemporaryDirectory(dir=out_dir, prefix=".staging.") as tmp:
-        staging = Path(tmp)  # every file is made here first, then renamed in one burst
-        staged = [write_csv(r.series, staging / f"{r.variant}.csv") for r in results]
-        table = summary(results, scenario.baselines)
-        earlier = _earlier_runs(out_dir, scenario, table.columns, set(table.variant))
-        order = list(scenario.variants)
-        table = pd.concat([table, *(row for _, row in earlier)], ignore_index=True)
-        table = table.sort_values("variant", key=lambda v: v.map(order.index), kind="stable")
-        table = with_eps(table.reset_index(drop=True), scenario.baselines)
-        runs: list[RunResult | StoredRun] = [*results, *(run for run, _ in earlier)]
-        runs.sort(key=lambda r: order.index(r.variant))
-        staged.append(plot(runs, scenario, staging / f"{scenario.name}.png"))
-        staged.append(write_csv(table, staging / "summary.csv"))
-        written = [path.replace(out_dir / path.name) for path in staged]
-    return written
+    in out_dir: every row of an earlier summary is kept (with the union of the columns) but
+    the variants run now, eps is recomputed over all rows. A failure before the renames
+    (a full disk) is a UserError naming the file and leaves the old set untouched; the
+    summary is renamed last: it lists what the set holds."""
+    with locked(out_dir):
+        remove_stale_staging(out_dir)
+        old = read_summary(out_dir / "summary.csv")
+        try:
+            with staging(out_dir) as folder:  # every file made here, then renamed in a burst
+                staged = _stage(results, scenario, out_dir, old, folder)
+                for path in staged:
+                    check_target(out_dir / path.name)
+                return [path.replace(out_dir / path.name) for path in staged]
+        except OSError as error:
+            raise UserError(f"cannot write the result set in {out_dir}: "
+                            f"{error.strerror or error}") from None
+        except UserError as error:
+            raise UserError(f"{error} (the result set in {out_dir} is as it was)") from None
 
 
-def _earlier_runs(out_dir: Path, scenario: Scenario, columns: pd.Index, replaced: set[str]
-                  ) -> list[tuple[StoredRun, pd.DataFrame]]:
-    """The variants of an existing summary that this write keeps: in the scenario, not run
-    now, with the same summary columns and their series CSV present."""
-    path = out_dir / "summary.csv"
-    if not path.exists():
-        return []
-    old = pd.read_csv(path)
-    if list(old.columns) != list(columns):
-        return []  # another layout (an older version, or other joints): not mergeable
-    kept = []
-    for _, row in old.iterrows():
-        series = out_dir / f"{row.variant}.csv"
-        if row.variant in replaced or row.variant not in scenario.variants or not series.exists():
-            continue
-        kept.append((StoredRun(row.variant, row.model, pd.read_csv(series)),
-                     row.to_frame().T.astype(old.dtypes.to_dict())))
-    return kept
+def _stage(results: list[RunResult], scenario: Scenario, out_dir: Path,
+           old: pd.DataFrame | None, folder: Path) -> list[Path]:
+    """Write into folder the new variants' CSVs, then the plot and the summary of the set:
+    the new rows and every old row of another variant (old, the existing summary), in the
+    scenario's variant order (variants it no longer has last, as they were)."""
+    staged = [write_csv(r.series, folder / f"{r.variant}.csv") for r in results]
+    table = summary(results, scenario.baselines, () if old is None else old.columns)
+    kept = table.iloc[:0] if old is None else old[~old.variant.isin(table.variant)]
+    rank = {name: index for index, name in enumerate(scenario.variants)}
+    table = pd.concat([table, kept.reindex(columns=table.columns)], ignore_index=True)
+    table = table.sort_values("variant", key=lambda v: v.map(lambda n: rank.get(n, len(rank))),
+                              kind="stable")
+    table = with_eps(table.reset_index(drop=True), scenario.baselines)
+    stored = [StoredRun(variant, model, _read_csv(out_dir / f"{variant}.csv"))
+              for variant, model in zip(kept.variant, kept.model, strict=True)
+              if (out_dir / f"{variant}.csv").exists()]  # a row without its CSV: not plotted
+    runs = sorted([*results, *stored], key=lambda r: rank.get(r.variant, len(rank)))
+    staged.append(plot(runs, scenario, folder / f"{scenario.name}.png"))
+    staged.append(write_csv(table, folder / "summary.csv"))
+    return staged
+
+
+def _read_csv(path: Path, **options: object) -> pd.DataFrame:
+    """A CSV file of a result set (pandas.read_csv options); UserError naming the file when
+    it is empty, not UTF-8 or not a CSV table."""
+    try:
+        return pd.read_csv(path, **options)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError,
+            pd.errors.EmptyDataError) as error:
+        reason = error.strerror if isinstance(error, OSError) else str(error).splitlines()[0]
+        raise UserError(f"{path} cannot be read as a CSV table ({reason}): move it away to "
+                        "start a new result set") from None
 
 
 # ---- plots -------------------------------------------------------------------------------
@@ -257,9 +357,12 @@ def plot(results: Sequence[RunResult | StoredRun], scenario: Scenario, path: Pat
     for row, (title, unit, name) in enumerate(drives):
         ax = axes[row, 1]
         for colour, r in zip(colours, results, strict=False):
-            # a several-joint run shows its first joint's signal (<name>_<joint>)
+            # a several-joint run shows its first joint's signal (<name>_<joint>); a stored
+            # run of another layout may have neither
             column = name if name in r.series else next(
-                c for c in r.series.columns if c.startswith(f"{name}_"))
+                (c for c in r.series.columns if c.startswith(f"{name}_")), None)
+            if column is None:
+                continue
             ax.plot(r.series.time, r.series[column], color=colour, lw=1.2, label=r.variant)
         ax.legend(fontsize=7)
         _decorate(ax, title, unit)

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import os
+import stat
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -65,3 +70,70 @@ def test_bad_files_give_a_clear_error(tmp_path: Path, content: str, message: str
 def test_unknown_signal_is_an_error(reference: Path, capsys: pytest.CaptureFixture) -> None:
     assert cli.main(["compare", str(reference), str(reference), "--signals", "omega"]) == 2
     assert "unknown signal(s) omega" in capsys.readouterr().err
+
+
+def _samples(tmp_path: Path, name: str, values: np.ndarray) -> Path:
+    return write(tmp_path / name, pd.DataFrame({"time": np.linspace(0.0, 1.0, len(values)),
+                                                "theta": values}))
+
+
+@pytest.mark.parametrize(("reference_values", "result_values", "bad_file", "row", "kind"), [
+    # one inf reference sample made the allowed band infinite: +-1e6 passed with exit 0
+    (np.where(np.arange(101) == 50, np.inf, np.sin(np.linspace(0, 1, 101))),
+     1e6 * (-1.0) ** np.arange(101), "ref.csv", 51, "+inf"),
+    (np.full(101, np.inf), np.full(101, -np.inf), "ref.csv", 1, "+inf"),
+    (np.zeros(101), np.where(np.arange(101) == 7, -np.inf, 0.0), "res.csv", 8, "-inf"),
+], ids=["inf-reference", "inf-against-minus-inf", "minus-inf-result"])
+def test_non_finite_values_are_refused_naming_file_column_and_row(
+        tmp_path: Path, capsys: pytest.CaptureFixture, reference_values: np.ndarray,
+        result_values: np.ndarray, bad_file: str, row: int, kind: str) -> None:
+    reference = _samples(tmp_path, "ref.csv", reference_values)
+    result = _samples(tmp_path, "res.csv", result_values)
+    assert cli.main(["compare", str(reference), str(result)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "Traceback" not in err
+    assert str(tmp_path / bad_file) in err and f"{kind} in signal(s) theta" in err
+    assert f"at row {row}:" in err
+
+
+def test_non_finite_time_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text("time,x\n0,1\ninf,2\n")
+    with pytest.raises(ValueError, match=r"bad.csv has \+inf in signal\(s\) time.* row 2"):
+        read_result(path)
+
+
+def test_plot_onto_a_fifo_or_a_device_node_leaves_the_node(
+        tmp_path: Path, reference: Path, capsys: pytest.CaptureFixture) -> None:
+    """compare --plot /dev/null used to exit 0 and replace the node with a PNG. The nodes are
+    made in tmp_path (never the system's /dev/null, which a regression run as root would
+    replace); a device node only where mknod is allowed."""
+    nodes = [tmp_path / "fifo"]
+    os.mkfifo(nodes[0])
+    with contextlib.suppress(PermissionError):
+        os.mknod(tmp_path / "null", stat.S_IFCHR | 0o666, os.makedev(1, 3))
+        nodes.append(tmp_path / "null")
+    for node in nodes:
+        assert cli.main(["compare", str(reference), str(reference), "--plot", str(node)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and f"cannot write {node}: it is not a regular file" in err
+    assert stat.S_ISFIFO(nodes[0].stat().st_mode)
+    assert all(stat.S_ISCHR(node.stat().st_mode) for node in nodes[1:])
+
+
+def test_plot_to_a_folder_or_a_read_only_place_is_one_line(
+        tmp_path: Path, reference: Path, capsys: pytest.CaptureFixture,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Both used to end in a traceback (IsADirectoryError, PermissionError)."""
+    assert cli.main(["compare", str(reference), str(reference), "--plot", str(tmp_path)]) == 2
+    assert f"cannot write {tmp_path}: it is a folder" in capsys.readouterr().err
+    # a read-only mount (the tests may run as root, whom file modes do not stop)
+    def read_only(*_args: object, **_kwargs: object) -> None:
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    plot = tmp_path / "report.png"
+    assert cli.main(["compare", str(reference), str(reference), "--plot", str(plot)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"error: cannot write {plot}: Read-only file system"
+    assert not plot.exists()

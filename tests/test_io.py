@@ -3,6 +3,8 @@ tables read back as written; figures are written as PNG and pyplot's are closed.
 
 from __future__ import annotations
 
+import errno
+import os
 import stat
 from pathlib import Path
 
@@ -13,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
+from harness.errors import UserError  # noqa: E402
 from harness.io import save_figure, write_atomic, write_csv  # noqa: E402
 
 
@@ -65,3 +68,39 @@ def test_save_figure_writes_a_png_and_closes_a_pyplot_figure(tmp_path: Path) -> 
     path = save_figure(fig, tmp_path / "plot.png")
     assert path.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
     assert not plt.fignum_exists(fig.number)
+
+
+def test_a_full_disk_is_one_line_naming_the_path_and_keeps_the_old_file(
+        tmp_path: Path) -> None:
+    """A write failing with ENOSPC used to surface as a traceback (an OSError)."""
+    path = tmp_path / "summary.csv"
+    path.write_text("old")
+
+    def disk_full(tmp: Path) -> None:
+        tmp.write_text("ne")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    with pytest.raises(UserError) as refused:
+        write_atomic(path, disk_full)
+    assert str(refused.value) == f"cannot write {path}: No space left on device"
+    assert path.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.csv"]
+
+
+def test_only_a_regular_file_or_a_new_path_is_written(tmp_path: Path) -> None:
+    """A FIFO or a folder at the path is refused and left as it was; a regular file, a link
+    to one and a new path are written."""
+    fifo, folder = tmp_path / "fifo", tmp_path / "folder"
+    os.mkfifo(fifo)
+    folder.mkdir()
+    for node, kind in ((fifo, "not a regular file"), (folder, "a folder")):
+        with pytest.raises(UserError, match=f"cannot write {node}: it is {kind}"):
+            write_atomic(node, lambda tmp: tmp.write_text("x"))
+    assert stat.S_ISFIFO(fifo.stat().st_mode) and list(folder.iterdir()) == []
+    regular, link = tmp_path / "regular", tmp_path / "link"
+    regular.write_text("old")
+    link.symlink_to(regular)
+    for path in (regular, link, tmp_path / "new"):
+        assert write_atomic(path, lambda tmp: tmp.write_text("new")).read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo", "folder", "link", "new",
+                                                          "regular"]
