@@ -52,8 +52,13 @@ _FMUS: dict[str, CoSimFMU] = {}  # per worker process: model -> instance, reused
 
 
 def _close_fmus() -> None:
+    """Free every instance of this process (at its end: a refused fmi2Terminate is logged,
+    as no run is left to fail)."""
     for model in list(_FMUS):
-        _discard(model)
+        try:
+            _discard(model)
+        except FMUCallError as refused:
+            logging.getLogger(__name__).warning("%s", refused)
 
 
 class CloseFMUs(WorkerPlugin):
@@ -82,8 +87,8 @@ def warm_up(model: str) -> None:
 
 def _discard(model: str) -> None:
     """Free an instance (after a failure it may be unusable; the next run makes a new one).
-    CoSimFMU.close already tolerates a refused fmi2Terminate and skips freeing after a
-    Fatal."""
+    CoSimFMU.close skips freeing after a Fatal and raises a refused fmi2Terminate (once the
+    instance is freed)."""
     _FMUS.pop(model).close()
 
 
@@ -114,7 +119,10 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
             if not isinstance(error, FMUCallError):  # that one carries the FMU's messages
                 details += [m.message for m in _FMUS[model].messages
                             if m.status in ("Error", "Fatal")]
-            _discard(model)
+            try:
+                _discard(model)
+            except FMUCallError as refused:  # the failed run's end: part of its row
+                details.append(str(refused))
         row.update(status="failed", error=" ".join("; ".join(details).split()))
     row["seconds"] = time.perf_counter() - start
     return row
