@@ -100,8 +100,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # the top level has no options that take a value: the first other word is the command
     command = next((word for word in argv if not word.startswith("-")), None)
-    args = parser(command).parse_args(argv)
-    try:
+    try:  # a Ctrl-C while the command's module is imported is an interrupt too
+        args = parser(command).parse_args(argv)
         return args.run(args)
     except UserError as error:  # bad input: one clear line, non-zero exit; else a traceback
         print(f"error: {error}", file=sys.stderr)

@@ -5,19 +5,24 @@ The runs (every selected variant of every selected scenario) are independent: wi
 process, so processes, not threads), longest first, and each scenario's files are written
 (by a worker as well: its plots cost as much as a run) as soon as its last run is done. A
 run's numbers do not depend on the process it ran in.
+
+Ctrl-C (`harness.interrupts`): the runs stop at their next recorded step (a worker process
+never sees the SIGINT; its parent tells it), a scenario being written is written in full,
+and the command exits with 130: what was written is complete, nothing else changed.
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 
 from tqdm import tqdm
 
-from harness import master, results, scenarios
+from harness import interrupts, master, results, scenarios
 from harness.errors import UserError
 
 
@@ -46,16 +51,28 @@ def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
     return list(dict.fromkeys(names + baselines))
 
 
+POLL_INTERVAL = 0.1  # [s] between the parent's looks at an interrupt while workers run
+
+
 def run_variant(scenario: scenarios.Scenario, name: str, step: float,
                 progress: Callable[[int], None] | None = None) -> master.RunResult:
-    """One run (in a worker process, or here with a progress callback)."""
-    return master.run(scenario, scenario.variant(name), step, progress=progress)
+    """One run (in a worker process, or here with a progress callback); KeyboardInterrupt
+    at its next recorded step once an interrupt is requested."""
+    def advance(steps: int) -> None:
+        interrupts.stop_if_requested()
+        if progress is not None:
+            progress(steps)
+
+    interrupts.stop_if_requested()
+    return master.run(scenario, scenario.variant(name), step, progress=advance)
 
 
 def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out: Path,
             workers: int = 1, quiet: bool = False) -> None:
     """Run every planned variant and write each scenario's result files (and print its
-    summary) once its runs are done; with workers above 1 both in that many processes."""
+    summary) once its runs are done; with workers above 1 both in that many processes.
+    A SIGINT stops the runs (none is interrupted midway in its FMU, nor a write) and raises
+    KeyboardInterrupt."""
     jobs = [(index, scenario, name) for index, (scenario, names) in enumerate(plans)
             for name in names]
     remaining = {index: len(names) for index, (_, names) in enumerate(plans)}
@@ -71,7 +88,8 @@ def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out:
         scenario, names = plans[index]
         return scenario, [runs.pop((index, n)) for n in names], out
 
-    with tqdm(total=total, unit="step", unit_scale=True, disable=quiet) as bar:
+    with interrupts.deferred(), tqdm(total=total, unit="step", unit_scale=True,
+                                     disable=quiet) as bar:
         if workers == 1 or len(jobs) == 1:
             for index, scenario, name in jobs:
                 bar.set_postfix_str(f"{scenario.name}.{name}")
@@ -82,11 +100,21 @@ def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out:
         # longest runs first, so that the last ones to start are short; a scenario's files
         # are written by a worker too, while the others still run
         jobs.sort(key=lambda job: -job[1].duration)
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            pending = {pool.submit(run_variant, scenario, name, step): (index, scenario, name)
+        context = multiprocessing.get_context()
+        stop = context.Event()  # the workers' interrupts.requested
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context,
+                                   initializer=interrupts.ignore_in_worker, initargs=(stop,))
+
+        def submit(*call: object) -> Future:
+            with interrupts.blocked():  # the workers (started here) and the pool's threads
+                return pool.submit(*call)
+
+        try:
+            pending = {submit(run_variant, scenario, name, step): (index, scenario, name)
                        for index, scenario, name in jobs}
             while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                done, _ = wait(pending, POLL_INTERVAL, return_when=FIRST_COMPLETED)
+                interrupts.stop_if_requested()
                 for future in done:
                     job = pending.pop(future)
                     if job is None:  # a scenario's files written
@@ -97,7 +125,10 @@ def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out:
                     bar.set_postfix_str(f"{scenario.name}.{name} done")
                     write = finished(index, name, future.result())
                     if write is not None:
-                        pending[pool.submit(write_scenario, *write)] = None
+                        pending[submit(write_scenario, *write)] = None
+        finally:  # done, failed or interrupted: the runs still going stop at their next
+            stop.set()  # recorded step, a scenario being written is finished
+            pool.shutdown(cancel_futures=True)
 
 
 def write_scenario(scenario: scenarios.Scenario, runs: list[master.RunResult],

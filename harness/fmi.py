@@ -8,6 +8,7 @@ state get/set and reset. The co-simulation master (`harness.master`) is built on
 from __future__ import annotations
 
 import contextlib
+import copyreg
 import shutil
 import zipfile
 from collections.abc import Iterable, Iterator, Mapping
@@ -54,6 +55,11 @@ class FMUCallError(FMICallException, UserError):
         status = dict(enumerate(STATUS_NAMES)).get(failure.status, failure.status)
         self.args = (f"{model}: {failure.function} failed with status {status}"
                      + (f": {' | '.join(ours)}" if ours else ""),)
+
+    def __reduce__(self) -> tuple:
+        """Pickled as its message and attributes, as it comes back from a worker process
+        (the default, cls(*args), does not fit __init__)."""
+        return copyreg.__newobj__, (type(self), *self.args), self.__dict__
 
 
 class CoSimFMU:
@@ -173,21 +179,31 @@ class CoSimFMU:
                 if v.causality == causality]
 
     def close(self) -> None:
-        """Terminate (if possible), free the instance and delete the extracted files.
+        """Terminate, free the instance and delete the extracted files. A refused
+        fmi2Terminate (the FMU could not end its run cleanly) raises FMUCallError with the
+        FMU's messages once the instance is freed and the files deleted.
 
         After fmi2Fatal the instance is left alone: FMI 2.0 allows no further call, and
         pythonfmu 0.7.0 can crash the process if freeInstance follows a Fatal.
         """
-        if not self.fatal:
-            try:
-                self.slave.terminate()
-            except FMICallException:
-                pass
-            self.slave.freeInstance()
-        shutil.rmtree(self._unzip_dir, ignore_errors=True)
+        try:
+            if not self.fatal:
+                with self._watch_fatal():
+                    self.slave.terminate()
+        finally:
+            if not self.fatal:
+                self.slave.freeInstance()
+            shutil.rmtree(self._unzip_dir, ignore_errors=True)
 
     def __enter__(self) -> CoSimFMU:
         return self
 
-    def __exit__(self, *_exc: object) -> None:
-        self.close()
+    def __exit__(self, _type: type | None, error: BaseException | None, _trace: Any) -> None:
+        """close(); when the block raised, a refused fmi2Terminate is a note on that error,
+        which stays the one raised (it says what went wrong first)."""
+        try:
+            self.close()
+        except FMUCallError as refused:
+            if error is None:
+                raise
+            error.add_note(str(refused))

@@ -27,6 +27,7 @@ import atexit
 import contextlib
 import logging
 import math
+import multiprocessing.resource_tracker
 import tempfile
 import time
 from collections.abc import Sequence
@@ -37,7 +38,7 @@ import pandas as pd
 from distributed import Client, KilledWorker, LocalCluster, WorkerPlugin, as_completed
 from tqdm import tqdm
 
-from harness import fmu_build, master, results
+from harness import fmu_build, interrupts, master, results
 from harness.errors import UserError
 from harness.fmi import CoSimFMU, FMUCallError
 from harness.io import write_atomic, write_csv
@@ -52,8 +53,13 @@ _FMUS: dict[str, CoSimFMU] = {}  # per worker process: model -> instance, reused
 
 
 def _close_fmus() -> None:
+    """Free every instance of this process (at its end: a refused fmi2Terminate is logged,
+    as no run is left to fail)."""
     for model in list(_FMUS):
-        _discard(model)
+        try:
+            _discard(model)
+        except FMUCallError as refused:
+            logging.getLogger(__name__).warning("%s", refused)
 
 
 class CloseFMUs(WorkerPlugin):
@@ -82,8 +88,8 @@ def warm_up(model: str) -> None:
 
 def _discard(model: str) -> None:
     """Free an instance (after a failure it may be unusable; the next run makes a new one).
-    CoSimFMU.close already tolerates a refused fmi2Terminate and skips freeing after a
-    Fatal."""
+    CoSimFMU.close skips freeing after a Fatal and raises a refused fmi2Terminate (once the
+    instance is freed)."""
     _FMUS.pop(model).close()
 
 
@@ -114,7 +120,10 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
             if not isinstance(error, FMUCallError):  # that one carries the FMU's messages
                 details += [m.message for m in _FMUS[model].messages
                             if m.status in ("Error", "Fatal")]
-            _discard(model)
+            try:
+                _discard(model)
+            except FMUCallError as refused:  # the failed run's end: part of its row
+                details.append(str(refused))
         row.update(status="failed", error=" ".join("; ".join(details).split()))
     row["seconds"] = time.perf_counter() - start
     return row
@@ -167,8 +176,10 @@ def execute(sweep: Sweep, runs: Sequence[Run], out: Path, client: Client,
     size = chunk_size or min(sweep.chunk_size,
                              max(1, math.ceil(len(runs) / (CHUNKS_PER_WORKER * workers))))
     chunks = [list(runs[i:i + size]) for i in range(0, len(runs), size)]
-    client.register_plugin(CloseFMUs())
-    futures = {client.submit(run_chunk, sweep, chunk, pure=False): chunk for chunk in chunks}
+    with interrupts.deferred():  # not amid the plugin's broadcast to the workers
+        client.register_plugin(CloseFMUs())
+        futures = {client.submit(run_chunk, sweep, chunk, pure=False): chunk
+                   for chunk in chunks}
     done = failed = 0
     with tqdm(total=len(runs), unit="run", disable=quiet, desc=sweep.name) as bar:
         bar.set_postfix(failed=0)
@@ -218,10 +229,22 @@ def consolidate(sweep: Sweep, out: Path) -> pd.DataFrame:
 
 # ---- driver -------------------------------------------------------------------------------
 def local_client(workers: int) -> Client:
-    """A distributed Client on a LocalCluster of single-threaded worker processes."""
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
-    return Client(cluster)
+    """A distributed Client on a LocalCluster of single-threaded worker processes. Its
+    processes and threads start with SIGINT blocked: a Ctrl-C stops the sweep here, which
+    stores the finished chunks and closes the cluster, instead of killing a worker midway."""
+    # started first, as its start unblocks SIGINT in the thread that starts it
+    multiprocessing.resource_tracker.ensure_running()
+    client = None
+    try:
+        with interrupts.deferred(), interrupts.blocked():  # not amid the cluster's start
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            client = Client(cluster)
+    except KeyboardInterrupt:
+        if client is not None:
+            close_client(client)
+        raise
+    return client
 
 
 def close_client(client: Client) -> None:
