@@ -14,6 +14,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 from fmu_src import self_regulating as physics
 from fmu_src.fmi_base import MechanismSlave
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
+from fmu_src.parameters import DomainError
 
 # How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
 REGULATION_ANGLE_TOLERANCE = 0.5 * physics.DEG
@@ -67,7 +68,7 @@ class SelfRegulatingBalancer(MechanismSlave):
     def step(self, dt: float) -> None:
         p, u = self.params, self.inputs()
         if u.counterweight_added < -p.M0:
-            raise ValueError(f"input counterweight_added = {u.counterweight_added} kg is "
+            raise DomainError(f"input counterweight_added = {u.counterweight_added} kg is "
                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
         self.step_with(u, dt)
         at_stop = self.output_values.slider_at_stop

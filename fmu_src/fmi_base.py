@@ -17,21 +17,26 @@ declared independent of the inputs then read the same, which the tests check inp
 Error reporting: a refusal that ends the call is a ValueError whose message names the
 variable and its range; the FMU's runtime (harness/runtime/fmi2_runtime.c on Linux) returns
 fmi2Error and logs "<fmi2 function>: ValueError: <message>" (pythonfmu's win64 binary returns
-fmi2Fatal with the same message). So a bad parameter fails fmi2ExitInitializationMode and a
-fixed parameter set after initialisation fails fmi2SetReal. A bad input or step size fails
-fmi2DoStep with fmi2Discard (do_step returns False) after an Error-status log message.
+fmi2Fatal with the same message). So a bad parameter fails fmi2ExitInitializationMode, and a
+Real input set NaN, infinite or outside its range, a fixed parameter set after
+initialisation, or an output set at all fails fmi2SetReal (fmi2SetBoolean, fmi2SetString),
+and the value stays. A bad step size fails fmi2DoStep with fmi2Discard (do_step returns
+False) after an Error-status log message.
 
 A refused step leaves the instance as it was before the call: `do_step` refuses a step
-whose work would exceed the integrator's bound (`fmu_src.integration.MAX_SUBSTEPS`), whose
-arithmetic fails, or whose outputs would not be finite, and restores the state. Fixed and
-calculated parameters cannot be set after initialisation (their setters raise); a restored
-FMU state is validated like a fresh initialisation.
+whose work would exceed the integrator's bound (`fmu_src.integration.MAX_SUBSTEPS`), that
+the physics refuses (`fmu_src.parameters.DomainError`), whose arithmetic fails, or whose
+outputs would not be finite, and restores the state. Any other exception of a step is a
+defect: it propagates (fmi2Error, naming its type). A restored FMU state must be one of this
+model and layout, of the right types, and is validated like a fresh initialisation; a
+refused one changes nothing.
 """
 
 from __future__ import annotations
 
 import builtins
 import contextlib
+import hashlib
 import math
 import os
 import sys
@@ -42,17 +47,21 @@ from operator import attrgetter, itemgetter
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
-from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import ScalarVariable
 
-from fmu_src.parameters import MAGNITUDE_LIMIT, check_ranges, magnitude_problem
+from fmu_src.parameters import MAGNITUDE_LIMIT, DomainError, check_ranges, magnitude_problem
 
 SMALLEST = 1.0 / MAGNITUDE_LIMIT  # the smallest non-zero magnitude of an input
 
 # ValueError texts of the math module: a failed computation, not a message of ours.
 MATH_ERRORS = ("math domain error", "math range error")
+# keys of an FMU state besides its variables' names
+STATE_MODEL, STATE_LAYOUT, STATE_HIDDEN = "__model__", "__layout__", "__hidden__"
+# the Python types a variable's value in an FMU state may have, by its FMI type
+STATE_TYPES = {Real: (float, int), Boolean: (bool,), Integer: (int,), String: (str,)}
 
 # unit -> (quantity used as the declared type name, SI base-unit exponents)
 UNITS: dict[str, tuple[str, dict[str, int]]] = {
@@ -133,9 +142,6 @@ class ModelSlave(Fmi2Slave):
         # an input was set since the outputs were computed (always, in a slave that does
         # not refresh them: get_real then reads each output's own getter)
         self.outputs_stale = not self.refreshes_outputs
-        # False once a Real input was set outside its bounds (and at the start, or after a
-        # restored state): do_step then looks for the problem
-        self.inputs_checked = False
         self.params = None
         self.start_time = 0.0
         self.real_outputs: list[str] = []  # names of the Real outputs, checked finite per step
@@ -249,18 +255,22 @@ class ModelSlave(Fmi2Slave):
         return type(self).refresh_outputs is not ModelSlave.refresh_outputs
 
     def register_variable(self, var: ScalarVariable, nested: bool = True) -> None:
-        """pythonfmu's registration, with inputs that make the outputs stale when set and,
-        where the slave refreshes its outputs, outputs recomputed when read stale."""
+        """pythonfmu's registration, with inputs checked when set, which make the outputs
+        stale; where the slave refreshes its outputs, outputs recomputed when read stale;
+        and outputs (any variable but an input or a parameter) that refuse to be set."""
         super().register_variable(var, nested)
         if var.causality == Fmi2Causality.input:
             var.setter = self._input_setter(var.name)
-        elif var.causality == Fmi2Causality.output and self.refreshes_outputs:
-            var.getter = self._output_getter(var.name)
+        elif var.causality not in (Fmi2Causality.parameter, Fmi2Causality.calculatedParameter):
+            var.setter = _refused_setter(var.name, var.causality.name)
+            if var.causality == Fmi2Causality.output and self.refreshes_outputs:
+                var.getter = self._output_getter(var.name)
 
     # Closures over the instance's __dict__: they run at every fmi2Get/fmi2Set call.
     def _input_setter(self, name: str) -> Callable[[Any], None]:
-        """Setter of an input: the outputs become stale, and a Real input's value is checked
-        against its bounds at once (_input_problem names the problem at the next step)."""
+        """Setter of an input: the outputs become stale; a Real input NaN, infinite, outside
+        its range or its magnitudes is refused (a ValueError naming it and its range) and
+        keeps its value."""
         attributes = self.__dict__
         bounds = [(low, high) for n, low, high in self.real_input_bounds if n == name]
         if not bounds:
@@ -271,12 +281,12 @@ class ModelSlave(Fmi2Slave):
         lowest, highest = bounds[0]
 
         def set_real_input(value: Any) -> None:
-            attributes[name] = value
-            attributes["outputs_stale"] = True
             # _input_problem's tests in one chained comparison (also false for NaN)
             if not (lowest <= value <= highest
                     and (value == 0.0 or not -SMALLEST < value < SMALLEST)):
-                attributes["inputs_checked"] = False
+                raise ValueError(self._input_problem(name, value))
+            attributes[name] = value
+            attributes["outputs_stale"] = True
         return set_real_input
 
     def _output_getter(self, name: str) -> Callable[[], Any]:
@@ -373,10 +383,7 @@ class ModelSlave(Fmi2Slave):
             self.validate(params)
         except ValueError as error:
             raise ValueError(f"invalid parameter: {error}") from None
-        problem = self._input_problem()  # the initial outputs use the inputs' start values
-        if problem is not None:
-            raise ValueError(f"initialisation failed: {problem}")
-        try:
+        try:  # the inputs' start values were checked when set
             self.params = params
             self.initialise(params)
             problem = self._non_finite_output(self.calculated + self.real_outputs)
@@ -391,12 +398,6 @@ class ModelSlave(Fmi2Slave):
         if not (self.params is not None and self.start_time <= current_time < math.inf
                 and 0.0 < step_size < math.inf):
             return self._refuse_call(current_time, step_size)
-        if not self.inputs_checked:
-            problem = self._input_problem()
-            if problem is not None:
-                self.fail(problem)
-                return False
-            self.inputs_checked = True
         # What a step changes: the outputs and the hidden state (C-level getters: cheap).
         outputs, hidden = self._outputs_of(self.__dict__), self._hidden_of(self)
         try:
@@ -405,7 +406,11 @@ class ModelSlave(Fmi2Slave):
                 problem = self._non_finite_output()
             else:
                 return True
-        except (ArithmeticError, ValueError) as error:
+        except Exception as error:
+            if not _domain_failure(error):  # a defect: fmi2Error naming it, the state kept
+                self.restore_hidden_state(dict(zip(self.hidden_state, hidden)))
+                self._restore_outputs(outputs)
+                raise
             problem = _arithmetic_problem(error)
         if problem is None:
             return True
@@ -463,22 +468,19 @@ class ModelSlave(Fmi2Slave):
                                              for name, value in zip(state._fields, state))
         return f" (inputs {inputs})" if inputs else ""
 
-    def _input_problem(self) -> str | None:
-        """Error message naming the first Real input that is not finite, outside its range or
-        its magnitudes, else None."""
-        values = self.__dict__
-        for name, lowest, highest in self.real_input_bounds:
-            value = values[name]
-            info = self.info[name]
-            if not math.isfinite(value):
-                return f"input {name} = {value} is not a finite number"
-            magnitude = magnitude_problem(value)
-            if magnitude:
-                return f"input {name} = {value} {info.unit} {magnitude}"
-            if not lowest <= value <= highest:  # within the magnitudes: the declared range
-                low = -math.inf if info.min is None else info.min
-                high = math.inf if info.max is None else info.max
-                return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
+    def _input_problem(self, name: str, value: float) -> str | None:
+        """Error message naming the Real input name and its range when value is not finite,
+        beyond the magnitudes or outside that range, else None."""
+        info = self.info[name]
+        low = -math.inf if info.min is None else info.min
+        high = math.inf if info.max is None else info.max
+        if not math.isfinite(value):
+            return f"input {name} = {value} {info.unit} is not a finite number in [{low}, {high}]"
+        magnitude = magnitude_problem(value)
+        if magnitude:
+            return f"input {name} = {value} {info.unit} {magnitude} (allowed [{low}, {high}])"
+        if not low <= value <= high:
+            return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
         return None
 
     def validate(self, params: Any) -> None:
@@ -494,27 +496,90 @@ class ModelSlave(Fmi2Slave):
     # ---- state get/set: registered variables plus hidden state ------------------------
     def _get_fmu_state(self) -> dict[str, Any]:
         state = super()._get_fmu_state()
-        state["__hidden__"] = {name: _to_json(getattr(self, name)) for name in self.hidden_state}
+        state[STATE_MODEL] = type(self).__name__
+        state[STATE_LAYOUT] = self.state_layout
+        state[STATE_HIDDEN] = {name: _to_json(getattr(self, name))
+                               for name in self.hidden_state}
         return state
 
+    @cached_property
+    def state_layout(self) -> str:
+        """Key of the layout of this slave's FMU states: a digest of its variables (name,
+        type, causality) and of the names of its hidden state."""
+        text = "\n".join([f"{type(v).__name__} {v.causality.name} {v.name}"
+                          for v in self.vars.values()]
+                         + [f"hidden {name}" for name in self.hidden_state])
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        """Restore a state, after checking it as a fresh initialisation would: its parameters
-        in range and every number in it finite (a ValueError names the variable)."""
-        state = dict(state)
-        hidden = state.pop("__hidden__")
-        for name, value in state.items():
-            if isinstance(value, float) and not math.isfinite(value):
+        """Restore a state, after checking that it is one of this model and layout with
+        values of the right types, finite numbers, inputs in their ranges and hidden state of
+        this slave's shape, and then as a fresh initialisation would: its parameters in range
+        (a ValueError names the variable). A refused state changes nothing."""
+        variables = {var.name: var for var in self.vars.values()}
+        hidden = self._checked_state(state, variables)
+        saved = dict(self.__dict__)
+        try:
+            self._restore_state(state, hidden, variables)
+        except Exception:
+            self.__dict__.clear()  # the same dict: the setters' closures hold it
+            self.__dict__.update(saved)
+            raise
+
+    def _checked_state(self, state: Any, variables: dict[str, ScalarVariable]
+                       ) -> dict[str, Any]:
+        """The hidden part of a state that may be restored (ValueError naming what is not)."""
+        if self.params is None:
+            raise self._state_problem("the instance is not initialised (set a state after "
+                                      "fmi2ExitInitializationMode)")
+        if not isinstance(state, dict):
+            raise self._state_problem(f"a {type(state).__name__}, not an FMU state")
+        model = type(self).__name__
+        if state.get(STATE_MODEL) != model:
+            raise self._state_problem(f"made by model {state.get(STATE_MODEL)!r}, not {model}")
+        if state.get(STATE_LAYOUT) != self.state_layout:
+            raise self._state_problem(
+                f"layout {state.get(STATE_LAYOUT)!r} is not this {model}'s "
+                f"{self.state_layout} (another version: other variables or hidden state)")
+        expected = {*variables, STATE_MODEL, STATE_LAYOUT, STATE_HIDDEN}
+        missing, extra = sorted(expected - set(state)), sorted(set(state) - expected)
+        if missing or extra:
+            raise self._state_problem(", ".join(
+                [f"{name} is missing" for name in missing]
+                + [f"{name} is not a variable of {model}" for name in extra]))
+        for name, var in variables.items():
+            value, kinds = state[name], STATE_TYPES[type(var)]
+            if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+                raise self._state_problem(f"{name} = {value!r} is not of type {type(var).__name__}")
+            if isinstance(var, Real) and not _finite(value):
                 raise self._state_problem(f"{name} = {value} is not a finite number")
-        for name, value in hidden.items():
-            if not all(math.isfinite(v) for v in _numbers(value)):
+        for name, _, _ in self.real_input_bounds:
+            problem = self._input_problem(name, state[name])
+            if problem is not None:
+                raise self._state_problem(problem)
+        hidden = state[STATE_HIDDEN]
+        if not isinstance(hidden, dict) or set(hidden) != set(self.hidden_state):
+            raise self._state_problem(f"hidden state {hidden!r} does not hold "
+                                      f"{', '.join(self.hidden_state) or 'nothing'}")
+        for name in self.hidden_state:
+            value, like = hidden[name], _to_json(getattr(self, name))
+            if _shape(value) != _shape(like):
+                raise self._state_problem(f"hidden state {name} = {value!r} is not of the "
+                                          f"shape of {like!r} (numbers, booleans, lengths)")
+            if not all(_finite(v) for v in _numbers(value)):
                 raise self._state_problem(f"hidden state {name} = {value} is not finite")
-        names = {var.name: var for var in self.vars.values()}
+        return hidden
+
+    def _restore_state(self, state: dict[str, Any], hidden: dict[str, Any],
+                       variables: dict[str, ScalarVariable]) -> None:
+        """Take a checked state into effect (a ValueError names what a fresh initialisation
+        would refuse)."""
         # a refreshing slave's outputs are computed again from the restored state, below
         skipped = set(self.output_names) if self.refreshes_outputs else set()
-        self.inputs_checked = False  # the inputs are set here without their setters
-        for name, value in state.items():  # direct: the parameter setters refuse after init
-            if name in names and name not in skipped:
-                setattr(self, names[name].local_name, value)
+        for name, var in variables.items():  # direct: the parameter setters refuse after init
+            if name not in skipped:
+                value = state[name]
+                setattr(self, var.local_name, float(value) if isinstance(var, Real) else value)
         try:
             params = self.read_parameters()
             self.validate(params)
@@ -527,6 +592,8 @@ class ModelSlave(Fmi2Slave):
                 self.refresh_outputs()
                 problem = self._non_finite_output()
             except (ArithmeticError, ValueError) as error:
+                if not _domain_failure(error):
+                    raise
                 problem = _arithmetic_problem(error)
             if problem is not None:
                 raise self._state_problem(problem)
@@ -725,6 +792,22 @@ def _type_definitions(units: list[str]) -> Element:
     return node
 
 
+def _refused_setter(name: str, causality: str) -> Callable[[Any], None]:
+    """Setter of a variable FMI 2.0 does not let a host set (an output): refuses."""
+    def refuse(value: Any) -> None:
+        raise ValueError(f"{name} = {value!r} refused: {name} is of causality {causality}, "
+                         "and only inputs, and parameters before initialisation, can be set "
+                         "(FMI 2.0)")
+    return refuse
+
+
+def _domain_failure(error: BaseException) -> bool:
+    """A refusal of the physics (DomainError) or a failed computation (ArithmeticError, the
+    math module's ValueErrors), which refuse a step; anything else is a defect."""
+    return isinstance(error, (ArithmeticError, DomainError)) or (
+        isinstance(error, ValueError) and str(error) in MATH_ERRORS)
+
+
 def _arithmetic_problem(error: ArithmeticError | ValueError) -> str:
     """The message of a failed step: ours as it is, the math module's and Python's
     arithmetic errors translated into what happened."""
@@ -746,13 +829,33 @@ def _tuple_getter(getter: Callable[..., Callable], names: Sequence[str]) -> Call
     return getter(*names)
 
 
-def _numbers(value: Any) -> list[float]:
-    """The floats in a (nested) hidden-state value."""
+def _numbers(value: Any) -> list[float | int]:
+    """The numbers (not booleans) in a (nested) hidden-state value."""
     if isinstance(value, (list, tuple)):
         return [x for v in value for x in _numbers(v)]
     if isinstance(value, dict):
         return [x for v in value.values() for x in _numbers(v)]
-    return [value] if isinstance(value, float) else []
+    return [value] if isinstance(value, (float, int)) and not isinstance(value, bool) else []
+
+
+def _finite(value: float | int) -> bool:
+    """A finite number (an integer too large for a float is not)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+def _shape(value: Any) -> Any:
+    """The structure of a JSON value: lists by their elements' shapes, dicts by key, and a
+    leaf by its kind (float for any number, bool, str, None), for comparing hidden states."""
+    if isinstance(value, (list, tuple)):
+        return [_shape(v) for v in value]
+    if isinstance(value, dict):
+        return {key: _shape(v) for key, v in value.items()}
+    if isinstance(value, bool) or value is None:
+        return type(value)
+    return float if isinstance(value, (float, int)) else type(value)
 
 
 def _to_json(value: Any) -> Any:

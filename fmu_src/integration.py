@@ -16,6 +16,8 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TypeVar
 
+from fmu_src.parameters import DomainError
+
 S = TypeVar("S", bound=tuple)
 
 STEP_RATE_PRODUCT = 0.05
@@ -25,7 +27,7 @@ STEP_RATE_PRODUCT = 0.05
 MAX_SUBSTEPS = 20_000
 
 
-class SubstepBoundError(ValueError):
+class SubstepBoundError(DomainError):
     """The dynamics need more sub-steps over the communication step than MAX_SUBSTEPS."""
 
 

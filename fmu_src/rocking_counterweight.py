@@ -57,7 +57,7 @@ from typing import Any, NamedTuple
 
 from fmu_src import ciupitu, ledger
 from fmu_src.integration import integrate_arm
-from fmu_src.parameters import check_ranges, parameter
+from fmu_src.parameters import DomainError, check_ranges, parameter
 
 HALF_PI = 0.5 * math.pi
 
@@ -122,7 +122,7 @@ def geometry(k: Linkage, phi: float) -> Geometry:
     D = math.hypot(dx, dy)
     cos_a = (AB * AB + D * D - BC * BC) / (2.0 * AB * D)
     if not -1.0 < cos_a < 1.0:
-        raise ValueError(f"the linkage cannot be assembled at phi = {phi} rad")
+        raise DomainError(f"the linkage cannot be assembled at phi = {phi} rad")
     sin_a = math.sqrt(1.0 - cos_a * cos_a) * (1.0 if B_left else -1.0)
     ex, ey = dx / D, dy / D
     ubx, uby = cos_a * ex - sin_a * ey, cos_a * ey + sin_a * ex       # u(beta)

@@ -37,7 +37,7 @@ from functools import cached_property
 from typing import NamedTuple
 
 from fmu_src.integration import STEP_RATE_PRODUCT, integrate, substeps
-from fmu_src.parameters import check_ranges, parameter
+from fmu_src.parameters import DomainError, check_ranges, parameter
 
 DEG = math.pi / 180.0
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields, without a Python call
@@ -218,11 +218,11 @@ def slider_mass(p: Parameters, u: Inputs) -> float:
 
 
 def _free_slider_inertia(p: Parameters, u: Inputs) -> tuple[float, float]:
-    """(slider_mass, slider_damping) of the released slider; ValueError naming m_slider and
+    """(slider_mass, slider_damping) of the released slider; DomainError naming m_slider and
     d_slider when both vanish, since nothing then determines its motion."""
     m_eff, damping = slider_mass(p, u), slider_damping(p, u)
     if m_eff == 0.0 and damping == 0.0:
-        raise ValueError(
+        raise DomainError(
             f"the released slider has neither mass nor damping (m_slider = {p.m_slider} "
             f"kg{' with the pulley locked' if u.pulley_locked else ''}, d_slider = "
             f"{p.d_slider} N.s/m): its motion is undefined; set m_slider > 0 or d_slider > 0")

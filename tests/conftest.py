@@ -103,6 +103,21 @@ def refusal(message: str, function: str) -> str:
     return words
 
 
+def refused_set(fmu: CoSimFMU, values: Mapping[str, float | bool | str],
+                function: str = "fmi2SetReal") -> str:
+    """Set variables that must be refused: fmi2Error (the instance usable), one Error message
+    without a traceback, the values as they were; the slave's words in that message."""
+    logged = len(fmu.messages)
+    before = fmu.get(values)
+    with pytest.raises(FMICallException) as failure:
+        fmu.set(values)
+    assert failure.value.status == FMI_ERROR and not fmu.fatal
+    (message,) = [m.message for m in fmu.messages[logged:] if m.status == "Error"]
+    assert "Traceback" not in message
+    assert fmu.get(values) == before
+    return refusal(message, function)
+
+
 def failed_initialisation(model: str, parameters: Mapping[str, float]) -> str:
     """Initialise with parameters that must be refused (fmi2Error, the instance usable for
     nothing but freeing); the slave's words in the one Error message."""

@@ -13,7 +13,7 @@ from conftest import (
     LEDGER,
     failed_initialisation,
     ledger_residual,
-    refused_step,
+    refused_set,
     warnings,
 )
 from fmpy import read_model_description
@@ -205,19 +205,19 @@ def test_compressed_spring_is_reported_once_per_spell(fmu: CoSimFMU) -> None:
 
 
 @pytest.mark.parametrize(("inputs", "named"), [
-    ({"payload": -1.0}, "payload"), ({"payload": math.nan}, "payload"),
-    ({"F_adjust": math.inf}, "F_adjust"), ({"tau_drive": math.nan}, "tau_drive")])
-def test_bad_input_discards_the_step(fmu: CoSimFMU, inputs: dict[str, float],
-                                     named: str) -> None:
-    """fmi2DoStep returns fmi2Discard with an Error message naming the input; the state is
-    untouched and the instance steps on once the input is fixed."""
+    ({"payload": -1.0}, "input payload = -1.0 kg is outside [0.0, inf]"),
+    ({"payload": math.nan}, "input payload = nan kg is not a finite number in [0.0, inf]"),
+    ({"F_adjust": math.inf}, "input F_adjust = inf N is not a finite number in [-inf, inf]"),
+    ({"tau_drive": math.nan}, "input tau_drive = nan N.m is not a finite number in [-inf, inf]")])
+def test_bad_input_is_refused_when_set(fmu: CoSimFMU, inputs: dict[str, float],
+                                       named: str) -> None:
+    """fmi2SetReal refuses the input with fmi2Error naming it and its range (it used to be
+    accepted and the next step discarded); the previous value stays and the instance steps on
+    with it (1 rad/s carries theta DT further)."""
     start(fmu, {"omega0": 1.0})
     before = fmu.get(["theta", "q"])
-    fmu.set(inputs)
-    assert named in refused_step(fmu)
-    assert fmu.messages[-1].status == "Error" and named in fmu.messages[-1].message
+    assert refused_set(fmu, inputs) == named
     assert fmu.get(["theta", "q"]) == before
-    fmu.set({"payload": 0.0, "F_adjust": 0.0, "tau_drive": 0.0})
     fmu.step(0.0, DT)
     assert fmu.get(["theta"])["theta"] == pytest.approx(before["theta"] + DT, abs=1e-5)
 

@@ -140,6 +140,17 @@ def test_fmu_message_reaches_the_user(tmp_path: Path, capsys: pytest.CaptureFixt
             capsys, "k = -5.0 N/m is outside [0.0, inf)", "SelfRegulatingBalancer")
 
 
+def test_out_of_range_input_is_one_line(tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """payload = -1.4 kg in a phase: the FMU refuses it when the master sets it (fmi2SetReal,
+    fmi2Error), and the user sees that one line, naming the input and its range."""
+    path = scenario_file(tmp_path, "inputs = { payload = 0.0 }", "inputs = { payload = -1.4 }")
+    refused(["cosim", "--scenario", str(path), "--out", str(tmp_path / "out"), "--quiet"],
+            capsys, "SelfRegulatingBalancer: fmi2SetReal failed with status Error",
+            "input payload = -1.4 kg is outside [0.0, inf]")
+    assert not (tmp_path / "out" / "short" / "summary.csv").exists()
+
+
 def test_truncated_fmu_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from harness.fmi import CoSimFMU
 

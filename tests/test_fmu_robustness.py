@@ -4,8 +4,11 @@ after initialisation, a restored state is validated, and every error names its c
 
 from __future__ import annotations
 
+import json
 import math
 import time
+from collections.abc import Callable
+from typing import Any
 
 import pytest
 from conftest import (
@@ -16,11 +19,16 @@ from conftest import (
     failed_initialisation,
     open_fmu,
     refusal,
+    refused_set,
     refused_step,
 )
+from fmpy import read_model_description
+from pythonfmu.enums import Fmi2Status
 
 from fmu_src import self_regulating
 from fmu_src.integration import MAX_SUBSTEPS, SubstepBoundError, substeps
+from fmu_src.parameters import DomainError
+from fmu_src.SelfRegulatingBalancer import SelfRegulatingBalancer
 from harness import fmu_build
 from harness.fmi import CoSimFMU, FMICallException
 
@@ -126,21 +134,21 @@ def test_self_regulating_calculated_parameters_are_finite() -> None:
 
 
 def test_huge_prismatic_force_is_refused_not_infinite() -> None:
-    """f2 = 1e300 N used to return OK with E_springs, E_kin, W_drive, W_worm inf or NaN."""
+    """f2 = 1e300 N used to return OK with E_springs, E_kin, W_drive, W_worm inf or NaN; then
+    it was refused at the next step; now fmi2SetReal refuses it and the outputs stay."""
     with open_fmu(fmu_build.fmu_path(PRISMATIC)) as fmu:
         before = fmu.get(fmu.names("output"))
-        fmu.set({"f2": 1e300})
-        assert "input f2 = 1e+300 N is beyond the magnitude limit" in refused_step(fmu)
+        assert refused_set(fmu, {"f2": 1e300}) == (
+            "input f2 = 1e+300 N is beyond the magnitude limit 1e+50 of these models "
+            "(allowed [-inf, inf])")
         assert fmu.get(fmu.names("output")) == before
 
 
 def test_huge_prismatic_torque_is_refused_and_the_state_survives() -> None:
     """tau1 = 1e300 used to Discard with only 'math domain error' and leave NaN for good."""
     with open_fmu(fmu_build.fmu_path(PRISMATIC)) as fmu:
-        fmu.set({"tau1": 1e300})
-        message = refused_step(fmu)
-        assert "input tau1 = 1e+300 N.m is beyond the magnitude limit" in message
-        fmu.set({"tau1": 0.0})
+        assert "input tau1 = 1e+300 N.m is beyond the magnitude limit" in refused_set(
+            fmu, {"tau1": 1e300})
         fmu.step(0.0, DT)
         assert all(math.isfinite(v) for v in fmu.get(fmu.names("output")).values()
                    if not isinstance(v, bool))
@@ -218,24 +226,234 @@ def test_restored_state_is_validated(original: bytes, replacement: bytes, named:
         fmu.close()
 
 
-def test_bad_input_in_a_restored_state_is_refused_at_the_next_step() -> None:
-    """Inputs are checked when set; a restored state sets them directly, so the step after
-    it checks them again: payload = -1 kg saved in a state, a good payload stepped with in
-    between, the restored state's step is refused naming payload and leaves theta as it was
-    (1 rad/s then carries it DT further)."""
+def test_bad_input_in_a_restored_state_is_refused() -> None:
+    """Inputs are checked when set, and a restored state's inputs the same way: payload =
+    -1 kg written into a serialised state is refused by fmi2SetFMUstate naming payload (it
+    used to be taken and the next step refused), and the instance steps on as before."""
     with open_fmu(fmu_build.fmu_path(SRB), {"omega0": 1.0}) as fmu:
-        fmu.set({"payload": -1.0})
-        state = fmu.slave.getFMUstate()
-        fmu.set({"payload": 0.5})
-        fmu.step(0.0, DT)
-        fmu.slave.setFMUstate(state)
-        fmu.slave.freeFMUstate(state)
+        message = refused_state(fmu, lambda s: {**s, "payload": -1.0})
+        assert message == "FMU state refused: input payload = -1.0 kg is outside [0.0, inf]"
         before = fmu.get(["theta"])
-        assert "input payload = -1.0 kg is outside [0.0, inf]" in refused_step(fmu)
-        assert fmu.get(["theta"]) == before
-        fmu.set({"payload": 0.0})  # the restored state's own payload: no event
         fmu.step(0.0, DT)
         assert fmu.get(["theta"])["theta"] == pytest.approx(before["theta"] + DT, abs=1e-5)
+
+
+def serialized_state(fmu: CoSimFMU) -> tuple[bytes, dict[str, Any]]:
+    """The runtime's header line ("pythonfmu state of FMU <GUID>") of a serialised state of
+    the instance now, and the slave's JSON after it, decoded."""
+    state = fmu.slave.getFMUstate()
+    serialized = bytes(fmu.slave.serializeFMUstate(state))
+    fmu.slave.freeFMUstate(state)
+    header, _, body = serialized.partition(b"\n")
+    assert header == b"pythonfmu state of FMU " + fmu.model_description.guid.encode()
+    return header, json.loads(body)
+
+
+def refused_state(fmu: CoSimFMU, doctor: Callable[[dict[str, Any]], dict[str, Any]],
+                  body: dict[str, Any] | None = None) -> str:
+    """Serialise the instance's state, doctor its JSON (or use body, another FMU's), and set
+    it: fmi2SetFMUstate must return fmi2Error (not Fatal) with one Error message and change
+    no variable; the slave's words in that message."""
+    header, own = serialized_state(fmu)
+    variables = [v.name for v in fmu.model_description.modelVariables
+                 if v.type in ("Real", "Boolean", "String")]  # CoSimFMU reads no Integer
+    before = fmu.get(variables)
+    text = json.dumps(doctor(own if body is None else body)).encode()
+    bad = fmu.slave.deSerializeFMUstate(header + b"\n" + text)
+    logged = len(fmu.messages)
+    try:
+        with pytest.raises(FMICallException) as failure:
+            fmu.slave.setFMUstate(bad)
+    finally:
+        fmu.slave.freeFMUstate(bad)
+    assert failure.value.status == FMI_ERROR
+    (message,) = [m.message for m in fmu.messages[logged:] if m.status == "Error"]
+    assert fmu.get(variables) == before
+    return refusal(message, "fmi2SetFMUstate")
+
+
+def test_state_of_another_model_is_refused() -> None:
+    """A CiupituBalancer state (its JSON behind the PrismaticCompensator's header, so the
+    runtime's GUID check passes) used to be taken: c went from 0.4 to 0.2, m2 from 0.5 to
+    0.75. Now it is refused naming both models, and nothing changes."""
+    with open_fmu(fmu_build.fmu_path(CIUPITU)) as ciupitu:
+        ciupitu.step(0.0, DT)
+        _, body = serialized_state(ciupitu)
+    with open_fmu(fmu_build.fmu_path(PRISMATIC)) as fmu:
+        message = refused_state(fmu, lambda s: s, body)
+        assert message == "FMU state refused: made by model 'CiupituBalancer', not " \
+                          "PrismaticCompensator"
+
+
+def test_state_of_another_layout_is_refused() -> None:
+    """A state of another version of the model (other variables or hidden state) is refused."""
+    with open_fmu(fmu_build.fmu_path(SRB)) as fmu:
+        message = refused_state(fmu, lambda s: {**s, "__layout__": "0123456789abcdef"})
+        assert message.startswith("FMU state refused: layout '0123456789abcdef' is not this "
+                                  "SelfRegulatingBalancer's")
+        assert "another version" in message
+
+
+def hidden(name: str, value: Any) -> Callable[[dict[str, Any]], dict[str, Any]]:
+    """A doctor of a state that sets one of its hidden values (a function of the old one)."""
+    def doctor(state: dict[str, Any]) -> dict[str, Any]:
+        old = state["__hidden__"]
+        return {**state, "__hidden__": {**old, name: value(old[name])}}
+    return doctor
+
+
+@pytest.mark.parametrize(("doctor", "named"), [
+    # one element short: restored, the ledger's last field (E_added) became 0
+    (hidden("state", lambda s: s[:-1]), "hidden state state = "),
+    (hidden("state", lambda s: [*s, 0.0]), "hidden state state = "),
+    (hidden("previous_inputs", lambda u: [*u[:3], "false", u[4]]),
+     "hidden state previous_inputs = "),
+    (hidden("stop_reported", lambda _: "false"), "hidden state stop_reported = 'false'"),
+    (hidden("state", lambda s: ["1.0", *s[1:]]), "hidden state state = ['1.0'"),
+    (hidden("state", lambda s: [*s[:5], 1e400, *s[6:]]), "is not finite"),
+    (lambda s: {**s, "slider_locked": "false"},
+     "slider_locked = 'false' is not of type Boolean"),  # restored as True
+    (lambda s: {**s, "k": "981.0"}, "k = '981.0' is not of type Real"),
+    (lambda s: {**s, "payload": None}, "payload = None is not of type Real"),
+    (lambda s: {**s, "k": True}, "k = True is not of type Real"),
+    (lambda s: {name: v for name, v in s.items() if name != "theta"}, "theta is missing"),
+    (lambda s: {**s, "E_cw2": 0.0}, "E_cw2 is not a variable of SelfRegulatingBalancer"),
+    (lambda s: {**s, "__hidden__": None}, "hidden state None does not hold"),
+], ids=["state-short", "state-long", "bool-as-string-hidden", "flag-as-string",
+        "string-for-number-hidden", "huge-hidden", "bool-as-string", "string-for-number",
+        "null-for-number", "bool-for-number", "missing", "extra", "no-hidden"])
+def test_doctored_state_is_refused(doctor: Callable[[dict[str, Any]], dict[str, Any]],
+                                   named: str) -> None:
+    """Doctored serialised states are refused naming what is wrong, and change nothing; the
+    instance steps on from its own state (1 rad/s carries theta DT further)."""
+    with open_fmu(fmu_build.fmu_path(SRB), {"omega0": 1.0}) as fmu:
+        fmu.step(0.0, DT)
+        message = refused_state(fmu, doctor)
+        assert message.startswith("FMU state refused: ") and named in message, message
+        before = fmu.get(["theta"])["theta"]
+        fmu.step(DT, DT)
+        assert fmu.get(["theta"])["theta"] == pytest.approx(before + DT, abs=1e-5)
+
+
+@pytest.mark.parametrize(("doctor", "named"), [
+    (lambda s: {**s, "variant_number": 99}, "variant_number = 99 is outside [0, "),
+    (lambda s: {**s, "variant_number": -1}, "variant_number = -1 is outside [0, "),
+    (lambda s: {**s, "variant_number": None}, "variant_number = None is not of type Integer"),
+    (lambda s: {**s, "variant_number": 1.5}, "variant_number = 1.5 is not of type Integer"),
+    (lambda s: {**s, "variant": None}, "variant = None is not of type String"),
+    (lambda s: {**s, "variant": "no_such_variant"}, "no variant 'no_such_variant'"),
+], ids=["number-high", "number-negative", "number-null", "number-float", "name-null",
+        "name-unknown"])
+def test_doctored_sequencer_state_is_refused(doctor: Callable[[dict[str, Any]], dict[str, Any]],
+                                             named: str) -> None:
+    """A sequencer state with its variant outside the choices or null is refused, and the
+    sequencer plays on as before (a second one playing the same variant agrees)."""
+    path = fmu_build.fmu_path("ScenarioSequencer")
+    with open_fmu(path) as fmu, \
+            open_fmu(path) as untouched:
+        message = refused_state(fmu, doctor)
+        assert named in message, message
+        for fmu_ in (fmu, untouched):
+            fmu_.step(0.0, 3.0)
+        outputs = fmu.names("output")
+        assert fmu.get(outputs) == untouched.get(outputs)
+
+
+# ---- setting outputs
+
+def output_cases() -> list[tuple[str, str]]:
+    """(model, output) for every output of every FMU."""
+    return [(model, v.name) for model in fmu_build.MODELS
+            for v in read_model_description(str(fmu_build.fmu_path(model))).modelVariables
+            if v.causality == "output"]
+
+
+@pytest.mark.parametrize(("model", "name"), output_cases())
+def test_outputs_cannot_be_set(model: str, name: str) -> None:
+    """fmi2SetReal (fmi2SetBoolean) on an output used to return OK in DcMotorDrive,
+    PositionController and ScenarioSequencer: E_in = 1e6 went on accumulating from 1e6, V = 999
+    read back above V_supply. FMI 2.0 lets a host set only inputs and parameters: fmi2Error
+    naming the output, and the value stays."""
+    with open_fmu(fmu_build.fmu_path(model)) as fmu:
+        kind = fmu.variables[name].type
+        value = {"Real": 999.0, "Boolean": not fmu.get([name])[name]}[kind]
+        message = refused_set(fmu, {name: value}, f"fmi2Set{kind}")
+        assert message.startswith(f"{name} = {value!r} refused: {name} is of causality output")
+
+
+def test_refused_output_set_leaves_the_energy_count() -> None:
+    """DcMotorDrive E_in after a refused E_in = 1e6: the same as an instance never given it."""
+    path = fmu_build.fmu_path("DcMotorDrive")
+    with open_fmu(path, {"V": 6.0}) as fmu, open_fmu(path, {"V": 6.0}) as untouched:
+        refused_set(fmu, {"E_in": 1e6})
+        for fmu_ in (fmu, untouched):
+            fmu_.step(0.0, DT)
+        E_in = fmu.get(["E_in"])["E_in"]
+        assert E_in == untouched.get(["E_in"])["E_in"] and 0.0 < E_in < 1.0
+
+
+# ---- only the physics' own refusals become fmi2Discard
+
+def python_instance() -> SelfRegulatingBalancer:
+    """A SelfRegulatingBalancer slave in this process (no FMU), initialised at omega0 = 1."""
+    slave = SelfRegulatingBalancer(instance_name="python")
+    slave.omega0 = 1.0
+    slave.setup_experiment(0.0, None, None)
+    slave.exit_initialization_mode()
+    return slave
+
+
+@pytest.mark.parametrize("defect", [
+    TypeError("unsupported operand"), KeyError("theta"),
+    ValueError("tuple.index(x): x not in tuple"),  # a ValueError, not a physics refusal
+], ids=["TypeError", "KeyError", "ValueError"])
+def test_a_defect_in_a_step_is_not_a_discard(monkeypatch: pytest.MonkeyPatch,
+                                              defect: Exception) -> None:
+    """do_step used to turn every ValueError, programming errors included, into fmi2Discard
+    (False). Now only the physics' refusals (DomainError) and failed arithmetic do: any other
+    exception propagates (the runtime returns fmi2Error naming its type), the state kept."""
+    slave = python_instance()
+    before = slave.state
+
+    def broken(dt: float) -> None:
+        slave.state = slave.state._replace(theta=0.0)  # half done
+        raise defect
+
+    monkeypatch.setattr(slave, "step", broken)
+    with pytest.raises(type(defect)):
+        slave.do_step(0.0, DT)
+    assert slave.state == before
+
+
+@pytest.mark.parametrize("refusal_", [
+    DomainError("the released slider has neither mass nor damping"),
+    ValueError("math domain error"), ZeroDivisionError("float division by zero"),
+], ids=["DomainError", "math-domain", "ZeroDivisionError"])
+def test_a_physics_refusal_is_a_discard(monkeypatch: pytest.MonkeyPatch,
+                                         refusal_: Exception) -> None:
+    """The physics' own refusals and failed arithmetic refuse the step (False: fmi2Discard),
+    logging one Error message, with the state as it was."""
+    slave = python_instance()
+    before = slave.state
+
+    def refused(dt: float) -> None:
+        slave.state = slave.state._replace(theta=0.0)
+        raise refusal_
+
+    monkeypatch.setattr(slave, "step", refused)
+    assert slave.do_step(0.0, DT) is False
+    assert slave.state == before
+    (logged,) = [m for m in slave.log_queue if m.status == Fmi2Status.error]
+    assert "refused, state unchanged" in logged.msg
+
+
+def test_substep_bound_and_slider_refusals_are_domain_errors() -> None:
+    """The refusals of the physics modules are DomainErrors (so they stay fmi2Discard)."""
+    assert issubclass(SubstepBoundError, DomainError)
+    p = self_regulating.Parameters(m_slider=0.0, d_slider=0.0)
+    u = self_regulating.Inputs(slider_locked=False)
+    with pytest.raises(DomainError, match="m_slider"):
+        self_regulating.advance(p, u, self_regulating.initial_state(p), DT)
 
 
 # ---- section 9: per-instance growth that is ours

@@ -19,8 +19,8 @@ from harness.fmi import FMUCallError
 
 def test_a_refused_step_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
     """From step 5 on the reference is NaN, so the drive hands the mechanism a NaN effort,
-    which SelfRegulatingBalancer refuses at fmi2DoStep (fmi2Discard, worse than
-    fmi2Warning)."""
+    which SelfRegulatingBalancer refuses when it is set (fmi2SetReal returns fmi2Error; it
+    used to be refused at the next fmi2DoStep): one line naming tau_drive and its range."""
     reference = scenarios.Scenario.reference
 
     def failing(self: scenarios.Scenario, times: np.ndarray, joint: int | str = 0) -> np.ndarray:
@@ -34,8 +34,9 @@ def test_a_refused_step_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(master, "assemble", lambda *args: assembled.append(args))
     with pytest.raises(FMUCallError) as failure:
         master.run(scenario, scenario.variant("self_regulating"))
-    assert failure.value.function == "fmi2DoStep" and failure.value.status > 1
-    assert "tau_drive" in str(failure.value) and "nan" in str(failure.value).lower()
+    assert failure.value.function == "fmi2SetReal" and failure.value.status == 3  # fmi2Error
+    assert "input tau_drive = nan N.m is not a finite number in [-inf, inf]" in str(
+        failure.value) and "\n" not in str(failure.value)
     assert not assembled  # nothing made of a failed run
 
 

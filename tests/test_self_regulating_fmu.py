@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import failed_initialisation, open_fmu, refused_step, run, warnings
+from conftest import failed_initialisation, open_fmu, refused_set, refused_step, run, warnings
 from fmpy import read_model_description
 
 from harness import cli, registry
@@ -342,29 +342,62 @@ def test_bad_parameter_fails_initialisation(srb_fmu: Path, parameters: dict[str,
     assert f"{name} = " in error and allowed in error
 
 
-@pytest.mark.parametrize(("inputs", "step_size", "named"), [
-    ({"tau_drive": math.nan}, DT, "tau_drive"),
-    ({"payload": math.nan}, DT, "payload"),
-    ({"counterweight_added": math.inf}, DT, "counterweight_added"),
-    ({"payload": -1.0}, DT, "payload"),
-    ({}, 0.0, "step size"),
-    ({}, -DT, "step size"),
-    ({}, math.nan, "step size"),
-], ids=["tau_drive=nan", "payload=nan", "counterweight_added=inf", "payload<0", "dt=0", "dt<0",
-        "dt=nan"])
-def test_bad_input_or_step_size_discards_the_step(srb_fmu: Path, inputs: dict[str, float],
-                                                  step_size: float, named: str) -> None:
-    """fmi2DoStep returns fmi2Discard with an Error message naming the variable; the state is
-    untouched and the instance steps on once the input is fixed."""
+@pytest.mark.parametrize(("step_size", "named"), [
+    (0.0, "step size"), (-DT, "step size"), (math.nan, "step size"),
+], ids=["dt=0", "dt<0", "dt=nan"])
+def test_bad_step_size_discards_the_step(srb_fmu: Path, step_size: float, named: str) -> None:
+    """fmi2DoStep returns fmi2Discard with an Error message naming the step size; the state is
+    untouched and the instance steps on with a good one."""
     with open_fmu(srb_fmu, {"omega0": 1.0}) as fmu:
         before = fmu.get(["theta", "omega"])
-        fmu.set(inputs)
         assert named in refused_step(fmu, 0.0, step_size)
-        assert fmu.messages[-1].status == "Error" and named in fmu.messages[-1].message
         assert fmu.get(["theta", "omega"]) == before
-        fmu.set({"tau_drive": 0.0, "payload": 0.0, "counterweight_added": 0.0})
         fmu.step(0.0, DT)
         assert fmu.get(["theta"])["theta"] == pytest.approx(before["theta"] + DT, abs=1e-5)
+
+
+@pytest.mark.parametrize(("inputs", "named"), [
+    ({"tau_drive": math.nan}, "input tau_drive = nan N.m is not a finite number in [-inf, inf]"),
+    ({"payload": math.nan}, "input payload = nan kg is not a finite number in [0.0, inf]"),
+    ({"payload": math.inf}, "input payload = inf kg is not a finite number in [0.0, inf]"),
+    ({"payload": 1.8e308}, "input payload = inf kg is not a finite number in [0.0, inf]"),
+    ({"counterweight_added": -math.inf},
+     "input counterweight_added = -inf kg is not a finite number in [-inf, inf]"),
+    ({"payload": -1.4}, "input payload = -1.4 kg is outside [0.0, inf]"),
+    ({"payload": 1e300}, "input payload = 1e+300 kg is beyond the magnitude limit"),
+], ids=["tau_drive=nan", "payload=nan", "payload=inf", "payload=1.8e308",
+        "counterweight_added=-inf", "payload=-1.4", "payload=1e300"])
+def test_bad_input_is_refused_when_set(srb_fmu: Path, inputs: dict[str, float],
+                                       named: str) -> None:
+    """fmi2SetReal used to accept these (NaN or inf in tau_gravity, E_p, E_kin at the next get;
+    payload = -1.4 then killed the instance with fmi2Fatal at the get). Now it refuses them
+    with fmi2Error naming the input and its range, the previous value stays (payload 0.3), the
+    outputs read as before, and a step runs on with the previous value: the same state as an
+    instance never given the bad value."""
+    with open_fmu(srb_fmu, {"omega0": 1.0, "payload": 0.3}) as fmu, \
+            open_fmu(srb_fmu, {"omega0": 1.0, "payload": 0.3}) as untouched:
+        outputs = fmu.names("output")
+        before = fmu.get(outputs)
+        assert refused_set(fmu, inputs).startswith(named)
+        assert fmu.get(outputs) == before and fmu.get(["payload"]) == {"payload": 0.3}
+        fmu.step(0.0, DT)
+        untouched.step(0.0, DT)
+        assert fmu.get(outputs) == untouched.get(outputs)
+
+
+def test_bad_initial_input_fails_at_set(srb_fmu: Path) -> None:
+    """An input start value set before initialisation is checked the same way: refused when
+    set, and initialisation then uses the previous (default) value."""
+    fmu = CoSimFMU(srb_fmu)
+    try:
+        fmu.slave.setupExperiment(startTime=0.0)
+        fmu.slave.enterInitializationMode()
+        assert refused_set(fmu, {"payload": -1.0}) == (
+            "input payload = -1.0 kg is outside [0.0, inf]")
+        fmu.slave.exitInitializationMode()
+        assert fmu.get(["payload"]) == {"payload": 0.0}
+    finally:
+        fmu.close()
 
 
 # ---- model description and state

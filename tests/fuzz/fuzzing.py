@@ -67,7 +67,13 @@ def run_case(case: Mapping[str, Any]) -> dict[str, Any]:
     try:
         report["init"] = timed(fmu.initialize, {**case["parameters"], **case["inputs"]})
         t = 0.0
+        report["sets"] = []
         if report["init"] == "ok":
+            for name, value in case.get("later_inputs", {}).items():
+                before = fmu.get([name])[name]
+                status = timed(fmu.set, {name: value})
+                report["sets"].append({"name": name, "value": value, "status": status,
+                                       "before": before, "after": fmu.get([name])[name]})
             for h in case["steps"]:
                 before = fmu.get(reals)
                 status = timed(fmu.step, t, h)

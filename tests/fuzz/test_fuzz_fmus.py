@@ -6,6 +6,8 @@ Properties, for every case:
   crash fails the case instead of the session);
 - initialisation either succeeds with finite calculated parameters and outputs, or is
   refused with an Error message naming a parameter;
+- an input set after initialisation is either taken (a finite value within the input's
+  range and magnitudes, read back as set) or refused with fmi2Error and keeps its value;
 - a step either succeeds with finite outputs, or is refused with Discard, an Error message
   naming the variable or cause, and the outputs unchanged.
 """
@@ -22,6 +24,7 @@ from fuzzing import CALL_LIMIT, FmuRunner, hostile_floats, step_sizes
 from hypothesis import given
 from hypothesis import strategies as st
 
+from fmu_src.parameters import MAGNITUDE_LIMIT
 from harness import fmu_build
 
 # every FMU with numeric parameters (the sequencer's are its scenario and variant names)
@@ -42,6 +45,17 @@ def interface(model: str) -> dict[str, dict[str, str]]:
 INTERFACES = {model: interface(model) for model in MODELS}
 
 
+def input_ranges(model: str) -> dict[str, tuple[float, float]]:
+    """(min, max) of each Real input of a built model, from its model description."""
+    description = read_model_description(str(fmu_build.fmu_path(model)))
+    return {v.name: (-math.inf if v.min is None else float(v.min),
+                     math.inf if v.max is None else float(v.max))
+            for v in description.modelVariables if v.causality == "input" and v.type == "Real"}
+
+
+INPUT_RANGES = {model: input_ranges(model) for model in MODELS}
+
+
 def values_for(variables: dict[str, str]) -> st.SearchStrategy[dict[str, Any]]:
     """A few of the variables set to hostile values (booleans for Boolean ones)."""
     if not variables:
@@ -57,6 +71,7 @@ def cases(draw: st.DrawFn, model: str) -> dict[str, Any]:
     return {"model": model,
             "parameters": draw(values_for(variables.get("parameter", {}))),
             "inputs": draw(values_for(variables.get("input", {}))),
+            "later_inputs": draw(values_for(variables.get("input", {}))),
             "steps": draw(st.lists(step_sizes, min_size=1, max_size=3))}
 
 
@@ -72,6 +87,16 @@ def runner() -> Iterator[FmuRunner]:
 def names_a_cause(message: str, model: str) -> bool:
     names = [n for variables in INTERFACES[model].values() for n in variables]
     return any(name in message for name in names) or any(c in message for c in CAUSES)
+
+
+def acceptable(model: str, name: str, value: float | bool) -> bool:
+    """An input value the FMU must take: a Boolean, or a finite number within the input's
+    declared min/max and the magnitudes of fmu_src.parameters (0, or 1e-50 to 1e50)."""
+    if isinstance(value, bool):
+        return True
+    low, high = INPUT_RANGES[model][name]
+    return (math.isfinite(value) and low <= value <= high
+            and (value == 0.0 or 1.0 / MAGNITUDE_LIMIT <= abs(value) <= MAGNITUDE_LIMIT))
 
 
 def same(a: dict[str, float], b: dict[str, float]) -> bool:
@@ -90,6 +115,15 @@ def check(case: dict[str, Any], report: dict[str, Any]) -> None:
         assert any(name in errors[0] for name in {**case["parameters"], **case["inputs"]}), (
             case, errors)
         return
+    for set_ in report["sets"]:
+        value = set_["value"]
+        if set_["status"] == "ok":
+            assert set_["after"] == value and acceptable(case["model"], set_["name"], value), (
+                case, set_)
+        else:
+            assert set_["status"] == "status 3", (case, set_)  # fmi2Error
+            assert same({"v": set_["after"]}, {"v": set_["before"]}), (case, set_)
+            assert not acceptable(case["model"], set_["name"], value), (case, set_)
     for step in report["steps"]:
         if step["status"] == "ok":
             assert all(math.isfinite(v) for v in step["after"].values()), (case, step)
