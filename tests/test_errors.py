@@ -19,6 +19,7 @@ import pytest
 import fmu_src
 import harness
 from fmu_src.integration import SubstepBoundError
+from fmu_src.parameters import DomainError
 from harness.errors import UserError
 from harness.fmi import CoSimFMU, FMICallException, FMUCallError, LogMessage
 from harness.sweep.definition import PathError, RefusedValueError
@@ -37,6 +38,7 @@ EXAMPLES = {  # one instance of every error type defined in harness/ and fmu_src
     PathError: PathError("parameters.x names nothing"),
     RefusedValueError: RefusedValueError("k = -5 is outside [0, inf)"),
     SubstepBoundError: SubstepBoundError("more than 20,000 sub-steps"),
+    DomainError: DomainError("the linkage cannot be assembled"),
     FMUCallError: fmu_call_error(),
 }
 
