@@ -38,7 +38,7 @@
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
-#include <fcntl.h>
+#include <errno.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -46,9 +46,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-#include <sys/file.h>
+#include <stddef.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/types.h>
+#include <sys/un.h>
+#include <time.h>
 #include <unistd.h>
 #include "fmi2Functions.h"
 
@@ -412,16 +415,33 @@ static int start_python_now(Message *why) {
     return 1;
 }
 
-/* start_python_now, one FMU at a time: every FMU has its own copy of this runtime, and two
- * host threads may instantiate two FMUs at once. Their common ground is the libpython file,
- * locked with flock (two open descriptions of one file exclude each other, in one process
- * too). */
+/* A lock held by one thread of this process at a time, whichever copy of this runtime takes
+ * it: an abstract Unix socket named after the process id, which only one socket can be bound
+ * to. (Each FMU has its own copy of the runtime, so no static of it is common ground; a file
+ * lock would be common to every process on the machine.) -1 if there is none to be had. */
+static int lock_process(void) {
+    struct sockaddr_un address;
+    memset(&address, 0, sizeof address);
+    address.sun_family = AF_UNIX;  /* sun_path[0] = '\0': the abstract namespace */
+    int n = snprintf(address.sun_path + 1, sizeof address.sun_path - 1,
+                     "gravity-balancer-fmu-python-start-%ld", (long)getpid());
+    socklen_t length = (socklen_t)(offsetof(struct sockaddr_un, sun_path) + 1 + (size_t)n);
+    const struct timespec pause = {0, 1000000};  /* 1 ms */
+    for (;;) {
+        int lock = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+        if (lock < 0) return -1;
+        if (bind(lock, (struct sockaddr *)&address, length) == 0) return lock;
+        int error = errno;
+        close(lock);
+        if (error != EADDRINUSE) return -1;
+        nanosleep(&pause, NULL);  /* another FMU of this process is starting Python */
+    }
+}
+
+/* start_python_now, one FMU at a time: two host threads may instantiate two FMUs at once. */
 static int start_python(Message *why) {
-    Dl_info info;
-    int lock = -1;
-    if (dladdr(*(void **)&py.Py_IsInitialized, &info) && info.dli_fname)
-        lock = open(info.dli_fname, O_RDONLY | O_CLOEXEC);
-    if (lock >= 0) flock(lock, LOCK_EX);
+    if (py.Py_IsInitialized()) return 1;
+    int lock = lock_process();
     int started = start_python_now(why);
     if (lock >= 0) close(lock);  /* and the lock with it */
     return started;
