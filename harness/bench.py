@@ -37,6 +37,15 @@ reference (harness.reference): the relative error of each drive energy, which mu
 with the step.
 
 `sweep`: runs per second of a parameter sweep with 1 and 2 Dask worker processes.
+
+`cli_help`: wall time of `python -m harness --help` in a fresh interpreter, best of repeats.
+
+Checks (CHECKS): after the tables, the figures that must hold on any machine, each with its
+bound and whether it holds, printed and written to checks.csv (the rows of benchmarks not run
+this time re-evaluated from their CSVs in the folder): every mechanism's step dearer than the
+stock floor's (its physics on top of the same FMI calls), a run's FMU calls alone cheaper than
+its whole closed-loop step, and the top-level help under a second. `bench` exits 1 when a
+check of the benchmarks it ran fails, after writing every table.
 """
 
 from __future__ import annotations
@@ -48,7 +57,7 @@ import sys
 import tempfile
 import time
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -95,10 +104,12 @@ def mechanism_loop(model: str, joints: tuple[Port, ...]) -> StepLoop:
 MECHANISM_LOOPS = {model: mechanism_loop(model, r.joints())
                    for model, r in registry.mechanisms().items()}
 FLOOR = "BenchFloor"
+FLOOR_RUNTIME = "BenchFloorRuntime"
+FLOOR_MODELS = (FLOOR, FLOOR_RUNTIME)
 STEP_LOOPS = {
     FLOOR: StepLoop(lambda: fmu_build.fmu_path(FLOOR, FLOOR_BUILD_DIR / "stock",
                                                FLOOR_SOURCE_DIR, runtime=False), "u", ("y",)),
-    "BenchFloorRuntime": StepLoop(
+    FLOOR_RUNTIME: StepLoop(
         lambda: fmu_build.fmu_path(FLOOR, FLOOR_BUILD_DIR, FLOOR_SOURCE_DIR), "u", ("y",)),
     **MECHANISM_LOOPS,
 }
@@ -381,6 +392,94 @@ def sweep_benchmark(runs: int = 12, workers: Sequence[int] = (1, 2)) -> pd.DataF
     return table
 
 
+HELP_COMMAND = ("-m", "harness", "--help")
+HELP_SECONDS_BOUND = 1.0  # wall time of the top-level help [s]
+CHECKOUT = Path(__file__).resolve().parent.parent  # where `-m harness` finds this harness
+
+
+def cli_help(steps: int = 0, repeats: int = 3) -> pd.DataFrame:
+    """Wall time [s] of `python -m harness --help` in a fresh interpreter (start-up and the
+    CLI's imports), best and worst of repeats."""
+    seconds = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, *HELP_COMMAND], cwd=CHECKOUT, capture_output=True,
+                       check=True)
+        seconds.append(time.perf_counter() - start)
+    return pd.DataFrame({"command": ["python " + " ".join(HELP_COMMAND)], "repeats": repeats,
+                         "best_s": min(seconds), "worst_s": max(seconds)})
+
+
+@dataclass(frozen=True)
+class Check:
+    """A benchmark figure that must lie on one side of a bound (a NaN figure fails)."""
+
+    benchmark: str
+    figure: str
+    value: float
+    relation: str  # "<" or ">": value relation bound must hold
+    bound: float
+    unit: str
+
+    @property
+    def passed(self) -> bool:
+        return self.value < self.bound if self.relation == "<" else self.value > self.bound
+
+
+def fmu_step_checks(table: pd.DataFrame) -> Iterator[Check]:
+    """Every mechanism's step costs more than the stock floor's: ratio_to_floor > 1."""
+    for row in table[~table.model.isin(FLOOR_MODELS)].itertuples():
+        yield Check("fmu_step", f"{row.model} ratio_to_floor", row.ratio_to_floor, ">", 1.0, "")
+
+
+def master_share_checks(table: pd.DataFrame) -> Iterator[Check]:
+    """Per variant, its FMU calls alone cost less than its whole closed-loop step [us]."""
+    for row in table.itertuples():
+        yield Check("master_share", f"{row.scenario}.{row.variant} fmu_calls_us_per_step",
+                    row.fmu_calls_us_per_step, "<", row.us_per_step, "us")
+
+
+def cli_help_checks(table: pd.DataFrame) -> Iterator[Check]:
+    """The top-level help, best of repeats, takes under HELP_SECONDS_BOUND."""
+    for row in table.itertuples():
+        yield Check("cli_help", f"{row.command} best_s", row.best_s, "<", HELP_SECONDS_BOUND,
+                    "s")
+
+
+CHECKS: dict[str, Callable[[pd.DataFrame], Iterator[Check]]] = {
+    "fmu_step": fmu_step_checks,
+    "master_share": master_share_checks,
+    "cli_help": cli_help_checks,
+}
+
+
+def checks(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
+    """The checks of the given benchmark tables (name -> table), in CHECKS' order: benchmark,
+    figure, value, relation, bound, unit, passed."""
+    rows = [{**vars(check), "passed": check.passed}
+            for name, check_table in CHECKS.items() if name in tables
+            for check in check_table(tables[name])]
+    return pd.DataFrame(rows, columns=["benchmark", "figure", "value", "relation", "bound",
+                                       "unit", "passed"])
+
+
+def earlier_tables(folder: Path, skip: Sequence[str]) -> dict[str, pd.DataFrame]:
+    """The checked benchmarks' tables already in folder, but those in skip; UserError naming
+    a file that is not such a table."""
+    tables = {}
+    for name in CHECKS:
+        path = folder / f"{name}.csv"
+        if name in skip or not path.is_file():
+            continue
+        try:
+            tables[name] = pd.read_csv(path)
+            checks({name: tables[name]})
+        except (OSError, UnicodeDecodeError, ValueError, AttributeError, KeyError) as error:
+            raise UserError(f"{path}: not a {name} table ({error}); rerun --only {name} or "
+                            "remove it") from None
+    return tables
+
+
 BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "fmu_step": fmu_step,
     "native_step": native_step,
@@ -392,6 +491,8 @@ BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "convergence": lambda steps, repeats: convergence(),
     # runs/s of a parameter sweep with 1 and 2 worker processes; steps and repeats do not apply
     "sweep": lambda steps, repeats: sweep_benchmark(),
+    # steps do not apply
+    "cli_help": cli_help,
 }
 
 
@@ -414,8 +515,19 @@ def run(args: argparse.Namespace) -> int:
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
         raise UserError(f"--only: unknown benchmark(s) {unknown}; choose from {list(BENCHMARKS)}")
+    tables = {}
     for name in names:
-        table = BENCHMARKS[name](steps=args.steps, repeats=args.repeats)
-        print(write_csv(table, args.out / f"{name}.csv"))
-        print(table.to_string(index=False))
-    return 0
+        tables[name] = BENCHMARKS[name](steps=args.steps, repeats=args.repeats)
+        print(write_csv(tables[name], args.out / f"{name}.csv"))
+        print(tables[name].to_string(index=False))
+    checked = checks(tables)
+    if checked.empty:
+        return 0
+    earlier = earlier_tables(args.out, names)
+    print(write_csv(checks({**earlier, **tables}), args.out / "checks.csv"))
+    print(checked.to_string(index=False))
+    for check in checked[~checked.passed].itertuples():
+        figure = f"{check.figure} = {check.value:.4g} {check.unit}".rstrip()
+        print(f"bench check failed: {check.benchmark}: {figure}, must be {check.relation} "
+              f"{check.bound:.4g}", file=sys.stderr)
+    return 0 if checked.passed.all() else 1

@@ -1,11 +1,11 @@
-"""The command line: `--help` is cheap and every option says what it does and its default."""
+"""The command line: `--help` imports no command (its time is `make bench`'s cli_help) and every
+option says what it does and its default."""
 
 from __future__ import annotations
 
 import argparse
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -26,12 +26,6 @@ def test_top_level_help_imports_no_command():
     assert out.strip().splitlines()[-1] == "[]"
     for name in cli.COMMANDS:
         assert name in out
-
-
-def test_top_level_help_under_one_second():
-    start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "harness", "--help"], capture_output=True, check=True)
-    assert time.perf_counter() - start < 1.0
 
 
 def options(name: str) -> list[argparse.Action]:

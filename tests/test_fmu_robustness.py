@@ -12,7 +12,6 @@ from typing import Any
 
 import pytest
 from conftest import (
-    FMI_DISCARD,
     FMI_ERROR,
     STEP_TIME_LIMIT,
     errors,
@@ -26,7 +25,12 @@ from fmpy import read_model_description
 from pythonfmu.enums import Fmi2Status
 
 from fmu_src import self_regulating
-from fmu_src.integration import MAX_SUBSTEPS, SubstepBoundError, substeps
+from fmu_src.integration import (
+    MAX_SUBSTEPS,
+    STEP_RATE_PRODUCT,
+    SubstepBoundError,
+    substeps,
+)
 from fmu_src.parameters import DomainError
 from fmu_src.SelfRegulatingBalancer import SelfRegulatingBalancer
 from harness import fmu_build
@@ -97,15 +101,29 @@ def test_stiff_self_regulating_balancer_refuses_steps(parameters: dict[str, floa
         assert fmu.get(fmu.names("output")) == before
 
 
-def test_fast_initial_speed_costs_at_most_the_bound() -> None:
-    """omega0 = 1e6 rad/s: the step is either taken within the bound or refused; never a hang."""
-    with open_fmu(fmu_build.fmu_path(SRB), {"omega0": 1e6}) as fmu:
+def test_fast_initial_speed_at_the_bound_is_taken_and_past_it_refused() -> None:
+    """omega0 = 1e6 rad/s at 1 ms needs exactly the bound of sub-steps (dt omega /
+    STEP_RATE_PRODUCT = MAX_SUBSTEPS, integration.substeps): the step is taken within the time
+    limit with finite outputs, the link spinning down by its viscous friction alone (omega =
+    omega0 exp(-d_link dt / J_link); gravity's moment changes it by ~1e-8 of that), and 0.01 %
+    faster the step is refused with Discard and the state unchanged; never a hang."""
+    omega0 = STEP_RATE_PRODUCT * MAX_SUBSTEPS / DT
+    assert omega0 == 1e6
+    p = self_regulating.Parameters()
+    decay = math.exp(-p.d_link * DT / (p.J_link + p.J_drive))
+    with open_fmu(fmu_build.fmu_path(SRB), {"omega0": omega0}) as fmu:
         start = time.perf_counter()
-        try:
-            fmu.step(0.0, DT)
-        except FMICallException as failure:
-            assert failure.value.status == FMI_DISCARD
+        fmu.step(0.0, DT)
         assert time.perf_counter() - start < STEP_TIME_LIMIT
+        out = fmu.get(fmu.names("output"))
+    assert all(math.isfinite(value) for value in out.values()), out
+    assert out["omega"] == pytest.approx(omega0 * decay, rel=1e-6)
+    assert out["theta"] == pytest.approx(
+        p.theta0 + omega0 * (1.0 - decay) * (p.J_link + p.J_drive) / p.d_link, rel=1e-6)
+    with open_fmu(fmu_build.fmu_path(SRB), {"omega0": 1.0001 * omega0}) as fmu:
+        before = fmu.get(fmu.names("output"))
+        assert "sub-steps" in refused_step(fmu)
+        assert fmu.get(fmu.names("output")) == before
 
 
 # ---- section 6: no raw Python error, outputs finite or the step refused
@@ -128,9 +146,17 @@ def test_extreme_parameters_are_refused_by_name(model: str, parameters: dict[str
 
 
 def test_self_regulating_calculated_parameters_are_finite() -> None:
-    """g = 0 used to give payload_max = inf: g must be positive now, and the defaults finite."""
-    with open_fmu(fmu_build.fmu_path(SRB)) as fmu:
-        assert all(math.isfinite(v) for v in fmu.get(["M0", "payload_max"]).values())
+    """g = 0 used to give payload_max = inf (eq. 16 divides by g): g = 0 and g < 0 are refused
+    at initialisation naming g and its range (0, inf), and the defaults and the smallest g
+    accepted far from the 1e-50 floor (1e-30 m/s2, M0 and payload_max ~1e31 kg) give finite
+    calculated parameters."""
+    for g in (0.0, -9.81):
+        assert failed_initialisation(SRB, {"g": g}) == (
+            f"invalid parameter: g = {g} m/s2 is outside (0.0, inf)")
+    for parameters in ({}, {"g": 1e-30}):
+        with open_fmu(fmu_build.fmu_path(SRB), parameters) as fmu:
+            values = fmu.get(["M0", "payload_max"])
+        assert all(math.isfinite(v) and v > 0.0 for v in values.values()), (parameters, values)
 
 
 def test_huge_prismatic_force_is_refused_not_infinite() -> None:

@@ -72,11 +72,11 @@ def test_the_fused_drive_step_is_the_pid_and_the_motor_to_the_last_bit() -> None
 
 def test_the_master_share_replays_each_run_to_the_bit() -> None:
     """`bench.master_share` on demian2022's variants: the replay of each run's efforts ends
-    where the run ended (it raises otherwise), its FMU calls cost less than the whole
-    closed-loop step, and the master's share is the difference."""
+    where the run ended (it raises otherwise), and the master's share is the difference of
+    the closed-loop step's cost and its FMU calls'. That the FMU calls cost less than the whole
+    step is a timing figure: `make bench` checks it (bench.master_share_checks)."""
     table = bench.master_share(repeats=1, scenario_name="demian2022")
     assert list(table.variant) == list(scenarios.load("demian2022").variants)
     assert (table.fmu_calls_us_per_step > 0.0).all()
-    assert (table.fmu_calls_us_per_step < table.us_per_step).all()
     np.testing.assert_allclose(table.master_us_per_step,
                                table.us_per_step - table.fmu_calls_us_per_step, rtol=1e-9)

@@ -10,6 +10,7 @@ summary metric and 0.2 deg on theta.
 from __future__ import annotations
 
 import functools
+import re
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -268,6 +269,55 @@ def test_ssd_carries_what_omsimulator_reads(described: system.System, tmp_path: 
             kind = value.tag.split("}")[1]
             assert kind in ("Real", "Integer", "Boolean")
             assert kind == variables[parameter.get("name")].type, parameter.get("name")
+
+
+# what OMSimulator's Model::importFromSnapshot accepts as children of the SSD's root
+OMS_SSD_ROOT_CHILDREN = {"ssd:System", "ssd:Units", "ssd:Enumerations", "ssd:DefaultExperiment"}
+# Flags.h's re_double, the number syntax OMSimulator's --stopTime takes
+OMS_DOUBLE = r"((\+|-)?[0-9]+)(\.(([0-9]+)?))?((e|E)((\+|-)?)[0-9]+)?"
+
+
+def test_ssd_carries_the_stop_time_omsimulator_reads(described: system.System,
+                                                     tmp_path: Path) -> None:
+    """OMSimulator (OpenModelica/OMSimulator at 2940ef11; the same lines in v3.0.0) takes an
+    SSP's stop time from the SSD root's `ssd:DefaultExperiment` alone,
+    src/OMSimulatorLib/Model.cpp:916-919 (Model::importFromSnapshot):
+
+        else if (name == oms::ssp::Draft20180219::ssd::default_experiment)
+        {
+          startTime = it->attribute("startTime").as_double(0.0);
+          stopTime = it->attribute("stopTime").as_double(1.0);
+
+    (1 s when the attribute is missing or not a number), and refuses any other child of the
+    root than ssd:System, ssd:Units and ssd:Enumerations ("wrong xml schema detected", :959).
+    So the API (importFile, then instantiate, initialize, simulate) runs the whole task. The
+    command line does not: src/OMSimulatorLib/OMSimulator.cpp:1214-1222 (oms_RunFile) sets
+    the flag's value over the SSD's after importing, whether or not the flag was given,
+
+        else if (type == ".ssp")
+        {
+          char* cref;
+          oms_importFile(filename, &cref);
+          ...
+          oms_setStopTime(cref, oms::Flags::StopTime());
+
+    and Flags.h:160 defaults it to "1", so `OMSimulator x.ssp` stops at 1 s whatever any SSP
+    says; the README gives the command with `--stopTime` and the task's duration."""
+    ssp = system.write_ssp(described, tmp_path / "x.ssp")
+    with zipfile.ZipFile(ssp) as archive:
+        root = ET.fromstring(archive.read("SystemStructure.ssd"))
+    prefixes = {f"{{{uri}}}": f"{prefix}:" for prefix, uri in system.NS.items()}
+    children = [prefixes[child.tag.split("}")[0] + "}"] + child.tag.split("}")[1]
+                for child in root]
+    assert set(children) <= OMS_SSD_ROOT_CHILDREN, children
+    (experiment,) = root.findall("ssd:DefaultExperiment", system.NS)
+    for name, value in (("startTime", 0.0), ("stopTime", SCENARIO.duration)):
+        literal = experiment.get(name)
+        assert re.fullmatch(OMS_DOUBLE, literal) and float(literal) == value, (name, literal)
+    readme = " ".join((Path(__file__).parents[1] / "README.md").read_text().split())
+    duration = f"{SCENARIO.duration:g}"
+    assert f"OMSimulator --stopTime {duration} build/system/franchetti2021/unbalanced.ssp" in (
+        readme)
 
 
 def test_sequencer_variant_number_selects_the_variant_by_position() -> None:
