@@ -494,3 +494,19 @@ def test_cosim_runs_with_a_temporary_folder_whose_name_needs_percent_encoding(
         timeout=300)
     assert done.returncode == 0, done.stderr
     assert (out / "franchetti2021" / "summary.csv").is_file()
+
+
+def test_another_process_holding_the_libpython_file_does_not_block_the_start(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    """Starting Python is serialised within one process only: a lock on the libpython file
+    (as the runtime once took, shared by every process of the machine) held by this process
+    must not keep a C host from instantiating (it waited for as long as the lock was held)."""
+    import fcntl
+
+    probe = fmus[PROBE]
+    libpython = recorded_libpython(probe)
+    if libpython is None:
+        pytest.skip("the FMU records no libpython")
+    with libpython.open("rb") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        assert_runs(instantiate(stress, probe, env={}, timeout=FIFO_TIMEOUT))
