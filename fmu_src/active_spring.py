@@ -74,7 +74,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import STEP_RATE_PRODUCT, substeps
+from fmu_src.integration import first_substeps, ledger_accuracy, ledger_controlled
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -126,6 +126,7 @@ class Parameters:
     q_dot0: float = parameter(0.0, "m/s", "Initial speed of the prismatic joint")
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link "
                                "(J_rotor N^2)", min=0.0)
+    ledger_accuracy: float = ledger_accuracy()
 
     def __post_init__(self) -> None:
         # derived constants and what `outputs` keeps for the next step's rate, set here, in
@@ -389,7 +390,9 @@ def _rk4_step(rates: StageRates, tau_drive: float, F_adjust: float, s: Sequence[
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """Integrate over one communication step dt [s] with inputs held constant (RK4 sub-steps).
+    """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
+    from the rate rule, raised until the energy ledger meets p.ledger_accuracy
+    (`integration.ledger_controlled`).
 
     A self-locking carriage whose speed changes sign within a sub-step stops: the sub-step is
     split where the speed, interpolated linearly, reaches zero; there the carriage is held
@@ -397,9 +400,15 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     the rest of the sub-step starts from rest.
     """
     inertia, moment, rates = _payload_terms(p, u.payload)
-    rate = _rate(p, u, s, inertia, moment)
-    # one sub-step for the usual step (substeps' answer then, without its call)
-    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
+    return ledger_controlled(lambda n: _integrate(p, u, s, dt, n, rates),
+                             lambda state: ledger_terms(p, u, state), (4, 5), s,
+                             first_substeps(dt, _rate(p, u, s, inertia, moment)), dt,
+                             p.ledger_accuracy)
+
+
+def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: StageRates
+               ) -> State:
+    """`advance` over dt [s] in n RK4 sub-steps, for the stage rates of the payload."""
     h = dt / n
     tau_drive, F_adjust = u.tau_drive, u.F_adjust
     for _ in range(n):
@@ -413,6 +422,19 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
             new = _rk4_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
         s = new
     return s
+
+
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_t (E_p, E_e), E_kin, E_loss, -W_drive,
+    -W_adjust and -E_added (as `outputs` reports them): their sum is constant
+    (docs/energy_ledger.md)."""
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
+    inertia, moment = _payload_terms(p, u.payload)[:2]
+    Y_B = p.Y_B0 + q
+    l_s = _spring(p, theta, Y_B)[0]
+    return (moment * math.cos(theta) + p.m_q * p.g * Y_B, elastic_energy(p, l_s),
+            0.5 * (inertia * omega ** 2 + p.carriage_inertia * q_dot ** 2), E_loss, -W_drive,
+            -W_adjust, -E_added)
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:

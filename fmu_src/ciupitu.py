@@ -71,7 +71,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import integrate_arm
+from fmu_src.integration import advance_arm, ledger_accuracy
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -256,6 +256,7 @@ class Parameters:
     omega0: float = parameter(0.0, "rad/s", "Initial arm angular velocity")
     J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the arm (J_rotor N^2)",
                                min=0.0)
+    ledger_accuracy: float = ledger_accuracy()
 
     @property
     def J_min(self) -> float:
@@ -485,13 +486,21 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     return max(math.sqrt(stiffness / J), damping / J, abs(s.omega) * (1.0 + abs(dJ) / J))
 
 
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_p, E_kin, E_loss, -W_drive and -E_added
+    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md)."""
+    OB, _, _, J, _, _, _ = _arm_terms(p, u.payload, s.theta)
+    _, _, _, m2, g, _, _, _, _, _, arm_held, _ = _held(p, u.payload)
+    return (g * math.cos(s.theta) * (arm_held - m2 * OB), 0.5 * J * s.omega ** 2, s.E_loss,
+            -s.W_drive, -s.E_added)
+
+
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
     tau = u.tau_drive
     rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
-    theta, omega, W_drive, E_loss = integrate_arm(
-        _arm_rates(p, u.payload, tau), s.theta, s.omega, s.W_drive, s.E_loss, tau, dt, rate)
-    return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
+    return advance_arm(_arm_rates(p, u.payload, tau), s, tau, dt, rate,
+                       lambda state: ledger_terms(p, u, state), p.ledger_accuracy)
 
 
 # a payload caught from rest or released at a communication point (docs/energy_ledger.md)

@@ -8,15 +8,22 @@ The work per communication step is bounded: a step whose dynamics would need mor
 MAX_SUBSTEPS sub-steps (a very stiff spring, a tiny inertia, a huge speed, or simply a very
 long step) raises `SubstepBoundError` before any work is done, so the caller can refuse the step
 and keep its state.
+
+The rate rule alone does not bound the energy ledger's error (docs/energy_ledger.md):
+`ledger_controlled` checks each communication step against the ledger itself, whose exact
+rate of change is zero, so that its change over the step is the integration error itself,
+and takes the step again with more sub-steps until that error is within the mechanism's
+`ledger_accuracy` times the step's energy throughput (plus the ledger's own rounding).
 """
 
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable, Sequence
-from typing import TypeVar
+from typing import Any, TypeVar
 
-from fmu_src.parameters import DomainError
+from fmu_src.parameters import DomainError, parameter
 
 S = TypeVar("S", bound=tuple)
 
@@ -25,6 +32,15 @@ STEP_RATE_PRODUCT = 0.05
 # costliest model (a free slider), and 10 s steps of the default mechanisms (rates near
 # 10 1/s need 2,000).
 MAX_SUBSTEPS = 20_000
+
+
+# The default of every mechanism's `ledger_accuracy` [1]: the ledger residual a step may add
+# per joule of energy throughput (|work| and |energy added|) of the step.
+LEDGER_ACCURACY = 1e-9
+# The ledger's rounding per sub-step and per evaluation, as a multiple of the magnitude of its
+# terms [1]: a sum of a few terms and n increments of the cumulative energies, each rounded to
+# half an ulp, with a margin of 8 so that the check is never decided by rounding alone.
+LEDGER_ROUNDING = 8.0 * sys.float_info.epsilon
 
 
 class SubstepBoundError(DomainError):
@@ -61,10 +77,57 @@ def substeps(dt: float, rate: float) -> int:
     return max(1, math.ceil(needed))
 
 
+def ledger_accuracy() -> Any:
+    """The `ledger_accuracy` field of a mechanism's Parameters (the same in every one)."""
+    return parameter(LEDGER_ACCURACY, "1", "Largest energy-ledger residual a communication "
+                     "step may add, per joule of its energy throughput (|work| and |energy "
+                     "added|): the RK4 sub-steps are refined until the step meets it",
+                     min=1e-15, max=1e-3)
+
+
+def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[float]],
+                      works: Sequence[int], s: S, n: int, dt: float, accuracy: float) -> S:
+    """run(n), the state after the step of dt [s] from s with n RK4 sub-steps, with n raised
+    until the energy ledger meets its accuracy over the step.
+
+    terms(state): the ledger's signed terms [J], whose sum is constant in the exact solution
+    (stored energies, E_loss, minus the works and E_added); works: the indices in the state
+    of the cumulative works. A step is accepted when the change of the sum is at most
+    accuracy times the step's throughput (the sum of |change| of each work) plus the
+    ledger's rounding, LEDGER_ROUNDING (n + 2) times the sum of |term| at both ends.
+    Otherwise it is taken again from s with more sub-steps (RK4's error over a step falls as
+    n^-4), at least twice as many; SubstepBoundError beyond MAX_SUBSTEPS.
+    """
+    start = terms(s)
+    before, magnitude = sum(start), sum(abs(t) for t in start)
+    while True:
+        new = run(n)
+        end = terms(new)
+        error = abs(sum(end) - before)
+        throughput = sum(abs(new[i] - s[i]) for i in works)
+        tolerance = (accuracy * throughput
+                     + LEDGER_ROUNDING * (n + 2) * (magnitude + sum(abs(t) for t in end)))
+        if error <= tolerance:
+            return new
+        growth = (error / (0.5 * tolerance)) ** 0.25 if tolerance > 0.0 else math.inf
+        n = max(2 * n, math.ceil(n * growth)) if growth < MAX_SUBSTEPS else 2 * n
+        if n > MAX_SUBSTEPS:
+            raise SubstepBoundError(
+                f"the energy ledger's accuracy ledger_accuracy = {accuracy:g} needs more than "
+                f"the bound of {MAX_SUBSTEPS} RK4 sub-steps over the step of {dt:.4g} s "
+                f"(ledger error {error:.3g} J with {n // 2} or more): take shorter "
+                "communication steps, or allow a larger ledger_accuracy")
+
+
 def integrate(f: Callable[[S], S], s: S, dt: float, rate: float,
               constrain: Callable[[S], S] | None = None) -> S:
     """Advance s over dt with RK4 sub-steps; constrain (end stops, locks) runs after each."""
-    n = substeps(dt, rate)
+    return integrate_substeps(f, s, dt, substeps(dt, rate), constrain)
+
+
+def integrate_substeps(f: Callable[[S], S], s: S, dt: float, n: int,
+                       constrain: Callable[[S], S] | None = None) -> S:
+    """`integrate` with n RK4 sub-steps."""
     h = dt / n
     for _ in range(n):
         s = rk4(f, s, h)
@@ -73,19 +136,22 @@ def integrate(f: Callable[[S], S], s: S, dt: float, rate: float,
     return s
 
 
+def first_substeps(dt: float, rate: float) -> int:
+    """`substeps`, with its call spared for the usual step of one sub-step."""
+    return 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
+
+
 def integrate_arm(f: Callable[[float, float], tuple[float, float]], theta: float, omega: float,
-                  W_drive: float, E_loss: float, tau: float, dt: float, rate: float
+                  W_drive: float, E_loss: float, tau: float, dt: float, n: int
                   ) -> tuple[float, float, float, float]:
     """Advance a one-link arm over dt [s] with RK4 sub-steps: theta' = omega,
     (omega', E_loss') = f(theta, omega) and W_drive' = tau omega for a drive torque tau held
-    over the step; returns (theta, omega, W_drive, E_loss).
+    over the step with n sub-steps; returns (theta, omega, W_drive, E_loss).
 
-    The same numbers as `integrate` over the state (theta, omega, W_drive, E_loss), bit for
-    bit, with the stages kept in local floats: one call of f per stage and no tuple per
-    stage, where the tuples and calls cost more than the arm's arithmetic.
+    The same numbers as `integrate_substeps` over the state (theta, omega, W_drive, E_loss),
+    bit for bit, with the stages kept in local floats: one call of f per stage and no tuple
+    per stage, where the tuples and calls cost more than the arm's arithmetic.
     """
-    # one sub-step for the usual step (substeps' answer then, without its call)
-    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
     h = dt / n
     half, sixth = 0.5 * h, h / 6.0
     for _ in range(n):
@@ -101,3 +167,18 @@ def integrate_arm(f: Callable[[float, float], tuple[float, float]], theta: float
         theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
         omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
     return theta, omega, W_drive, E_loss
+
+
+def advance_arm(f: Callable[[float, float], tuple[float, float]], s: S, tau: float, dt: float,
+                rate: float, terms: Callable[[S], Sequence[float]], accuracy: float) -> S:
+    """A one-link arm's communication step of dt [s] from s, a state (theta, omega, W_drive,
+    E_loss, E_added) whose E_added the step leaves alone: `integrate_arm` for the rates f and
+    the drive torque tau, its sub-steps from the rate [1/s], raised under `ledger_controlled`
+    for the ledger terms(state) and the accuracy."""
+    theta, omega, W_drive, E_loss, E_added = s
+
+    def run(n: int) -> S:
+        return tuple.__new__(type(s), (*integrate_arm(f, theta, omega, W_drive, E_loss, tau,
+                                                      dt, n), E_added))
+
+    return ledger_controlled(run, terms, (2,), s, first_substeps(dt, rate), dt, accuracy)

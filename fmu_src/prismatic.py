@@ -63,7 +63,12 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import integrate
+from fmu_src.integration import (
+    first_substeps,
+    integrate_substeps,
+    ledger_accuracy,
+    ledger_controlled,
+)
 from fmu_src.mechanism import no_input_events
 from fmu_src.parameters import check_ranges, parameter
 
@@ -127,6 +132,7 @@ class Parameters:
                               "at the pivot, -ls0)")
     q2_max: float = parameter(0.75, "m", "Outer end stop of the prismatic joint (default: m2 "
                               "at the end of the 1 m link, 1 m - ls0)")
+    ledger_accuracy: float = ledger_accuracy()
 
     @cached_property
     def J1(self) -> float:
@@ -288,9 +294,8 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def mechanical_energy(p: Parameters, s: State) -> float:
     """E_grav + E_springs + E_kin [J] (as `outputs` reports them)."""
-    q1, w1, q2, w2 = s[:4]
-    return ((p.m1 * p.lc1 + p.m2 * (p.ls0 + q2)) * p.g * math.sin(q1) + spring_energy(p, q1, q2)
-            + 0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2)
+    E_grav, E_springs, E_kin = ledger_terms(p, Inputs(), s)[:3]
+    return E_grav + E_springs + E_kin
 
 
 def _apply_stops(p: Parameters, s: State) -> State:
@@ -305,10 +310,25 @@ def _apply_stops(p: Parameters, s: State) -> State:
     return clamped._replace(E_impact=s.E_impact + loss)
 
 
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_grav, E_springs, E_kin, E_loss (in
+    parts), -W_drive and -W_worm (as `outputs` reports them; E_added is 0): their sum is
+    constant (docs/energy_ledger.md)."""
+    q1, w1, q2, w2, W_drive, W_worm, E_friction, E_impact = s
+    return ((p.m1 * p.lc1 + p.m2 * (p.ls0 + q2)) * p.g * math.sin(q1), spring_energy(p, q1, q2),
+            0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2, E_friction, E_impact,
+            -W_drive, -W_worm)
+
+
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """Integrate over one communication step dt [s] with inputs held constant."""
-    return integrate(lambda state: _derivatives(p, u, state), s, dt, characteristic_rate(p, u, s),
-                     lambda state: _apply_stops(p, state))
+    """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
+    from the rate rule, raised until the energy ledger meets p.ledger_accuracy
+    (`integration.ledger_controlled`)."""
+    return ledger_controlled(
+        lambda n: integrate_substeps(lambda state: _derivatives(p, u, state), s, dt, n,
+                                     lambda state: _apply_stops(p, state)),
+        lambda state: ledger_terms(p, u, state), (4, 5), s,
+        first_substeps(dt, characteristic_rate(p, u, s)), dt, p.ledger_accuracy)
 
 
 switch_inputs = no_input_events  # EVENT_INPUTS is empty

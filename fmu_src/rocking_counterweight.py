@@ -56,7 +56,7 @@ from dataclasses import dataclass, fields
 from typing import Any, NamedTuple
 
 from fmu_src import ciupitu, ledger
-from fmu_src.integration import integrate_arm
+from fmu_src.integration import advance_arm, ledger_accuracy
 from fmu_src.parameters import DomainError, check_ranges, parameter
 
 HALF_PI = 0.5 * math.pi
@@ -232,6 +232,7 @@ class Parameters:
     theta0: float = _as_translational("theta0")
     omega0: float = _as_translational("omega0")
     J_drive: float = _as_translational("J_drive")
+    ledger_accuracy: float = ledger_accuracy()
 
     def __post_init__(self) -> None:
         # The linkage fields as one Linkage, which the dynamics read at every evaluation,
@@ -389,15 +390,28 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
     tau = u.tau_drive
     rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
-    theta, omega, W_drive, E_loss = integrate_arm(
-        _arm_rates(p, u.payload, tau), s.theta, s.omega, s.W_drive, s.E_loss, tau, dt, rate)
-    return tuple.__new__(State, (theta, omega, W_drive, E_loss, s.E_added))
+    return advance_arm(_arm_rates(p, u.payload, tau), s, tau, dt, rate,
+                       lambda state: ledger_terms(p, u, state), p.ledger_accuracy)
+
+
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_p, E_kin, E_loss, -W_drive and -E_added
+    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md)."""
+    return (*mechanical_energies(p, u.payload, s), s.E_loss, -s.W_drive, -s.E_added)
+
+
+def mechanical_energies(p: Parameters, payload: float, s: State) -> tuple[float, float]:
+    """E_p and E_kin [J] (as `outputs` reports them)."""
+    theta = s.theta
+    q, J, _, _ = _arm_terms(p, payload, theta)
+    return (p.g * (math.cos(theta) * _arm_moment(p, payload) + p.m2 * q.Y),
+            0.5 * J * s.omega ** 2)
 
 
 def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
     """E_p + E_kin [J] (as `outputs` reports them)."""
-    return (potential_energy(p, payload, s.theta)
-            + 0.5 * inertia(p, payload, s.theta)[0] * s.omega ** 2)
+    E_p, E_kin = mechanical_energies(p, payload, s)
+    return E_p + E_kin
 
 
 # a payload caught from rest or released at a communication point (docs/energy_ledger.md)

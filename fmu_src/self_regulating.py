@@ -36,7 +36,13 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import STEP_RATE_PRODUCT, integrate, substeps
+from fmu_src.integration import (
+    first_substeps,
+    integrate_substeps,
+    ledger_accuracy,
+    ledger_controlled,
+    substeps,
+)
 from fmu_src.parameters import DomainError, check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -94,6 +100,7 @@ class Parameters:
     paper_design: bool = parameter(
         False, None, "M0 and payload_max from eqs. 10 and 16 as printed (ideal spring, massless "
         "slider), whatever L0 and m_slider: the paper's design, for comparison")
+    ledger_accuracy: float = ledger_accuracy()
 
     @cached_property
     def b_design(self) -> float:
@@ -448,12 +455,34 @@ def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
 
 def _mechanical_energy(p: Parameters, u: Inputs, s: State, mass: float) -> float:
     """mechanical_energy with the slider's effective mass [kg] known."""
+    E_p, E_e, E_cw, E_link, E_slider = _mechanical_energies(p, u, s, mass)
+    return E_p + E_e + E_cw + E_link + E_slider
+
+
+def _mechanical_energies(p: Parameters, u: Inputs, s: State, mass: float
+                         ) -> tuple[float, float, float, float, float]:
+    """The link's potential, the spring's, the counterweight's and the kinetic energies of
+    link and slider [J], for the slider's effective mass [kg]."""
     theta, omega, b, v, s_cw = s[:5]
     moment, J = _link_terms(p, u.payload, b)[:2]
-    E_p = moment * math.cos(theta)
-    E_e = 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2
-    E_cw = -(p.M0 + u.counterweight_added) * p.g * s_cw
-    return E_p + E_e + E_cw + 0.5 * J * omega ** 2 + 0.5 * mass * v * v
+    return (moment * math.cos(theta), 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2,
+            -(p.M0 + u.counterweight_added) * p.g * s_cw, 0.5 * J * omega ** 2,
+            0.5 * mass * v * v)
+
+
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_t + E_cw + E_kin (in parts), E_loss,
+    -W_drive and -E_added (as `outputs` reports them): their sum is constant
+    (docs/energy_ledger.md)."""
+    mass = p.m_slider if u.slider_locked else slider_mass(p, u)
+    return (*_mechanical_energies(p, u, s, mass), s.E_loss, -s.W_drive, -s.E_added)
+
+
+def _controlled(p: Parameters, u: Inputs, s: State, dt: float, run: Callable[[int], State],
+                n: int) -> State:
+    """run(n), the step of dt [s] from s with n sub-steps, under the ledger's control."""
+    return ledger_controlled(run, lambda state: ledger_terms(p, u, state), (5,), s, n, dt,
+                             p.ledger_accuracy)
 
 
 def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
@@ -485,11 +514,16 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
 
 def _advance_free_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """advance with the slider free."""
-    rate = characteristic_rate(p, u, s)
+    n = substeps(dt, characteristic_rate(p, u, s))
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
-        return _integrate_free_slider(p, u, s, dt, rate)
-    # Coulomb friction: the friction state is decided at the start of each sub-step and held
-    # through it, so that RK4 sees one smooth right-hand side (and the ledger stays exact).
+        return _controlled(p, u, s, dt, lambda m: _integrate_free_slider(p, u, s, dt, m), n)
+    return _controlled(p, u, s, dt, lambda m: _integrate_with_friction(p, u, s, dt, m), n)
+
+
+def _integrate_with_friction(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """A free slider with Coulomb friction over dt [s] in n sub-steps: the friction state is
+    decided at the start of each sub-step and held through it, so that RK4 sees one smooth
+    right-hand side (and the ledger stays exact)."""
     slip = [_friction_state(p, u, s)]
 
     def stick(state: State) -> State:
@@ -504,28 +538,36 @@ def _advance_free_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State
         slip[0] = _friction_state(p, u, state)
         return state
 
-    return integrate(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, rate, stick)
+    return integrate_substeps(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, n,
+                              stick)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """Integrate over one communication step dt [s] with inputs held constant.
+    """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
+    from the rate rule, raised until the energy ledger meets p.ledger_accuracy
+    (`integration.ledger_controlled`).
 
-    A clamped slider (the usual step, done here without a further call) leaves a 1-DOF
-    link: b and s_cw stay put and v = 0, so RK4 runs over the link and its ledger alone
-    (`integrate_arm`'s scheme), its angular acceleration written out in each stage, with the
-    terms constant over the step computed once (a call and a tuple per stage cost more than
-    the link's arithmetic). The same numbers, bit for bit (same operations in the same
-    order), as `integrate` over the full state with the derivatives of `_state_rates`.
+    A clamped slider (the usual step) leaves a 1-DOF link: b and s_cw stay put and v = 0, so
+    RK4 runs over the link and its ledger alone (`_integrate_locked_slider`, `integrate_arm`'s
+    scheme), its angular acceleration written out in each stage, with the terms constant
+    over the step computed once (a call and a tuple per stage cost more than the link's
+    arithmetic). The same numbers, bit for bit (same operations in the same order), as
+    `integrate_substeps` over the full state with the derivatives of `_state_rates`.
     """
     if not u.slider_locked:
         return _advance_free_slider(p, u, s, dt)
+    rate = _link_terms(p, u.payload, s.b)[3]
+    speed = abs(s.omega)
+    rate = speed if speed > rate else rate  # max(rate, speed), without the builtin's call
+    return _controlled(p, u, s, dt, lambda n: _integrate_locked_slider(p, u, s, dt, n),
+                       first_substeps(dt, rate))
+
+
+def _integrate_locked_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """The link with the slider clamped over dt [s] in n RK4 sub-steps (`advance`)."""
     theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
     tau, d = u.tau_drive, p.d_link
-    moment, J, spring, rate = _link_terms(p, u.payload, b)[:4]
-    speed = abs(omega)
-    rate = speed if speed > rate else rate  # max(rate, speed), without the builtin's call
-    # one sub-step for the usual step (substeps' answer then, without its call)
-    n = 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
+    moment, J, spring = _link_terms(p, u.payload, b)[:3]
     h = dt / n
     half, sixth = 0.5 * h, h / 6.0
     # the spring's moment is spring sin(theta) (1 - L0/x): the factor is exactly 1.0 for
@@ -561,19 +603,18 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
 
 
-def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, rate: float
-                           ) -> State:
-    """`integrate` over the state with the derivatives of `_state_rates` and
-    `_apply_constraints` after each sub-step (a free slider with no friction state to hold),
-    bit for bit (same operations in the same order), with the RK4 stages kept in local
-    floats: one call of `_slider_rates` per stage and no tuple per stage, where the tuples,
-    calls and the full-state arithmetic cost more than the slider's own."""
+def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """`integrate_substeps` (n sub-steps over dt [s]) over the state with the derivatives of
+    `_state_rates` and `_apply_constraints` after each sub-step (a free slider with no
+    friction state to hold), bit for bit (same operations in the same order), with the RK4
+    stages kept in local floats: one call of `_slider_rates` per stage and no tuple per
+    stage, where the tuples, calls and the full-state arithmetic cost more than the
+    slider's own."""
     rates = _slider_rates(p, u)
     tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
     b_min, b_max = p.b_min, p.b_max
     massive = slider_mass(p, u) != 0.0  # _apply_constraints leaves it alone within the stops
     theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
-    n = substeps(dt, rate)
     h = dt / n
     half, sixth = 0.5 * h, h / 6.0
     for _ in range(n):

@@ -1,8 +1,9 @@
-"""The one-link arms' integrator (`integrate_arm`) against RK4 over the full state.
+"""The one-link arms' integrator (`integrate_arm`) against RK4 over the full state, and the
+ledger's control of the sub-steps (`ledger_controlled`).
 
 `integrate_arm` keeps the stages in local floats for speed; it must give the numbers of
-`integrate` over the state (theta, omega, W_drive, E_loss) exactly, and so must the
-mechanisms that use it, against their own `derivatives`.
+`integrate_substeps` over the state (theta, omega, W_drive, E_loss) exactly, and so must the
+mechanisms that use it, against their own `derivatives` under the same ledger control.
 """
 
 from __future__ import annotations
@@ -12,10 +13,17 @@ import math
 from typing import NamedTuple
 
 import pytest
+from conftest import controlled_reference
 
 from fmu_src import ciupitu
 from fmu_src import rocking_counterweight as rocking
-from fmu_src.integration import integrate, integrate_arm
+from fmu_src.integration import (
+    MAX_SUBSTEPS,
+    SubstepBoundError,
+    integrate_arm,
+    integrate_substeps,
+    ledger_controlled,
+)
 
 
 class ArmState(NamedTuple):
@@ -34,25 +42,82 @@ def pendulum(theta: float, omega: float) -> tuple[float, float]:
     return TAU - 9.81 * math.sin(theta) - damping * omega, damping * omega * omega
 
 
-@pytest.mark.parametrize("rate", [1.0, 3e3, 4e4], ids=["1 sub-step", "60", "800"])
-def test_integrate_arm_is_integrate_over_the_arm_state(rate: float) -> None:
+def pendulum_rates(s: ArmState) -> tuple[float, ...]:
+    """The pendulum's full state derivative (theta, omega, W_drive, E_loss)."""
+    omega_dot, loss = pendulum(s[0], s[1])
+    return s[1], omega_dot, TAU * s[1], loss
+
+
+def pendulum_ledger(s: ArmState) -> tuple[float, ...]:
+    """The pendulum's ledger terms: its energy (J = 1), E_loss and -W_drive [J]."""
+    return -9.81 * math.cos(s[0]), 0.5 * s[1] ** 2, s[3], -s[2]
+
+
+@pytest.mark.parametrize("n", [1, 60, 800])
+def test_integrate_arm_is_integrate_over_the_arm_state(n: int) -> None:
     start = ArmState(2.5, -1.2, 0.3, 0.1)
-    expected = integrate(lambda s: (s[1], *pendulum(s[0], s[1])[:1], TAU * s[1],
-                                    pendulum(s[0], s[1])[1]), start, 1e-3, rate)
-    assert integrate_arm(pendulum, *start, TAU, 1e-3, rate) == tuple(expected)
+    expected = integrate_substeps(pendulum_rates, start, 1e-3, n)
+    assert integrate_arm(pendulum, *start, TAU, 1e-3, n) == tuple(expected)
+
+
+def pendulum_step(start: ArmState, dt: float, accuracy: float, n: int = 1) -> ArmState:
+    """The pendulum's step of dt [s] under ledger control from n sub-steps."""
+    return ledger_controlled(lambda m: integrate_substeps(pendulum_rates, start, dt, m),
+                             pendulum_ledger, (2,), start, n, dt, accuracy)
+
+
+@pytest.mark.parametrize("accuracy", [1e-6, 1e-9, 1e-12])
+def test_ledger_control_meets_the_accuracy_over_a_long_step(accuracy: float) -> None:
+    """One sub-step over 0.1 s leaves a ledger error of ~1e-6 J (checked); the control raises
+    the sub-steps until the error is within accuracy times the work, with the fewest
+    sub-steps that do so within a factor of about 2."""
+    start, dt = ArmState(2.5, -1.2, 0.0, 0.0), 0.1
+    one = integrate_substeps(pendulum_rates, start, dt, 1)
+    assert abs(sum(pendulum_ledger(one)) - sum(pendulum_ledger(start))) > 1e-6
+    end = pendulum_step(start, dt, accuracy)
+    work = abs(end.W_drive)
+    error = abs(sum(pendulum_ledger(end)) - sum(pendulum_ledger(start)))
+    assert error <= accuracy * work + 1e-13
+    n = next(m for m in range(1, MAX_SUBSTEPS) if integrate_substeps(
+        pendulum_rates, start, dt, m) == end)
+    half = integrate_substeps(pendulum_rates, start, dt, n // 2)
+    assert abs(sum(pendulum_ledger(half)) - sum(pendulum_ledger(start))) > accuracy * work
+
+
+def test_ledger_control_keeps_a_step_that_meets_it() -> None:
+    start = ArmState(2.5, -1.2, 0.0, 0.0)
+    assert pendulum_step(start, 1e-3, 1e-9, 3) == integrate_substeps(
+        pendulum_rates, start, 1e-3, 3)
+
+
+def test_ledger_control_refuses_a_step_beyond_the_substep_bound() -> None:
+    """A ledger error that does not fall with the sub-steps (here 1 J booked by every step)
+    raises SubstepBoundError once MAX_SUBSTEPS would be exceeded."""
+    start = ArmState(0.0, 0.0, 0.0, 0.0)
+    calls = []
+
+    def run(n: int) -> ArmState:
+        calls.append(n)
+        return start._replace(E_loss=1.0)
+
+    with pytest.raises(SubstepBoundError, match="ledger_accuracy = 1e-09"):
+        ledger_controlled(run, pendulum_ledger, (2,), start, 1, 1e-3, 1e-9)
+    assert calls[-1] <= MAX_SUBSTEPS and all(b >= 2 * a for a, b in zip(calls, calls[1:]))
 
 
 @pytest.mark.parametrize(("physics", "changes", "inputs"), [
     (ciupitu, {"d_cw": 0.3, "theta0": 1.1, "omega0": 0.4}, (0.2, 0.6)),
     (rocking, {"d_link": 0.05, "theta0": 0.3, "omega0": -0.8}, (-0.4, 0.5)),
-], ids=["ciupitu", "rocking"])
+    (ciupitu, {"theta0": 1.1, "omega0": 3.0, "ledger_accuracy": 1e-14}, (2.0, 0.6)),
+    (rocking, {"theta0": 0.3, "omega0": -3.0, "ledger_accuracy": 1e-14}, (-2.0, 0.5)),
+], ids=["ciupitu", "rocking", "ciupitu refined", "rocking refined"])
 def test_arm_advance_is_rk4_over_its_derivatives(physics, changes, inputs) -> None:
-    """advance() of the arms (integrate_arm) against integrate() over their derivatives."""
+    """advance() of the arms (integrate_arm) against RK4 over their derivatives under the
+    same ledger control (the refined cases take more sub-steps than the rate rule)."""
     p = dataclasses.replace(physics.Parameters(), **changes)
     u = physics.Inputs(*inputs)
     fast = full = physics.initial_state(p)
     for dt in (1e-3, 1e-2, 0.1) * 5:
         fast = physics.advance(p, u, fast, dt)
-        full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
-                         physics.characteristic_rate(p, u, full))
+        full = controlled_reference(physics, p, u, full, dt, (2,))
         assert fast == full and type(fast) is physics.State

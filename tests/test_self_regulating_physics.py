@@ -10,9 +10,9 @@ import dataclasses
 import math
 
 import pytest
+from conftest import controlled_reference
 
 from fmu_src import self_regulating as physics
-from fmu_src.integration import integrate
 
 DEG = math.pi / 180.0
 TABLE_1 = physics.Parameters()
@@ -101,8 +101,7 @@ def test_locked_slider_shortcut_matches_the_full_state_integration(L0: float) ->
     fast = full = physics.initial_state(p)
     for dt in (1e-3, 1e-2, 0.1) * 20:
         fast = physics.advance(p, u, fast, dt)
-        full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
-                         physics.characteristic_rate(p, u, full))
+        full = controlled_reference(physics, p, u, full, dt, (5,))
         assert fast == full
 
 
@@ -132,8 +131,7 @@ def test_free_slider_shortcut_matches_the_full_state_integration(
         return after
     for dt in (1e-3, 1e-2, 0.1) * 10:
         fast = physics.advance(p, u, fast, dt)
-        full = integrate(lambda s: physics.derivatives(p, u, s), full, dt,
-                         physics.characteristic_rate(p, u, full), constrain)
+        full = controlled_reference(physics, p, u, full, dt, (5,), constrain)
         assert fast == full
     assert any(clamped) == (b != 0.07)
     assert fast.b != b
