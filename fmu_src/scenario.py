@@ -38,6 +38,10 @@ Evaluation: `Scenario.reference_at(t)` and `Scenario.inputs_at(t, segments)` on 
 shape functions and `ramp` are plain arithmetic, so they work on floats and numpy arrays alike.
 Both take a `tolerance` [s]: a time less than that before a phase start counts as that
 start, for hosts that add up their time (STEP_TIME_TOLERANCE).
+
+Limits: at most MAX_PHASES phases, and joint positions (initial and targets) of magnitude
+at most `fmu_src.parameters.MAGNITUDE_LIMIT` [rad or m], the bound of the FMUs' inputs.
+Loading and evaluating take time linear in the number of phases.
 """
 
 from __future__ import annotations
@@ -45,9 +49,12 @@ from __future__ import annotations
 import math
 import re
 from bisect import bisect_right
+from collections import Counter
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
+
+from fmu_src.parameters import MAGNITUDE_LIMIT
 
 JOINT_KINDS = ("revolute", "prismatic")
 # drives the harness can put on a joint: the default geared DC motor, a DC motor on a lead
@@ -68,6 +75,9 @@ PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs")
 # after 3.5 million steps of 10 us), so a time less than 1e-3 of a step before a phase start
 # counts as that start: the phase switches at the same step as at the exact time i h.
 STEP_TIME_TOLERANCE = 1e-3
+# phases per scenario: a scenario of this many loads in about 0.1 s; a file of more is a
+# generated mistake rather than a task
+MAX_PHASES = 10_000
 
 
 # scenario and variant names become file and folder names: no path separators, no "..",
@@ -78,7 +88,7 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_+-]*(\.[A-Za-z0-9_+-]+)*")
 def check_name(name: Any, what: str) -> str:
     """name if it is a usable file name (NAME_PATTERN), else ValueError naming `what`."""
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
-        raise ValueError(f"{what} = {name!r} must be letters, digits, '_', '-', '+' and inner "
+        raise ValueError(f"{what} = {shown(name)} must be letters, digits, '_', '-', '+' and inner "
                          "dots, starting with a letter or digit (it names result files)")
     return name
 
@@ -86,22 +96,45 @@ def check_name(name: Any, what: str) -> str:
 def table(value: Any, what: str) -> dict[str, Any]:
     """value if it is a table (dict), else ValueError naming `what`."""
     if not isinstance(value, dict):
-        raise ValueError(f"{what} = {value!r} must be a table")
+        raise ValueError(f"{what} = {shown(value)} must be a table")
     return value
 
 
 def table_list(value: Any, what: str) -> list[dict[str, Any]]:
     """value if it is a non-empty list of tables ([[what]]), else ValueError naming it."""
     if not isinstance(value, list) or not value or not all(isinstance(v, dict) for v in value):
-        raise ValueError(f"{what} = {value!r} must be a list of [[{what}]] tables")
+        raise ValueError(f"{what} = {shown(value)} must be a list of [[{what}]] tables")
     return value
 
 
+def shown(value: Any, width: int = 60) -> str:
+    """repr(value) for a message, shortened to about width characters."""
+    text = repr(value) if not isinstance(value, int) or value.bit_length() < 200 else (
+        f"an integer of about {int(value.bit_length() * math.log10(2))} digits")
+    return text if len(text) <= width else f"{text[:width - 5]} ...{text[-1]}"
+
+
 def finite_number(value: Any, what: str, allowed: str = "a finite number") -> float:
-    """value as a float if it is a finite number (not a boolean), else ValueError naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{what} = {value!r} is not {allowed}")
-    return float(value)
+    """value as a float if it is a finite number (not a boolean; an integer beyond the range
+    of a float is not), else ValueError naming it."""
+    if not isinstance(value, bool) and isinstance(value, (int, float)):
+        try:
+            number = float(value)
+        except OverflowError:  # a TOML integer beyond 1.8e308
+            number = math.inf
+        if math.isfinite(number):
+            return number
+    raise ValueError(f"{what} = {shown(value)} is not {allowed}")
+
+
+def position(value: Any, what: str, unit: str = "rad or m") -> float:
+    """A joint position [rad or m]: finite and of magnitude at most MAGNITUDE_LIMIT, else
+    ValueError naming it."""
+    number = finite_number(value, what, f"a finite number [{unit}]")
+    if abs(number) > MAGNITUDE_LIMIT:
+        raise ValueError(f"{what} = {shown(value)} {unit} is outside [-{MAGNITUDE_LIMIT:g}, "
+                         f"{MAGNITUDE_LIMIT:g}]")
+    return number
 
 
 def quintic(s: Any) -> Any:
@@ -256,8 +289,8 @@ class Scenario:
                                  f"{len(names)} joint(s) {', '.join(names)}")
         if not self.phases:
             raise ValueError(f"scenario {self.name} has no phases")
-        phase_names = [p.name for p in self.phases]
-        repeated = sorted({n for n in phase_names if phase_names.count(n) > 1})
+        repeated = sorted(n for n, count in Counter(p.name for p in self.phases).items()
+                          if count > 1)
         if repeated:
             raise ValueError(f"scenario {self.name}: phase names repeat: {', '.join(repeated)} "
                              "(each phase needs its own name)")
@@ -270,8 +303,9 @@ class Scenario:
                                  "its duration must be positive against its start time, and "
                                  "the scenario's duration finite")
 
-    @property
+    @cached_property
     def duration(self) -> float:
+        """Sum of the phase durations [s], computed once: `reference_at` reads it every step."""
         return sum(p.duration for p in self.phases)
 
     def phase_times(self) -> list[tuple[str, float, float]]:
@@ -433,7 +467,7 @@ def _input_changes(raw: Any, where: str) -> dict[str, Any]:
 
 def _parameter_values(raw: Any, where: str) -> dict[str, float | bool]:
     if not isinstance(raw, dict):
-        raise ValueError(f"{where} = {raw!r} must be a table of name = number or boolean")
+        raise ValueError(f"{where} = {shown(raw)} must be a table of name = number or boolean")
     return {k: v if isinstance(v, bool) else finite_number(v, f"{where} {k}", "a finite "
                                                            "number or boolean")
             for k, v in raw.items()}
@@ -462,15 +496,8 @@ def _joint(name: str, raw: dict[str, Any]) -> Joint:
 
 def _initial_positions(joints: tuple[Joint, ...], tables: dict[str, Any]) -> tuple[float, ...]:
     """The `initial` position [rad or m] of each joint's table."""
-    initial = []
-    for joint, raw in zip(joints, tables.values()):
-        value = raw["initial"]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-                value):
-            raise ValueError(f"joint {joint.name}: initial = {value!r} is not a finite number "
-                             f"[{joint.unit}]")
-        initial.append(float(value))
-    return tuple(initial)
+    return tuple(position(raw["initial"], f"joint {joint.name}: initial", joint.unit)
+                 for joint, raw in zip(joints, tables.values()))
 
 
 def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]:
@@ -478,7 +505,8 @@ def _joints(data: dict[str, Any]) -> tuple[tuple[Joint, ...], tuple[float, ...]]
     if "joints" not in data:
         if "initial_angle_deg" not in data:
             raise ValueError("initial_angle_deg is missing (or declare [joints.<name>] tables)")
-        initial = math.radians(finite_number(data["initial_angle_deg"], "initial_angle_deg"))
+        initial = math.radians(position(data["initial_angle_deg"], "initial_angle_deg",
+                                        "deg"))
         names = table(data.get("joint", {}), "joint")
         default = {k: v for k, v in DEFAULT_JOINT.items()
                    if not (k == "static_load" and "static_effort" in names)}
@@ -501,23 +529,26 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
             raise ValueError("target_deg is for a scenario with one revolute joint; give "
                              f"targets = {{ {', '.join(f'{n} = ...' for n in names)} }} in rad "
                              "(revolute) or m (prismatic)")
-        return (math.radians(finite_number(raw["target_deg"], "target_deg")),)
+        return (math.radians(position(raw["target_deg"], "target_deg", "deg")),)
     targets = table(raw.get("targets", {}), "targets")
     unknown = sorted(set(targets) - set(names))
     if unknown:
         raise ValueError(f"targets name no joint {', '.join(unknown)} "
                          f"(joints: {', '.join(names)})")
-    for name, value in targets.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-                value):
-            raise ValueError(f"target {name} = {value!r} is not a finite number")
-    return tuple(float(targets.get(n, p)) for n, p in zip(names, previous))
+    units = {j.name: j.unit for j in joints}
+    checked = {name: position(value, f"target {name}", units[name])
+               for name, value in targets.items()}
+    return tuple(checked.get(n, p) for n, p in zip(names, previous))
 
 
 def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[float, ...]
             ) -> tuple[Phase, ...]:
     phases, target = [], initial
-    for i, raw in enumerate(table_list(data["phases"], "phases")):
+    raw_phases = table_list(data["phases"], "phases")
+    if len(raw_phases) > MAX_PHASES:
+        raise ValueError(f"phases: {len(raw_phases):,} [[phases]] tables, more than "
+                         f"{MAX_PHASES:,}")
+    for i, raw in enumerate(raw_phases):
         name = str(raw.get("name", i + 1))
         where = f"phase {name}"
         _unknown_keys(raw, PHASE_KEYS, where)
@@ -570,11 +601,11 @@ def _variants(data: dict[str, Any], phase_names: set[str], joints: tuple[Joint, 
         phase_inputs = table(raw.get("phase_inputs", {}), f"variant {name} phase_inputs")
         drop = raw.get("drop_inputs", [])
         if not isinstance(drop, list) or not all(isinstance(n, str) for n in drop):
-            raise ValueError(f"variant {name} drop_inputs = {drop!r} must be a list of input "
+            raise ValueError(f"variant {name} drop_inputs = {shown(drop)} must be a list of input "
                              "names")
         for key in ("description", "model", "baseline"):
             if not isinstance(raw.get(key, ""), str):
-                raise ValueError(f"variant {name} {key} = {raw[key]!r} must be a string")
+                raise ValueError(f"variant {name} {key} = {shown(raw[key])} must be a string")
         unknown = set(phase_inputs) - phase_names
         if unknown:
             raise ValueError(f"variant {name} phase_inputs names no phase "
@@ -596,7 +627,7 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
     try:
         for key in ("name", "description", "model", "baseline"):
             if not isinstance(data.get(key, ""), str):
-                raise ValueError(f"{key} = {data[key]!r} must be a string")
+                raise ValueError(f"{key} = {shown(data[key])} must be a string")
         joints, initial = _joints(data)
         phases = _phases(data, joints, initial)
         variants = _variants(data, {phase.name for phase in phases}, joints)

@@ -53,6 +53,7 @@ DEFAULT_PHI = 0.0              # deg, the horizontal link
 SEARCH_RANGE = 1e4             # the bracket search reaches |Y_B' - Y_B| = SEARCH_RANGE * scale
 FIRST_STEP = 1e-4              # its first step, a fraction of scale
 ROOT_TOLERANCE = 1e-9          # a sign change is a root if |f| <= this * (M_g + k x1A scale)
+BALANCE_TOLERANCE = 1e-6       # and it must balance the gravity moment M_g to this fraction
 
 
 @dataclass(frozen=True)
@@ -109,9 +110,12 @@ def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
     for number, lo, hi in ([] if roots else _brackets(f, p.Y_B0, scale)):
         if found_at is not None and number > found_at:
             break   # later brackets lie farther from Y_B than the roots found
-        root = brentq(f, lo, hi, xtol=1e-15, rtol=4.0 * 2.0 ** -52)  # an end at 0: that end
-        if abs(f(root)) <= tolerance:   # not a pole of F_s / l_s, where B meets A
-            roots.append(root)
+        # an end at 0: that end; a bracket Brent's method does not narrow down in its
+        # iterations (lengths of 1e50 m) holds no root it can give
+        root, outcome = brentq(f, lo, hi, xtol=1e-15, rtol=4.0 * 2.0 ** -52,
+                               full_output=True, disp=False)
+        if outcome.converged and abs(f(root)) <= tolerance:  # not a pole of F_s / l_s,
+            roots.append(root)                               # where B meets A
             found_at = number
     if not roots:
         raise UserError(
@@ -121,6 +125,13 @@ def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
             f"{p.w:g} m; change the spring (--k, --Fs0, --ls0), its joints (--x1A, --XB) or the "
             f"load (--m1, --OC1, --mp, --dmp, --w)")
     Y_B = min(roots, key=lambda y: abs(y - p.Y_B0))
+    moment = active_spring.gravity_moment(p, payload)
+    if abs(f(Y_B)) > (BALANCE_TOLERANCE * moment if moment > 0.0 else tolerance):
+        raise UserError(
+            f"no Y_B balances the link in double precision: at Y_B' = {Y_B:g} m eq. {name} "
+            f"leaves {f(Y_B):g} N m of the gravity moment {moment:g} N m (allowed "
+            f"{BALANCE_TOLERANCE:g} of it); the geometry's lengths (--ls0 {p.l_s0:g}, --YB "
+            f"{p.Y_B0:g}, --XB {-p.X_B:g}, --x1A {p.x1A:g} m) are too far apart in magnitude")
     spring = active_spring.spring(p, theta, Y_B)
     return Design(Y_B, Y_B - p.Y_B0, f(Y_B), name, spring.l_s, spring.F_s)
 

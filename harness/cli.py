@@ -96,12 +96,23 @@ def parser(command: str | None = None) -> argparse.ArgumentParser:
     return top
 
 
+def check_out_folder(args: argparse.Namespace) -> None:
+    """UserError if --out (every command's folder for its files, `out` or `dest`) names
+    something that exists and is not a folder: found before the command does any work."""
+    for name in ("out", "dest"):
+        folder = getattr(args, name, None)
+        if isinstance(folder, Path) and folder.exists() and not folder.is_dir():
+            raise UserError(f"output folder --out = {folder} is not writable (it is a file, "
+                            "not a folder)")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # the top level has no options that take a value: the first other word is the command
     command = next((word for word in argv if not word.startswith("-")), None)
     try:  # a Ctrl-C while the command's module is imported is an interrupt too
         args = parser(command).parse_args(argv)
+        check_out_folder(args)
         return args.run(args)
     except UserError as error:  # bad input: one clear line, non-zero exit; else a traceback
         print(f"error: {error}", file=sys.stderr)

@@ -36,6 +36,7 @@ import control as ct
 import numpy as np
 
 from fmu_src.dc_motor import steady_current
+from fmu_src.parameters import check_ranges, parameter
 from fmu_src.pid import DiscretePID, PIDCoefficients, PIDGains
 from harness.drive import MotorParameters, motor_system
 from harness.errors import UserError
@@ -43,10 +44,16 @@ from harness.errors import UserError
 
 @dataclass(frozen=True)
 class ControllerDesign:
-    """Design targets: closed-loop pole location and derivative filter ratio."""
+    """Design targets: closed-loop pole location and derivative filter ratio, both positive
+    (ValueError naming the field otherwise: a pole at or right of 0 is no design)."""
 
-    omega_c: float = 25.0               # triple closed-loop pole [rad/s]
-    derivative_filter_ratio: float = 10.0  # filter pole at ratio * omega_c
+    omega_c: float = parameter(25.0, "rad/s", "Triple closed-loop pole at -omega_c", min=0.0,
+                               min_exclusive=True)
+    derivative_filter_ratio: float = parameter(10.0, "1", "Derivative filter pole at ratio "
+                                               "times omega_c", min=0.0, min_exclusive=True)
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
 
 
 def reduced_plant(motor: MotorParameters, inertia: float, d_link: float) -> tuple[float, float]:

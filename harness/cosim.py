@@ -139,16 +139,6 @@ def write_scenario(scenario: scenarios.Scenario, runs: list[master.RunResult],
                       results.summary_text(out / scenario.name / "summary.csv", scenario)])
 
 
-MAX_STEPS = 10_000_000  # communication steps per run: the series stay well inside memory
-
-
-def check_step(step: float, duration: float) -> None:
-    """UserError unless --step is in [duration / MAX_STEPS, duration]."""
-    if not duration / MAX_STEPS <= step <= duration:
-        raise UserError(f"--step = {step} s is outside [{duration / MAX_STEPS:g}, {duration:g}] "
-                        f"(the scenario's duration in 1 to {MAX_STEPS:,} steps)")
-
-
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise UserError(f"--workers = {args.workers} must be at least 1")
@@ -156,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     plans = []
     for name in names:  # every scenario, option, output folder and summary checked first
         scenario = scenarios.load(name)
-        check_step(args.step, scenario.duration)
+        scenario.check_step(args.step)
         variants = selected_variants(scenario, args.variants)
         for name in variants:
             variant = scenario.variant(name)

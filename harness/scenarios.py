@@ -12,6 +12,7 @@ from __future__ import annotations
 import pprint
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -21,27 +22,42 @@ from harness import registry
 from harness.errors import UserError
 from harness.io import write_atomic
 
-__all__ = ["EMBEDDED", "RAMP_SHAPES", "SCENARIO_DIR", "Joint", "Phase", "Ramp", "Scenario",
-           "Variant", "available", "embed", "load", "ramp"]
+__all__ = ["EMBEDDED", "MAX_STEPS", "RAMP_SHAPES", "SCENARIO_DIR", "Joint", "Phase", "Ramp",
+           "Scenario", "Variant", "available", "embed", "load", "ramp", "read_toml"]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 # the scenario file the ScenarioSequencer FMU plays, as a generated fmu_src module (an FMU
 # carries only the fmu_src modules its slave imports)
 EMBEDDED = Path(core.__file__).resolve().parent / "sequencer_scenario.py"
+MAX_STEPS = 10_000_000  # communication steps per run: the series stay well inside memory
 
 
 class Scenario(core.Scenario):
     """A scenario with vectorised evaluation (numpy arrays of times [s])."""
 
+    def check_step(self, step: float, what: str = "--step") -> None:
+        """UserError unless the communication step [s] is in [duration / MAX_STEPS, duration],
+        the bound of every command (what: the option or field, for the message)."""
+        if not self.duration / MAX_STEPS <= step <= self.duration:
+            raise UserError(f"{what} = {step} s is outside [{self.duration / MAX_STEPS:g}, "
+                            f"{self.duration:g}] (the scenario's duration in 1 to "
+                            f"{MAX_STEPS:,} steps)")
+
+    def _phase_indices(self, times: np.ndarray) -> np.ndarray:
+        """Index of the phase holding each time (phases hold [start, end)); -1 before 0."""
+        return np.searchsorted(np.array(self._phase_starts), times, side="right") - 1
+
     def reference(self, times: np.ndarray, joint: int | str = 0) -> np.ndarray:
-        """Reference position of one joint (default the first) [rad or m]: quintic segments."""
-        segments = self.reference_segments(joint)
-        ref = np.full(times.shape, segments[0][2])
-        for t0, t1, start, end in segments:
-            inside = (times >= t0) & (times <= t1) if t1 == self.duration else (
-                (times >= t0) & (times < t1))
-            ref[inside] = ramp(start, end, "quintic", (times[inside] - t0) / (t1 - t0))
-        ref[times > self.duration] = segments[-1][3]
+        """Reference position of one joint (default the first) [rad or m]: quintic segments
+        (the last one holds its end time too), in time linear in the phases and times."""
+        t0, t1, start, end = np.array(self.reference_segments(joint)).T
+        k = self._phase_indices(times)
+        inside = (k >= 0) & (times <= self.duration)
+        ref = np.where(k < 0, start[0], end[-1])
+        i = k[inside]
+        moved = start[i] + (end[i] - start[i]) * core.quintic((times[inside] - t0[i])
+                                                             / (t1[i] - t0[i]))
+        ref[inside] = np.where(start[i] == end[i], end[i], moved)
         return ref
 
     def variant(self, name: str) -> Variant:
@@ -52,16 +68,29 @@ class Scenario(core.Scenario):
             raise UserError(str(error)) from None
 
     def inputs(self, times: np.ndarray, variant: Variant) -> dict[str, np.ndarray]:
-        """Input signals at the given times (a phase's changes apply from its start)."""
-        signals: dict[str, np.ndarray] = {}
+        """Input signals at the given times (a phase's changes apply from its start; 0 or
+        false before 0), in time linear in the phases and times."""
         segments = self.input_segments(variant)
-        for (_, t0, t1), segment in zip(self.phase_times(), segments, strict=True):
-            inside = times >= t0
-            s = np.clip((times[inside] - t0) / (t1 - t0), 0.0, 1.0)
-            for name, (start, end, shape) in segment.items():
-                signal = signals.setdefault(
-                    name, np.zeros(times.shape, dtype=bool if isinstance(end, bool) else float))
-                signal[inside] = ramp(start, end, shape, s)
+        k = self._phase_indices(times)
+        inside = k >= 0
+        i = k[inside]
+        t0, t1 = np.array(self._phase_spans).T
+        s = np.clip((times[inside] - t0[i]) / (t1[i] - t0[i]), 0.0, 1.0)
+        signals: dict[str, np.ndarray] = {}
+        for name, (_, first_end, _) in segments[0].items():
+            starts, ends, shapes = zip(*(segment[name] for segment in segments), strict=True)
+            boolean = isinstance(first_end, bool)
+            signal = signals[name] = np.zeros(times.shape, dtype=bool if boolean else float)
+            if boolean:  # Booleans step: a phase holds its value
+                signal[inside] = np.array(ends, dtype=bool)[i]
+                continue
+            start, end = np.array(starts, dtype=float)[i], np.array(ends, dtype=float)[i]
+            shape_of = np.array(shapes)[i]
+            for shape in set(shapes):
+                at = shape_of == shape
+                ramped = start[at] + (end[at] - start[at]) * RAMP_SHAPES[shape](s[at])
+                signal[np.flatnonzero(inside)[at]] = np.where(start[at] == end[at], end[at],
+                                                              ramped)
         return signals
 
 
@@ -76,13 +105,28 @@ def scenario_file(name_or_path: str | Path) -> Path:
     return path
 
 
+def read_toml(path: Path) -> dict[str, Any]:
+    """The data of a TOML file (a scenario or a sweep); UserError naming the file when it is
+    not a readable file of UTF-8 TOML."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise UserError(f"{path.name}: not UTF-8 text (byte {error.start} is "
+                        f"{error.object[error.start]:#04x}); TOML files are UTF-8") from None
+    except OSError as error:  # a folder, no permission, ...
+        raise UserError(f"{path}: cannot be read as a file ({error.strerror or error})") from None
+    try:
+        return tomllib.loads(text)
+    except RecursionError:  # tomllib recurses into nested arrays and inline tables
+        raise UserError(f"{path.name}: arrays or tables nested too deeply") from None
+    except ValueError as error:  # TOMLDecodeError, or an integer of more digits than int()
+        raise UserError(f"{path.name}: not valid TOML ({error})") from None  # converts
+
+
 def load(name_or_path: str | Path) -> Scenario:
     """Load a scenario by name (harness/scenarios/<name>.toml) or from a TOML file."""
     path = scenario_file(name_or_path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as error:
-        raise UserError(f"{path.name}: not valid TOML ({error})") from None
+    data = read_toml(path)
     try:
         return core.parse(data, path.name, Scenario)
     except ValueError as error:  # the core is standard library only: it raises ValueError

@@ -487,11 +487,11 @@ def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
 
 
 def run(args: argparse.Namespace) -> int:
-    if not (args.step > 0.0):
-        raise UserError(f"--step = {args.step} s is outside (0, inf)")
     scenario = scenarios.load(args.scenario)
+    scenario.check_step(args.step)  # the bounds of cosim and sweep
     variants = cosim.selected_variants(scenario, args.variant)
     out = args.out or SYSTEM_DIR / scenario.name / args.engine
+    results.check_writable(out)  # before the runs, not after them
     run_system(scenario, variants, args.engine, args.step, out, args.source)
     print(results.summary_text(out / "summary.csv", scenario))
     return 0

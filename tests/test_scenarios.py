@@ -5,9 +5,12 @@ harness does."""
 
 from __future__ import annotations
 
+import gc
 import math
 import subprocess
 import sys
+import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -194,6 +197,81 @@ def test_bad_files_are_rejected_with_clear_messages(tmp_path: Path, text: str,
     path.write_text(text)
     with pytest.raises(ValueError, match=f"bad.toml: {message}"):
         scenarios.load(path)
+
+
+# ---- many phases (issue 22: loading was quadratic, 16 s at 1e4 phases, 74 s at 3e4) -------
+def many_phases(path: Path, count: int) -> Path:
+    """A scenario of `count` 10 ms phases: targets, ramps of every shape and a Boolean that
+    steps, so that every part of the evaluation sees every phase."""
+    shapes = list(scenarios.RAMP_SHAPES)
+    phases = "".join(
+        f'[[phases]]\nname = "p{i}"\nduration = 0.01\ntarget_deg = {i % 7 * 10}\n'
+        f'inputs = {{ payload = {{ ramp = {i % 3}.0, shape = "{shapes[i % len(shapes)]}" }}, '
+        f"slider_locked = {'true' if i % 2 else 'false'} }}\n" for i in range(count))
+    path.write_text('name = "many"\nmodel = "SelfRegulatingBalancer"\ninitial_angle_deg = 5.0\n'
+                    f"[variants.a]\n{phases}")
+    return path
+
+
+def test_phase_limit_and_many_phases_load_and_play_fast(tmp_path: Path) -> None:
+    """MAX_PHASES phases load and evaluate over the whole run (every 1 ms step) in well under
+    the 16 s + 67 s they took; one more phase is refused naming the limit."""
+    start = time.perf_counter()
+    scenario = scenarios.load(many_phases(tmp_path / "many.toml", core.MAX_PHASES))
+    times = np.arange(round(scenario.duration / 1e-3) + 1) * 1e-3
+    reference = scenario.reference(times)
+    inputs = scenario.inputs(times, scenario.variant("a"))
+    assert time.perf_counter() - start < 2.0
+    assert len(scenario.phases) == core.MAX_PHASES and len(times) == 100_001
+    picked = times[::997]  # the vectorised evaluation is the core's scalar one
+    segments = scenario.input_segments(scenario.variant("a"))
+    np.testing.assert_allclose([scenario.reference_at(float(t))[0] for t in picked],
+                               reference[::997], rtol=0.0, atol=1e-12)
+    scalar = [scenario.inputs_at(float(t), segments) for t in picked]
+    np.testing.assert_allclose([row["payload"] for row in scalar], inputs["payload"][::997],
+                               rtol=0.0, atol=1e-12)
+    assert [row["slider_locked"] for row in scalar] == list(inputs["slider_locked"][::997])
+    with pytest.raises(ValueError, match="many.toml: phases: 10,001 \\[\\[phases\\]\\] tables, "
+                                         "more than 10,000"):
+        scenarios.load(many_phases(tmp_path / "many.toml", core.MAX_PHASES + 1))
+
+
+def _best_time(action: Callable[[], object], repeats: int = 3) -> float:
+    """The shortest of `repeats` wall times of action() [s], without the garbage collector
+    (whose full collections make any allocation-heavy work look superlinear)."""
+    best = math.inf
+    gc.disable()
+    try:
+        for _ in range(repeats):
+            start = time.perf_counter()
+            action()
+            best = min(best, time.perf_counter() - start)
+    finally:
+        gc.enable()
+    return best
+
+
+@pytest.mark.slow
+def test_loading_and_playing_scale_linearly_with_the_phases(tmp_path: Path) -> None:
+    """16 times the phases take about 16 times as long (at most 40; quadratic was 256) to
+    load, to evaluate vectorised and to play step by step as the sequencer does."""
+    def cost(count: int) -> float:
+        path = many_phases(tmp_path / f"many{count}.toml", count)
+        scenario = scenarios.load(path)
+        variant = scenario.variant("a")
+        times = np.arange(round(scenario.duration / 1e-3)) * 1e-3
+        segments = scenario.input_segments(variant)
+
+        def play() -> None:
+            scenarios.load(path)
+            scenario.reference(times)
+            scenario.inputs(times, variant)
+            for t in times[::10]:
+                scenario.reference_at(float(t), 1e-6)
+                scenario.inputs_at(float(t), segments, 1e-6)
+        return _best_time(play)
+
+    assert cost(core.MAX_PHASES) < 40.0 * cost(core.MAX_PHASES // 16)
 
 
 # ---- the ScenarioSequencer FMU -------------------------------------------------------------

@@ -78,14 +78,22 @@ def test_configure_rejects_bad_paths(path: str) -> None:
         definition.configure(FRANCHETTI, [(path, None)])
 
 
-def test_bad_values_fail_runs_but_bad_paths_stop_the_sweep(tmp_path: Path) -> None:
+def test_bad_values_and_bad_paths_stop_the_sweep_refused_runs_fail(tmp_path: Path) -> None:
+    """A value out of its field's range (motor.N = -1) used to be found run by run; it now
+    stops the sweep at load, naming the axis, the value and the field (issue 22). A run whose
+    configuration is refused all the same (values refused only together) is a failed row."""
     path = tmp_path / "motor.toml"
     text = (SMALL.read_text().replace('"short_regulation.toml"',
                                       f"'{DATA / 'short_regulation.toml'}'")
             .replace('"parameters.k"', '"motor.N"').replace("[981.0, -1.0]", "[-1.0, 80.0]"))
     path.write_text(text)
+    with pytest.raises(UserError, match=r"axis k value -1: set path 'motor.N': N = -1.0 1 is "
+                                        r"outside \(0.0, inf\)"):
+        definition.load(path)
+    path.write_text(text.replace("[-1.0, 80.0]", "[80.0, 90.0]"))
     loaded = definition.load(path)
-    row = execution.run_one(loaded, definition.plan(loaded)[0])
+    first = definition.plan(loaded)[0]
+    row = execution.run_one(loaded, replace(first, values={**first.values, "k": -1.0}))
     assert row["status"] == "failed"
     assert row["error"].startswith("RefusedValueError: set path 'motor.N': ")
     assert "N = -1.0" in row["error"]

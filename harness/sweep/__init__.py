@@ -21,10 +21,33 @@ from pathlib import Path
 import pandas as pd
 from distributed import Client
 
-from harness import fmu_build
+from harness import fmu_build, results
 from harness.errors import UserError
 from harness.sweep import definition, execution, plots
 from harness.sweep.execution import CHUNKS_PER_WORKER, SWEEP_RESULTS_DIR
+
+SCHEDULER_TIMEOUT = 10.0           # [s] to connect to a --scheduler
+
+
+def connect(scheduler: str) -> Client:
+    """A Client of the scheduler at an address; UserError naming --scheduler when the address
+    is not one or nothing there answers as a Dask scheduler within SCHEDULER_TIMEOUT."""
+    from distributed.comm import registry
+    from distributed.comm.addressing import parse_address
+
+    try:
+        scheme, location = parse_address(scheduler, strict=True)
+    except ValueError:
+        scheme, location = "", ""
+    if scheme not in registry.backends or not location:
+        raise UserError(f"--scheduler = {scheduler!r} is not an address <protocol>://<host>:"
+                        f"<port> with a protocol of {', '.join(registry.backends)}")
+    try:
+        return Client(scheduler, timeout=SCHEDULER_TIMEOUT)
+    except Exception as error:  # noqa: BLE001 - whatever a wrong address answers with
+        raise UserError(f"--scheduler = {scheduler!r}: no Dask scheduler answered within "
+                        f"{SCHEDULER_TIMEOUT:g} s ({error.__class__.__name__}: "
+                        f"{' '.join(str(error).split())[:200]})") from None
 
 
 def run_sweep(path: str | Path, out: Path = SWEEP_RESULTS_DIR, workers: int = 2,
@@ -32,6 +55,7 @@ def run_sweep(path: str | Path, out: Path = SWEEP_RESULTS_DIR, workers: int = 2,
               retry_failed: bool = False, quiet: bool = False) -> pd.DataFrame:
     """Run the missing runs of a sweep file, then write its tables and plots into out."""
     sweep = definition.load(path)
+    results.check_writable(out)  # before the runs, not when their rows are stored
     todo = execution.pending(sweep, out, retry_failed)
     if not quiet:
         total = len(definition.plan(sweep))
@@ -40,7 +64,7 @@ def run_sweep(path: str | Path, out: Path = SWEEP_RESULTS_DIR, workers: int = 2,
         for model in {sweep.scenario.variant(v).model or sweep.scenario.model
                       for v in sweep.variants}:
             fmu_build.fmu_path(model)  # build once here, not racing in the workers
-        client = execution.local_client(workers) if scheduler is None else Client(scheduler)
+        client = execution.local_client(workers) if scheduler is None else connect(scheduler)
         try:
             execution.execute(sweep, todo, out, client, chunk_size, quiet)
         finally:

@@ -15,12 +15,15 @@ configuration to its value:
 - `0.0583 * variants.active_relocation.phase_targets["III regulate"].q`: any path preceded by
   a factor takes the axis value times it (a joint target proportional to the payload).
 
-Axes take `values = [...]` or `range = { start, stop, num }` (inclusive). `sample = "grid"`
+Axes take `values = [...]` or `range = { start, stop, num }` (inclusive), at most
+MAX_AXIS_VALUES values; a set path has at most MAX_PATH_LENGTH characters. `sample = "grid"`
 (default) runs the full factorial; `sample = "lhs"` draws a Latin-hypercube sample of
 `samples` points (seeded by `seed`): ranges are sampled continuously over [start, stop],
 value lists by stratified choice. Every point runs every listed variant. A path that names
-nothing stops the sweep at load (PathError); a value the configuration refuses
-(RefusedValueError) fails the runs that have it.
+nothing stops the sweep at load (PathError), and so does an axis value the configuration
+refuses by itself (out of the range of its field, e.g. `design.omega_c = 0`). A value refused
+only in combination with another axis (RefusedValueError), or by the FMU, fails the runs that
+have it.
 
 run_id hashes the scenario definition with the run's variant, the step size and the axis
 assignments, so changing any of them gives new runs.
@@ -34,7 +37,7 @@ import itertools
 import json
 import math
 import re
-import tomllib
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
@@ -42,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from fmu_src.scenario import check_name
+from fmu_src.scenario import check_name, finite_number, shown
 from harness import master, scenarios
 from harness.controller import ControllerDesign
 from harness.drive import MotorParameters
@@ -52,6 +55,8 @@ from harness.metrics import METRICS
 SWEEP_DIR = Path(__file__).resolve().parent.parent / "sweeps"
 DEFAULT_CHUNK = 8                  # runs per task at most
 MAX_RUNS = 100_000                 # runs per sweep: a plan this long takes days on a laptop
+MAX_AXIS_VALUES = 10_000           # values of one axis (a 100 x 100 grid has 100 per axis)
+MAX_PATH_LENGTH = 1_000            # characters of a set path
 RUN_METRICS = tuple(m for m in METRICS if m != "eps")  # eps needs a baseline run
 DEGREE_FIELDS = {"target_deg": "target", "initial_angle_deg": "initial_angle"}
 # the [plots] tables: saving and map compare two variants' E_drawn, lines draws result columns
@@ -106,49 +111,57 @@ class Run:
 
 def _number(value: Any, what: str) -> float:
     """A finite number from the file, else UserError naming it."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise UserError(f"{what} = {value!r} is not a finite number")
-    return float(value)
+    try:
+        return finite_number(value, what)
+    except ValueError as error:
+        raise UserError(str(error)) from None
 
 
 def _count(value: Any, what: str, lowest: int, highest: int) -> int:
     """A whole number in [lowest, highest] from the file (2.0 counts, 2.7 does not)."""
     if isinstance(value, bool) or not isinstance(value, int | float) or not (
             lowest <= value <= highest and float(value).is_integer()):
-        raise UserError(f"{what} = {value!r} is not a whole number in [{lowest}, {highest}]")
+        raise UserError(f"{what} = {shown(value)} is not a whole number in [{lowest}, "
+                        f"{highest}]")
     return int(value)
 
 
 def _axis(raw: Any, where: str) -> Axis:
     if not isinstance(raw, dict):
-        raise UserError(f"{where}: an axis is a table ([[axes]]), not {raw!r}")
+        raise UserError(f"{where}: an axis is a table ([[axes]]), not {shown(raw)}")
     name = raw.get("name")
     paths = raw.get("set")
     paths = [paths] if isinstance(paths, str) else paths
     if not isinstance(name, str) or not name or not isinstance(paths, list) or not paths or not all(
             isinstance(p, str) and p.strip() for p in paths):
         raise UserError(f"{where}: an axis needs name = \"...\" and set = a path or a list of "
-                        f"paths (strings); got name = {name!r}, set = {raw.get('set')!r}")
+                        f"paths (strings); got name = {shown(name)}, set = "
+                        f"{shown(raw.get('set'))}")
+    long = [p for p in paths if len(p) > MAX_PATH_LENGTH]
+    if long:
+        raise UserError(f"{where}: axis {name} set path {shown(long[0])} has {len(long[0]):,} "
+                        f"characters, more than {MAX_PATH_LENGTH:,}")
     paths = tuple(paths)
     if ("values" in raw) == ("range" in raw):
         raise UserError(f"{where}: axis {name} needs either values or range")
     if "values" in raw:
-        if not isinstance(raw["values"], list) or not raw["values"]:
-            raise UserError(f"{where}: axis {name} values = {raw['values']!r} must be a "
-                            "non-empty list of numbers")
+        if not isinstance(raw["values"], list) or not 1 <= len(raw["values"]) <= MAX_AXIS_VALUES:
+            raise UserError(f"{where}: axis {name} values = {shown(raw['values'])} must be a "
+                            f"list of 1 to {MAX_AXIS_VALUES:,} numbers")
         values = tuple(_number(v, f"{where}: axis {name} values item") for v in raw["values"])
         range_ = None
     else:
         span = raw["range"]
         if not isinstance(span, dict) or {"start", "stop"} - set(span) or set(span) - {
                 "start", "stop", "num"}:
-            raise UserError(f"{where}: axis {name} range = {span!r} must be a table "
+            raise UserError(f"{where}: axis {name} range = {shown(span)} must be a table "
                             "{ start = number, stop = number, num = whole number }")
         start = _number(span["start"], f"{where}: axis {name} range start")
         stop = _number(span["stop"], f"{where}: axis {name} range stop")
-        num = _count(span.get("num", 2), f"{where}: axis {name} range num", 1, MAX_RUNS)
+        num = _count(span.get("num", 2), f"{where}: axis {name} range num", 1,
+                     MAX_AXIS_VALUES)
         values, range_ = tuple(float(v) for v in np.linspace(start, stop, num)), (start, stop)
-    repeated = sorted({v for v in values if values.count(v) > 1})
+    repeated = sorted(v for v, count in Counter(values).items() if count > 1)
     if repeated:
         raise UserError(f"{where}: axis {name} values repeat: "
                         f"{', '.join(f'{v:g}' for v in repeated)} (runs would share run ids)")
@@ -162,10 +175,7 @@ def load(path: str | Path) -> Sweep:
         path = SWEEP_DIR / f"{path}.toml"
     if not path.exists():
         raise UserError(f"no sweep file {path}")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as error:
-        raise UserError(f"{path.name}: not valid TOML ({error})") from None
+    data = scenarios.read_toml(path)
     where = path.name
     name = data.get("name", path.stem)
     try:
@@ -173,15 +183,20 @@ def load(path: str | Path) -> Sweep:
     except ValueError as error:
         raise UserError(f"{where}: {error}") from None
     scenario_ref = data.get("scenario")
-    if not scenario_ref:
-        raise UserError(f"{where}: no scenario")
+    if not isinstance(scenario_ref, str) or not scenario_ref:
+        raise UserError(f"{where}: scenario = {shown(scenario_ref)} is not a scenario name or "
+                        "a path to a scenario file (a string)")
     scenario = scenarios.load(path.parent / scenario_ref if Path(scenario_ref).suffix
                               else scenario_ref)
     variants = data.get("variants", list(scenario.variants))
     if not isinstance(variants, list) or not variants or not all(
             isinstance(v, str) for v in variants):
-        raise UserError(f"{where}: variants = {variants!r} is not a non-empty list of "
+        raise UserError(f"{where}: variants = {shown(variants)} is not a non-empty list of "
                         "variant names")
+    repeated = sorted(v for v, count in Counter(variants).items() if count > 1)
+    if repeated:
+        raise UserError(f"{where}: variants = {shown(variants)} names {', '.join(repeated)} "
+                        "more than once (each variant runs once per point)")
     variants = tuple(variants)
     unknown = [v for v in variants if v not in scenario.variants]
     if unknown:
@@ -194,8 +209,21 @@ def load(path: str | Path) -> Sweep:
     names = [axis.name for axis in axes]
     if len(set(names)) < len(names):
         raise UserError(f"{where}: axis names repeat: {', '.join(names)}")
-    # bad paths stop the sweep here (no value set); bad values are runs that fail
+    sample = data.get("sample", "grid")
+    if sample not in ("grid", "lhs"):
+        raise UserError(f"{where}: sample = {shown(sample)}, not 'grid' or 'lhs'")
+    samples = _count(data.get("samples", 0), f"{where}: samples", 0, MAX_RUNS)
+    if sample == "lhs" and samples < 1:
+        raise UserError(f"{where}: a Latin-hypercube sample needs samples >= 1")
+    size = (samples if sample == "lhs" else math.prod(len(a.values) for a in axes)) * len(
+        variants)
+    if size > MAX_RUNS:
+        raise UserError(f"{where}: {size:,} runs planned, more than {MAX_RUNS:,}: fewer axis "
+                        "values or samples")
+    # bad paths and values out of their field's range stop the sweep here; values refused
+    # in combination, or by the FMU, are runs that fail
     configure(scenario, [(p, None) for axis in axes for p in axis.paths])
+    _check_values(scenario, axes, where)
     _check_first_point(scenario, variants, axes)
     metrics = data.get("metrics", list(RUN_METRICS))
     if not isinstance(metrics, list) or not all(isinstance(m, str) for m in metrics):
@@ -205,22 +233,9 @@ def load(path: str | Path) -> Sweep:
     if unknown:
         raise UserError(f"{where}: unknown metrics {', '.join(unknown)} "
                         f"(choose from {', '.join(RUN_METRICS)})")
-    sample = data.get("sample", "grid")
-    if sample not in ("grid", "lhs"):
-        raise UserError(f"{where}: sample = {sample!r}, not 'grid' or 'lhs'")
-    samples = _count(data.get("samples", 0), f"{where}: samples", 0, MAX_RUNS)
-    if sample == "lhs" and samples < 1:
-        raise UserError(f"{where}: a Latin-hypercube sample needs samples >= 1")
-    size = (samples if sample == "lhs" else math.prod(len(a.values) for a in axes)) * len(
-        variants)
-    if size > MAX_RUNS:
-        raise UserError(f"{where}: {size:,} runs planned, more than {MAX_RUNS:,}: fewer axis "
-                        "values or samples")
     plots = _plots(data.get("plots", {}), names, variants, metrics, where)
     step_size = _number(data.get("step_size", master.DEFAULT_STEP), f"{where}: step_size")
-    if not 0.0 < step_size <= scenario.duration:
-        raise UserError(f"{where}: step_size = {step_size} s is outside (0, "
-                        f"{scenario.duration:g}] (the scenario's duration)")
+    scenario.check_step(step_size, f"{where}: step_size")
     chunk_size = _count(data.get("chunk_size", DEFAULT_CHUNK), f"{where}: chunk_size", 1,
                         MAX_RUNS)
     seed = _count(data.get("seed", 0), f"{where}: seed", 0, 2 ** 63 - 1)
@@ -230,6 +245,17 @@ def load(path: str | Path) -> Sweep:
     return Sweep(name, data.get("description", ""), scenario, variants,
                  axes, metrics, step_size, sample, samples, seed, chunk_size, plots,
                  tuple(outputs))
+
+
+def _check_values(scenario: scenarios.Scenario, axes: Sequence[Axis], where: str) -> None:
+    """UserError naming the first axis value that its paths' fields refuse by themselves (the
+    other axes at their defaults): every value, and the ends of a range."""
+    for axis in axes:
+        for value in dict.fromkeys((*axis.values, *(axis.bounds or ()))):
+            try:
+                configure(scenario, [(p, value) for p in axis.paths])
+            except RefusedValueError as error:
+                raise UserError(f"{where}: axis {axis.name} value {value:g}: {error}") from None
 
 
 def _check_first_point(scenario: scenarios.Scenario, variants: Sequence[str],

@@ -40,6 +40,7 @@ def paths(data: Any, prefix: tuple = ()) -> list[tuple]:
 PATHS = paths(BASE)
 hostile_values = st.one_of(
     hostile_floats, st.integers(-10 ** 30, 10 ** 30), st.booleans(), st.text(max_size=4),
+    st.integers(10 ** 308, 10 ** 400).map(lambda n: n * (-1) ** n),  # beyond a float
     st.lists(hostile_floats, max_size=2), st.dictionaries(st.text(max_size=3), hostile_floats,
                                                           max_size=2))
 
@@ -83,12 +84,14 @@ name = "payload"
 set = ['phases["III regulate"].inputs.payload']
 range = { start = 0.0, stop = 1.0, num = 3 }
 '''
-FIELDS = ('name = "fuzz"', 'step_size = 0.001', 'chunk_size = 4', 'seed = 0',
+FIELDS = ('name = "fuzz"', 'scenario = "franchetti2021"', 'variants = ["self_regulating"]',
+          'step_size = 0.001', 'chunk_size = 4', 'seed = 0',
           'name = "k"', 'set = "parameters.k"', 'values = [500.0, 981.0]',
           'range = { start = 0.0, stop = 1.0, num = 3 }', 'start = 0.0', 'stop = 1.0',
           'num = 3')
 LITERALS = ('5', '"x"', '[]', '[1, 1]', '[[1.0]]', 'nan', 'inf', '-inf', '1e300', '2.7', '0',
-            '-1', '1e12', '{ a = 1 }', 'true', '"../../x"', '""', '"0:1"', '[nan]', '1e-300')
+            '-1', '1e12', '{ a = 1 }', 'true', '"../../x"', '""', '"0:1"', '[nan]', '1e-300',
+            '1' + '0' * 400, '["self_regulating", "self_regulating"]', '1e-9')
 
 
 @given(st.sampled_from(FIELDS), st.sampled_from(LITERALS))
