@@ -45,7 +45,8 @@ def read_result(path: Path) -> pd.DataFrame:
     """A result CSV, checked: `time` first, strictly increasing, numeric columns."""
     try:
         frame = pd.read_csv(path)
-    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as error:
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError,
+            pd.errors.EmptyDataError) as error:
         raise UserError(f"{path}: cannot read as CSV ({error})") from None
     if frame.columns.empty or frame.columns[0] != "time":
         raise UserError(f"{path}: the first column must be 'time'")

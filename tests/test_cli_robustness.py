@@ -505,18 +505,14 @@ CASES: dict[str, tuple[Any, list[str], tuple[str, ...]]] = {
                                     ("--scheduler = 'tcp://127.0.0.1:1': no Dask scheduler "
                                      "answered within 1 s",)),
 }
-COMPARE_UTF8 = pytest.mark.xfail(strict=True, reason="needs harness/compare.py (not this "
-                                 "branch's): read_result to refuse UnicodeDecodeError")
-
-
 @pytest.mark.parametrize(("files", "argv", "named"), [
     pytest.param(*case, id=name) for name, case in CASES.items()] + [
     pytest.param(lambda f: _latin1(write(f["file"].with_suffix(".csv"), pd.DataFrame(
         {"time": [0.0, 1.0], "theta": [0.0, 1.0]}))), ["compare", "{csv}", "{good}"],
-        ("a_file.csv",), id="utf8-compare-reference", marks=COMPARE_UTF8),
+        ("a_file.csv",), id="utf8-compare-reference"),
     pytest.param(lambda f: _latin1(write(f["file"].with_suffix(".csv"), pd.DataFrame(
         {"time": [0.0, 1.0], "theta": [0.0, 1.0]}))), ["compare", "{good}", "{csv}"],
-        ("a_file.csv",), id="utf8-compare-result", marks=COMPARE_UTF8)])
+        ("a_file.csv",), id="utf8-compare-result")])
 def test_user_mistake_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                          monkeypatch: pytest.MonkeyPatch, files: Any,
                                          argv: list[str], named: tuple[str, ...]) -> None:
