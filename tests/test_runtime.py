@@ -480,6 +480,7 @@ def test_a_class_with_only_inherited_methods_runs_in_fmpy(probe_fmus: dict[str, 
     assert done.stdout.splitlines() == ["done"]
 
 
+@pytest.mark.slow  # a whole cosim run; the URI forms are tested above in the C host
 def test_cosim_runs_with_a_temporary_folder_whose_name_needs_percent_encoding(
         tmp_path: Path) -> None:
     """FMPy extracts each FMU under TMPDIR and percent-encodes the resource URI: a "ü", a "+"
