@@ -135,9 +135,12 @@ def test_ctrl_c_on_cosim_exits_130_and_keeps_every_row(workers: int, seed: int,
     never half a one)."""
     committed = results.RESULTS_DIR / "franchetti2021"
     shutil.copytree(committed, tmp_path / "franchetti2021")
+    # at 0.5 ms the runs take about twice their 1 ms time (some 12 s on an idle 2-core
+    # machine), so that the interrupt lands before the end however fast the machine; the
+    # series are recorded at a fixed interval, so their length does not depend on the step
     done = interrupt_at_random(seed, ["cosim", "--scenario", "franchetti2021", "--variants",
                                       "all", "--workers", str(workers), "--quiet",
-                                      "--out", str(tmp_path)], 0.5, 8.0)
+                                      "--step", "0.0005", "--out", str(tmp_path)], 0.5, 5.0)
     assert_interrupted(done, "interrupted")
     expected = pd.read_csv(committed / "summary.csv")
     kept = pd.read_csv(tmp_path / "franchetti2021" / "summary.csv")
