@@ -402,8 +402,8 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     inertia, moment, rates = _payload_terms(p, u.payload)
     return ledger_controlled(lambda n: _integrate(p, u, s, dt, n, rates),
                              lambda state: ledger_terms(p, u, state), (4, 5), s,
-                             first_substeps(dt, _rate(p, u, s, inertia, moment)), dt,
-                             p.ledger_accuracy)
+                             first_substeps(dt, _rate(p, u, s, inertia, moment)), dt, p,
+                             (u.payload,))
 
 
 def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: StageRates

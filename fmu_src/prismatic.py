@@ -328,7 +328,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
         lambda n: integrate_substeps(lambda state: _derivatives(p, u, state), s, dt, n,
                                      lambda state: _apply_stops(p, state)),
         lambda state: ledger_terms(p, u, state), (4, 5), s,
-        first_substeps(dt, characteristic_rate(p, u, s)), dt, p.ledger_accuracy)
+        first_substeps(dt, characteristic_rate(p, u, s)), dt, p)
 
 
 switch_inputs = no_input_events  # EVENT_INPUTS is empty

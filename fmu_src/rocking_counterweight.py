@@ -391,7 +391,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     tau = u.tau_drive
     rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
     return advance_arm(_arm_rates(p, u.payload, tau), s, tau, dt, rate,
-                       lambda state: ledger_terms(p, u, state), p.ledger_accuracy)
+                       lambda state: ledger_terms(p, u, state), p, u.payload)
 
 
 def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:

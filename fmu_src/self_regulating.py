@@ -481,8 +481,9 @@ def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
 def _controlled(p: Parameters, u: Inputs, s: State, dt: float, run: Callable[[int], State],
                 n: int) -> State:
     """run(n), the step of dt [s] from s with n sub-steps, under the ledger's control."""
-    return ledger_controlled(run, lambda state: ledger_terms(p, u, state), (5,), s, n, dt,
-                             p.ledger_accuracy)
+    return ledger_controlled(run, lambda state: ledger_terms(p, u, state), (5,), s, n, dt, p,
+                             (u.payload, u.counterweight_added, u.slider_locked,
+                              u.pulley_locked))
 
 
 def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:

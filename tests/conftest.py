@@ -202,5 +202,5 @@ def controlled_reference(physics: Any, p: Any, u: Any, start: Any, dt: float,
         lambda n: integration.integrate_substeps(lambda s: physics.derivatives(p, u, s), start,
                                                  dt, n, constrain),
         lambda s: physics.ledger_terms(p, u, s), works, start,
-        integration.first_substeps(dt, physics.characteristic_rate(p, u, start)), dt,
-        p.ledger_accuracy)
+        integration.first_substeps(dt, physics.characteristic_rate(p, u, start)), dt, p,
+        tuple(getattr(u, name) for name in physics.EVENT_INPUTS))

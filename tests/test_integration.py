@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from types import SimpleNamespace
 from typing import NamedTuple
 
 import pytest
@@ -63,7 +64,8 @@ def test_integrate_arm_is_integrate_over_the_arm_state(n: int) -> None:
 def pendulum_step(start: ArmState, dt: float, accuracy: float, n: int = 1) -> ArmState:
     """The pendulum's step of dt [s] under ledger control from n sub-steps."""
     return ledger_controlled(lambda m: integrate_substeps(pendulum_rates, start, dt, m),
-                             pendulum_ledger, (2,), start, n, dt, accuracy)
+                             pendulum_ledger, (2,), start, n, dt,
+                             SimpleNamespace(ledger_accuracy=accuracy))
 
 
 @pytest.mark.parametrize("accuracy", [1e-6, 1e-9, 1e-12])
@@ -101,7 +103,8 @@ def test_ledger_control_refuses_a_step_beyond_the_substep_bound() -> None:
         return start._replace(E_loss=1.0)
 
     with pytest.raises(SubstepBoundError, match="ledger_accuracy = 1e-09"):
-        ledger_controlled(run, pendulum_ledger, (2,), start, 1, 1e-3, 1e-9)
+        ledger_controlled(run, pendulum_ledger, (2,), start, 1, 1e-3,
+                          SimpleNamespace(ledger_accuracy=1e-9))
     assert calls[-1] <= MAX_SUBSTEPS and all(b >= 2 * a for a, b in zip(calls, calls[1:]))
 
 
