@@ -65,8 +65,9 @@ def srb_inputs(rng: random.Random, before: dict) -> dict:
 
 @pytest.mark.parametrize("parameters", [
     {"theta0": math.pi},
-    {"theta0": math.pi, "m_slider": 0.2, "L0": 0.03, "b_max": 0.2, "mu_slider": 0.2,
-     "J_pulley": 1e-4, "d_pulley": 0.005},
+    pytest.param({"theta0": math.pi, "m_slider": 0.2, "L0": 0.03, "b_max": 0.2,
+                  "mu_slider": 0.2, "J_pulley": 1e-4, "d_pulley": 0.005},
+                 marks=pytest.mark.slow),  # about 6 s; tests/test_ledger_bound.py in make test
 ], ids=["table1", "real_spring_slider_mass_friction"])
 def test_self_regulating_ledger_closes_over_random_inputs(parameters: dict) -> None:
     """3000 random steps: the residual stays within 1e-9 J while E_loss grows (never falls),

@@ -152,6 +152,7 @@ def test_sweep_equals_runs_one_by_one_and_records_failures(tmp_path: Path) -> No
         assert row.payload_max == pytest.approx(8.2857, abs=1e-4)
 
 
+@pytest.mark.slow  # about 9 s: a sweep killed and resumed in subprocesses
 def test_killed_sweep_resumes_without_losing_or_repeating_runs(tmp_path: Path) -> None:
     loaded = definition.load(RESUME)
     parts = execution.parts_dir(loaded, tmp_path)

@@ -68,9 +68,10 @@ def assert_agrees(summary: pd.DataFrame, series: pd.DataFrame,
 
 # unbalanced: the largest drive energies; self_regulating: the sequencer drives the locks, the
 # payload and counterweight ramps, and the slider regulates within the system
-# the self_regulating run (about 18 s) is left to `make test-all`
-@pytest.mark.parametrize("variant", [VARIANT, pytest.param("self_regulating",
-                                                           marks=pytest.mark.slow)])
+# full-length libcosim runs (about 12 s and 18 s) are left to `make test-all`; libcosim itself
+# runs every FMU in `make test` (tests/test_fmu_quality.py)
+@pytest.mark.slow
+@pytest.mark.parametrize("variant", [VARIANT, "self_regulating"])
 def test_libcosim_runs_the_osp_system_like_the_harness(
         tmp_path: Path, variant: str) -> None:
     harness_run = harness_run_of(variant)
