@@ -15,6 +15,7 @@ method of its class.
 
 from __future__ import annotations
 
+import fcntl
 import functools
 import os
 import re
@@ -30,6 +31,7 @@ from pathlib import Path
 import pytest
 from conftest import FMI_ERROR, SRB
 from fmpy import read_model_description
+from test_native_host import libpythons
 
 from harness import fmu_build
 
@@ -190,11 +192,6 @@ def valgrind_command(stress: Path, *args: str) -> list[str]:
 
 
 VALGRIND_ENV = {"PYTHONMALLOC": "malloc"}  # every allocation seen by valgrind
-# where shared-library CPythons live (as in test_native_host): the alternatives to the
-# FMU's own interpreter when that one is not clean under valgrind itself
-LIBPYTHON_GLOBS = ("/usr/lib/x86_64-linux-gnu/libpython3.*.so.1.0",
-                   "/usr/local/lib/libpython3.*.so.1.0",
-                   f"{Path.home()}/.pyenv/versions/*/lib/libpython3.*.so.1.0")
 
 
 def recorded_libpython(fmu: Unzipped) -> Path | None:
@@ -226,7 +223,7 @@ def valgrind_environment(fmu: Unzipped) -> dict[str, str]:
     own = recorded_libpython(fmu)
     if own is not None and clean_under_valgrind(own):
         return dict(VALGRIND_ENV)
-    others = sorted({p.resolve() for g in LIBPYTHON_GLOBS for p in Path("/").glob(g[1:])})
+    others = sorted({p.resolve() for p in libpythons()})
     for libpython in others:
         if libpython != (own.resolve() if own else None) and clean_under_valgrind(libpython):
             return {**VALGRIND_ENV, "BALANCER_FMU_LIBPYTHON": str(libpython)}
@@ -502,8 +499,6 @@ def test_another_process_holding_the_libpython_file_does_not_block_the_start(
     """Starting Python is serialised within one process only: a lock on the libpython file
     (as the runtime once took, shared by every process of the machine) held by this process
     must not keep a C host from instantiating (it waited for as long as the lock was held)."""
-    import fcntl
-
     probe = fmus[PROBE]
     libpython = recorded_libpython(probe)
     if libpython is None:
