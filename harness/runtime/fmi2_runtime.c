@@ -627,7 +627,7 @@ typedef struct {
     unsigned tag;
     Sink sink;
     char *guid, *resources, *module;
-    int visible, fatal, host_python;
+    int visible, fatal;
     enum Phase phase;
     double last_successful_time;
     PyObject *cls, *slave, *queue;
@@ -688,7 +688,7 @@ static fmi2Status python_failure(Instance *in, const char *function) {
         if (type_name) py.Py_DecRef(type_name);
         text_of(value, text, sizeof text);
         /* a Ctrl-C in a Python host: its interpreter gets it back after this call */
-        if (in->host_python && py.PyErr_GivenExceptionMatches(type, py.KeyboardInterrupt))
+        if (host_python && py.PyErr_GivenExceptionMatches(type, py.KeyboardInterrupt))
             py.PyErr_SetInterrupt();
     }
     release(&type);
@@ -818,7 +818,6 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         in->resources = folder;
         in->module = module;
         in->visible = visible != fmi2False;
-        in->host_python = host_python;
         in->phase = INSTANTIATED;
         folder = module = NULL;
     } else if (!why.length) {
