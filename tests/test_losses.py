@@ -13,9 +13,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import assert_reproduces_committed_summary
 
 from fmu_src import active_spring, self_regulating
-from harness import active_design, cli, losses, registry, scenarios
+from harness import active_design, cli, losses, master, registry, scenarios
 from harness.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -234,3 +235,16 @@ def test_a_wrong_loss_file_is_one_line(tmp_path: Path, monkeypatch: pytest.Monke
     assert cli.main(["cosim", "--scenario", "franchetti2021", "--out", str(tmp_path / "o"),
                      "--quiet"]) == 2
     assert "no parameter mu" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # about 15 s: six runs
+@pytest.mark.parametrize("scenario_name, variant", [
+    ("franchetti2021", "self_regulating"), ("ciupitu2018", "parabolic_balanced"),
+    ("demian2022", "compensated")])
+def test_rerun_reproduces_the_committed_realistic_set(scenario_name: str, variant: str) -> None:
+    """A fresh realistic run of a variant and its baseline gives the committed rows."""
+    scenario = losses.realistic(scenarios.load(scenario_name))
+    names = (variant, scenario.baselines[variant])
+    runs = [master.run(scenario, scenario.variant(name)) for name in names]
+    assert_reproduces_committed_summary(
+        scenario, runs, losses.result_folder(RESULTS, scenario, "realistic"))
