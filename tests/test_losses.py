@@ -187,11 +187,12 @@ def dissipation_only(scenario: scenarios.Scenario) -> list[str]:
             and realistic.variant(name).phase_targets == variant.phase_targets]
 
 
-@pytest.mark.parametrize("scenario_name", SCENARIOS)
+@pytest.mark.parametrize("scenario_name", ["franchetti2021", "ciupitu2018"])
 def test_added_friction_costs_the_drive_what_it_dissipates(scenario_name: str) -> None:
     """Where the realistic set only adds friction, the mechanism stores what it stored
     ideally at the end (the same end state, to the tracking error), so the drives' extra
-    work is the extra dissipation, and the drive draws more."""
+    work is the extra dissipation, and the drive draws more. (demian2022's springs get a
+    free length too, so its variants change more than friction.)"""
     scenario = scenarios.load(scenario_name)
     names = dissipation_only(scenario)
     assert names, scenario_name
