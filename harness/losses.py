@@ -98,7 +98,8 @@ def _phase_targets(scenario: Scenario, variant: core.Variant, raw: object, where
 
 def loss_sets(scenario: Scenario, selected: str) -> list[tuple[str, Scenario]]:
     """(loss set, scenario) for `--losses` ('all', or a comma-separated list of LOSS_SETS):
-    the realistic set only where the scenario has a loss file."""
+    with 'all' the realistic set where the scenario has a loss file; named, it must have
+    one (UserError otherwise)."""
     names = list(LOSS_SETS) if selected == "all" else [s.strip() for s in selected.split(",")]
     wrong = [name for name in names if name not in LOSS_SETS]
     if wrong or not names:
@@ -110,6 +111,9 @@ def loss_sets(scenario: Scenario, selected: str) -> list[tuple[str, Scenario]]:
             sets.append((name, scenario))
         elif has_realistic(scenario):
             sets.append((name, realistic(scenario)))
+        elif selected != "all":
+            raise UserError(f"--losses {name}: scenario {scenario.name} has no loss file "
+                            f"{loss_file(scenario)}")
     return sets
 
 

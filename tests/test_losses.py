@@ -224,6 +224,12 @@ def test_cosim_writes_the_realistic_set_beside_the_ideal_one(tmp_path: Path) -> 
     assert losses.loss_sets(scenarios.load("franchetti2021"), "ideal")[0][0] == "ideal"
     with pytest.raises(UserError, match="--losses"):
         losses.loss_sets(scenarios.load("franchetti2021"), "real")
+    own = tmp_path / "own.toml"  # a scenario of the user's has no loss file: ideal only
+    own.write_text((scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text().replace(
+        'name = "franchetti2021"', 'name = "own"'))
+    assert [name for name, _ in losses.loss_sets(scenarios.load(own), "all")] == ["ideal"]
+    with pytest.raises(UserError, match="scenario own has no loss file"):
+        losses.loss_sets(scenarios.load(own), "realistic")
 
 
 def test_a_wrong_loss_file_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
