@@ -42,7 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--losses", default="all",
                         help="'all' (default), 'ideal' or 'realistic': the scenario as written, "
                              "or with the losses of real parts (harness/losses/<scenario>.toml, "
-                             "into OUT/<scenario>/realistic/; scenarios without one: ideal)")
+                             "into OUT/<scenario>/realistic/; with all, a scenario without one "
+                             "runs ideal only)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
