@@ -6,8 +6,11 @@ Two kinds of quoted number (README.md, "Results in brief"):
   COLUMNS, which names the summary column(s) and the unit conversion. A column header the
   test does not know fails it, so a new column comes with its mapping.
 - a number in prose marked `<!--= EXPRESSION -->` right after it: EXPRESSION is arithmetic
-  (+ - * / and parentheses, numbers) over terms `<set>:<variant>:<column>`, the summary
-  `results/<set>/summary.csv` (e.g. `franchetti2021/realistic:self_regulating:E_drawn`).
+  (+ - * / and parentheses, numbers) over terms, each one cell of a committed CSV file:
+  `<set>:<variant>:<column>`, a row of the summary `results/<set>/summary.csv` (e.g.
+  `franchetti2021/realistic:self_regulating:E_drawn`), or `<file>[<key>=<value>,...]:<column>`,
+  the one row of `results/<file>.csv` with those values (e.g.
+  `sweeps/regulation[variant=self_regulating,payload=1,regulation_angle=180]:E_drawn`).
 
 A printed number with n decimals holds when it is the value rounded to n decimals.
 Nothing runs: the files are read.
@@ -23,6 +26,7 @@ from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -57,7 +61,7 @@ COLUMNS: dict[str, tuple[str, list[tuple[str, Callable[[float], float] | None]]]
 }
 NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
 MARKED = re.compile(r"(-?\d+(?:\.\d+)?)<!--=(.*?)-->", re.DOTALL)
-TERM = re.compile(r"([A-Za-z0-9_]+(?:/[A-Za-z0-9_]+)?):([A-Za-z0-9_]+):([A-Za-z0-9_]+)")
+TERM = re.compile(r"([A-Za-z0-9_/]+)\[([^\]]*)\]:(\w+)|([A-Za-z0-9_/]+):(\w+):(\w+)")
 OPERATORS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
              ast.Div: operator.truediv, ast.USub: operator.neg}
 
@@ -139,14 +143,35 @@ def table_cells() -> list[tuple[str, str, str, str, str, float]]:
     return cells
 
 
+@cache
+def result_table(file: str) -> pd.DataFrame:
+    return pd.read_csv(RESULTS / f"{file}.csv")
+
+
+def row_value(file: str, where: str, column: str) -> float:
+    """The column of the one row of results/<file>.csv whose key columns have the values of
+    where (`key=value,...`; numbers compared as numbers)."""
+    table = result_table(file)
+    chosen = np.ones(len(table), dtype=bool)
+    for condition in where.split(","):
+        key, value = (part.strip() for part in condition.split("="))
+        cells = table[key]
+        chosen &= (np.isclose(cells.astype(float), float(value), rtol=0, atol=1e-12)
+                   if pd.api.types.is_numeric_dtype(cells) else (cells.astype(str) == value))
+    if chosen.sum() != 1:
+        raise ValueError(f"results/{file}.csv has {chosen.sum()} rows with {where}, not one")
+    return float(table.loc[chosen, column].iloc[0])
+
+
 def evaluate(expression: str) -> float:
     """The value of a marker's expression (module docstring)."""
     terms = {}
 
     def term(match: re.Match) -> str:
         name = f"_t{len(terms)}"
-        result_set, variant, column = match.groups()
-        terms[name] = float(summary(result_set).at[variant, column])
+        file, where, column, result_set, variant, summary_column = match.groups()
+        terms[name] = (float(summary(result_set).at[variant, summary_column]) if file is None
+                       else row_value(file, where, column))
         return name
 
     tree = ast.parse(TERM.sub(term, " ".join(expression.split())), mode="eval")
@@ -213,5 +238,13 @@ def test_holds_is_the_printed_precision() -> None:
     assert holds("0.0699", 0.069907) and not holds("0.0699", 0.06996)
     assert holds("23.346", 23.345816) and not holds("23.35", 23.344)
     assert evaluate("100 * franchetti2021:unbalanced:eps + 2") == 2.0
+    # a sweep's row by its parameters: the regulation sweep's 1 kg at 180 deg is the
+    # committed scenario's self-regulation (the same run)
+    regulated = evaluate("sweeps/regulation[variant=self_regulating, payload=1, "
+                         "regulation_angle=180]:E_drawn")
+    assert regulated == pytest.approx(evaluate("franchetti2021:self_regulating:E_drawn"),
+                                      rel=1e-6)
+    with pytest.raises(ValueError, match="rows"):
+        evaluate("sweeps/regulation[variant=self_regulating]:E_drawn")
     with pytest.raises(ValueError):
         evaluate("__import__('os')")
