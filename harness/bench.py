@@ -40,7 +40,8 @@ with the step.
 taken, for franchetti2021's self_regulating and demian2022's compensated variants run as
 systems of FMUs in libcosim: at the fixed steps of `convergence` and under ECCO at
 ECCO_TOLERANCES. Per run the steps, E_drawn and its relative error against the monolithic
-reference, the bonds' summed |W_bond_error| and the largest event lag (a phase start to the
+reference (and E_in's, relative to E_drawn), the bonds' summed |W_bond_error| and the
+largest event lag (a phase start to the
 first communication point at or after it); `ecco.png` plots both errors against the steps
 (log-log).
 
@@ -360,7 +361,7 @@ def convergence(steps: int = 0, repeats: int = 0,
 
 ECCO_CASES = (("franchetti2021", "self_regulating"), ("demian2022", "compensated"))
 # ECCO's absolute tolerances on a bond's energy residual per step [J], loose to tight
-ECCO_TOLERANCES = (1e-6, 1e-7, 1e-8)
+ECCO_TOLERANCES = (1e-5, 1e-6, 1e-7)
 
 
 def ecco(steps: int = 0, repeats: int = 0,
@@ -376,7 +377,8 @@ def ecco(steps: int = 0, repeats: int = 0,
     for scenario_name, variant_name in cases:
         scenario = scenarios.load(scenario_name)
         variant = scenario.variant(variant_name)
-        drawn = reference.simulate(scenario, variant).metrics["E_drawn"]
+        ref = reference.simulate(scenario, variant).metrics
+        drawn = ref["E_drawn"]
         runs = [("fixed", h, None, system.describe(scenario, variant, h))
                 for h in step_sizes]
         runs += [("ecco", master.DEFAULT_STEP, tolerance, system.describe(
@@ -395,6 +397,8 @@ def ecco(steps: int = 0, repeats: int = 0,
                     "steps": run.metrics.get("steps", round(scenario.duration / h)),
                     "E_drawn": run.metrics["E_drawn"], "E_drawn_ref": drawn,
                     "err_E_drawn": abs(run.metrics["E_drawn"] - drawn) / drawn,
+                    # E_in has no rectification: relative to E_drawn, as in convergence
+                    "err_E_in": abs(run.metrics["E_in"] - ref["E_in"]) / drawn,
                     "bond_error": sum(abs(e) for e in bond_errors),
                     "rel_bond_error": sum(abs(e) for e in bond_errors) / drawn,
                     "event_lag_max": run.metrics.get("event_lag_max", 0.0)})
