@@ -409,6 +409,7 @@ def ecco_plot(table: pd.DataFrame, path: Path) -> Path:
     """ecco.png: per case, E_drawn's relative error and the coupling's relative energy error
     (|W_bond_error| / E_drawn_ref) against the steps taken, fixed step and ECCO (log-log)."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     from harness.io import save_figure
 
@@ -424,6 +425,7 @@ def ecco_plot(table: pd.DataFrame, path: Path) -> Path:
                                 "coupling: |W_bond_error| / E_drawn"), strict=True):
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("communication steps")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # decades only: minor labels overlap
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7)
     fig.tight_layout()

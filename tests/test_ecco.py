@@ -201,3 +201,35 @@ def test_variable_step_metrics_weigh_each_step_by_its_length() -> None:
     np.testing.assert_allclose(variable.times, trace.times, rtol=1e-12)
     assert pd.Series(master.recorded_points(variable.times, steps)).equals(
         pd.Series(master.recorded_points(trace.times, trace.step_size)))
+
+
+@pytest.mark.slow   # about 5 s: demian2022 in libcosim at the fixed step and under ECCO
+def test_ecco_with_its_step_frozen_reproduces_the_fixed_step(tmp_path: Path) -> None:
+    """Change rates of 1 keep ECCO at its first step (to libcosim's rounding of the step to
+    the time, about 1 ns a step): the same Jacobi master as the fixed step, so the variable-
+    step accounting must give the fixed step's figures."""
+    fixed_system = system.describe(DEMIAN, DEMIAN.variant("compensated"))
+    fixed = system.run_libcosim(fixed_system, system.write_osp(fixed_system, tmp_path))
+    frozen = system.run_libcosim(system.describe(
+        DEMIAN, DEMIAN.variant("compensated"),
+        ecco=system.EccoSettings(min_change_rate=1.0, max_change_rate=1.0)))
+    assert frozen.metrics["steps"] == pytest.approx(DEMIAN.duration / master.DEFAULT_STEP,
+                                                    rel=1e-3)
+    for name in ("E_drawn", "E_in", "E_copper", "W_link", *(
+            f"{bond}_{joint.name}" for bond in metrics.BOND for joint in DEMIAN.joints)):
+        assert frozen.metrics[name] == pytest.approx(fixed.metrics[name], rel=1e-5), name
+
+
+@pytest.mark.slow   # about 15 s: a reference, a fixed and an ECCO run of demian2022
+def test_ecco_study_table() -> None:
+    from harness import bench
+
+    table = bench.ecco(cases=[("demian2022", "compensated")], step_sizes=[2e-3],
+                       tolerances=[1e-6])
+    assert list(table.algorithm) == ["fixed", "ecco"]
+    assert table.steps.iloc[0] == 4000 and table.event_lag_max.iloc[0] == 0.0
+    # each error is its definition from the row's own figures
+    np.testing.assert_allclose(table.err_E_drawn,
+                               abs(table.E_drawn - table.E_drawn_ref) / table.E_drawn_ref)
+    np.testing.assert_allclose(table.rel_bond_error, table.bond_error / table.E_drawn_ref)
+    assert (table.err_E_drawn < 0.01).all() and (table.bond_error > 0).all()
