@@ -22,7 +22,10 @@ in OspSystemStructure.xml.
 Both masters step every FMU in parallel (Jacobi) at the fixed step: each connection passes a
 value with one step of delay, where the harness's loop (controller, motor, mechanism in
 turn) has none. The loop thus carries two more steps of delay; at 1 ms that changes the
-drive energies by less than the tolerances of tests/test_system.py.
+drive energies by less than the tolerances of tests/test_system.py. With `--algorithm ecco`
+libcosim's ECCO steps the same Jacobi exchange at a step it adapts to the energy residuals
+of the power bonds between each drive and its joint (`EccoSettings`, `ecco_execution`,
+docs/results.md#variable-steps-ecco).
 
 FMPy 0.3.32's `simulate_ssp` (engine `fmpy-ssp`), compared with libcosim on this system:
 - right: the connections, the fixed step, the Jacobi exchange;

@@ -9,6 +9,7 @@ h / 2 max|domega/dt| integral of |tau| dt and first order in h.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -194,7 +195,7 @@ def test_variable_step_metrics_weigh_each_step_by_its_length() -> None:
     run = harness_run("demian2022", "compensated", master.DEFAULT_STEP)
     trace = run.traces[0]
     steps = np.full(len(trace.voltage), trace.step_size)
-    variable = type(trace)(**{**trace.__dict__, "step_size": steps})
+    variable = dataclasses.replace(trace, step_size=steps)
     fixed_metrics, variable_metrics = (metrics.drive_metrics(t) for t in (trace, variable))
     for name, value in fixed_metrics.items():
         assert variable_metrics[name] == pytest.approx(value, rel=1e-9, abs=1e-15), name
@@ -217,7 +218,9 @@ def test_ecco_with_its_step_frozen_reproduces_the_fixed_step(tmp_path: Path) -> 
                                                     rel=1e-3)
     for name in ("E_drawn", "E_in", "E_copper", "W_link", *(
             f"{bond}_{joint.name}" for bond in metrics.BOND for joint in DEMIAN.joints)):
-        assert frozen.metrics[name] == pytest.approx(fixed.metrics[name], rel=1e-5), name
+        # net energies (sums of both signs) to 1e-5 of the energy drawn
+        assert frozen.metrics[name] == pytest.approx(
+            fixed.metrics[name], rel=1e-5, abs=1e-5 * fixed.metrics["E_drawn"]), name
 
 
 @pytest.mark.slow   # about 15 s: a reference, a fixed and an ECCO run of demian2022
