@@ -674,6 +674,18 @@ ECCO_OPTIONS = (
 )
 
 
+def check_ecco(ecco: EccoSettings | None, engine: str, source: str) -> None:
+    """UserError for ECCO settings out of range, or ECCO asked of another engine or source."""
+    if ecco is None:
+        return
+    ecco.check()
+    if engine != "libcosim":
+        raise UserError("--algorithm ecco runs only in --engine libcosim")
+    if source != "osp":
+        raise UserError("--algorithm ecco runs from the OSP description (--source osp): "
+                        "the SSP archive has no power bonds")
+
+
 def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
                step_size: float, out: Path, source: str = "osp",
                ecco: EccoSettings | None = None) -> list[master.RunResult]:
@@ -681,10 +693,7 @@ def run_system(scenario: scenarios.Scenario, variants: list[str], engine: str,
     OSP file); write results into out."""
     if engine not in ENGINES:
         raise UserError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
-    if ecco is not None:
-        ecco.check()
-        if engine != "libcosim":
-            raise UserError("--algorithm ecco runs only in --engine libcosim")
+    check_ecco(ecco, engine, source)
     runs = []
     for name in tqdm(variants, desc=f"{scenario.name} system ({engine})", unit="variant"):
         system = describe(scenario, scenario.variant(name), step_size, ecco=ecco)
@@ -708,8 +717,7 @@ def run(args: argparse.Namespace) -> int:
     variants = cosim.selected_variants(scenario, args.variant)
     ecco = None if args.algorithm == "fixed" else EccoSettings(
         **{name: getattr(args, f"ecco_{name}") for name, _, _ in ECCO_OPTIONS})
-    if ecco is not None:
-        ecco.check()
+    check_ecco(ecco, args.engine, args.source)  # before the output folder is made
     out = args.out or SYSTEM_DIR / scenario.name / (
         args.engine if ecco is None else f"{args.engine}-ecco")
     results.check_writable(out)  # before the runs, not after them

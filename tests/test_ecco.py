@@ -135,7 +135,8 @@ def test_fixed_algorithm_is_the_default_and_writes_no_bond(tmp_path: Path) -> No
 
 @pytest.mark.parametrize(("option", "value", "field"), [
     ("--ecco-min-step", "0", "min_step"), ("--ecco-abs-tolerance", "nan", "abs_tolerance"),
-    ("--ecco-max-change-rate", "0.5", "change rates")])
+    ("--ecco-max-change-rate", "0.5", "change rates"), ("--engine", "fmpy-ssp", "--engine"),
+    ("--source", "ssp", "--source osp")])
 def test_bad_ecco_setting_is_one_line(option: str, value: str, field: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:
     assert cli.main(["system", "--algorithm", "ecco", option, value]) == 2
