@@ -188,8 +188,8 @@ def design(law: str, data: ciupitu.ExampleData = PAPER, starts: int = STARTS,
     equal = [o for o in optima if o.objective <= (1.0 + TIE) * optima[0].objective]
     best = min(equal, key=lambda o: (not o.B_left, o.x))
     k = rocking.Linkage(*(round(float(v), 6) for v in _polish(data, law, best)), best.B_left)
-    rms = float(np.sqrt(np.mean(unbalance(data, law, k) ** 2)))
-    return Design(law, k, rms, rocking.stroke(data, k, law), optima)
+    return Design(law, k, math.sqrt(objective(data, law, k)), rocking.stroke(data, k, law),
+                  optima)
 
 
 def stored_linkage(law: str) -> rocking.Linkage:
