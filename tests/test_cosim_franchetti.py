@@ -108,21 +108,26 @@ def balancing_height(payload: float) -> float:
     return (ACTIVE.m * ACTIVE.c + payload * ACTIVE.w) * ACTIVE.g / (ACTIVE.k * ACTIVE.x1A)
 
 
-@pytest.mark.parametrize("variant", [RELOCATION, LOSSLESS])
+@pytest.mark.parametrize("variant, lag, stop", [(RELOCATION, 0.03, 3e-5), (LOSSLESS, 0.02, 2e-5)])
 def test_active_relocation_reaches_the_closed_form_height(
-        runs: dict[str, master.RunResult], variant: str) -> None:
+        runs: dict[str, master.RunResult], variant: str, lag: float, stop: float) -> None:
     # 1 kg at w = 0.35 m: Y_B 0.1 -> 0.1583 m, reached at the end of phase III (17 s); the
     # link stays balanced on the way (the payload follows q's quintic) and after it, and the
     # self-locking screw holds B from the end of phase IV (20 s): the lossless one without
     # current; the Tr 10x2 holds whatever the PI's integral pushes within its hold band
-    # (-0.46 to 2.5 times the load), which it still unwinds, so the current is not asserted
+    # (-0.46 to 2.5 times the load), which it still unwinds, so the current is not asserted.
+    # While the payload ramps, balance_error = k x1A (q_ref - q), the anchor's lag: within
+    # 0.02 N m (0.34 mm) of the payload's 3.43 N m on the lossless screw, 0.03 N m (0.51 mm)
+    # through the Tr 10x2, which multiplies the load the PI meets by 1 / eta_f = 2.5. The
+    # lossless screw lets the PI lower its overshoot at once; the Tr 10x2 holds the carriage
+    # where the overshoot left it, 24 um above the target, until the PI pushes it down
     series = runs[variant].series
     assert balancing_height(0.0) == pytest.approx(ACTIVE.Y_B0, rel=1e-12)
     regulating = series[(series.time >= 14.0) & (series.time <= 17.0)]
     assert regulating.Y_B.iloc[-1] == pytest.approx(balancing_height(1.0), abs=1e-4)
-    assert regulating.balance_error.abs().max() < 0.02      # of 3.43 N m for the payload
+    assert regulating.balance_error.abs().max() < lag
     held = series[series.time >= 20.0]
-    assert held.Y_B.to_numpy() == pytest.approx(balancing_height(1.0), abs=2e-5)
+    assert held.Y_B.to_numpy() == pytest.approx(balancing_height(1.0), abs=stop)
     assert held.balance_error.abs().max() < 0.01
     if variant == LOSSLESS:
         assert held.i_q.abs().max() < 1e-3
