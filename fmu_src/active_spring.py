@@ -228,7 +228,7 @@ class State(NamedTuple):
     q: float
     q_dot: float
     W_drive: float = 0.0   # work of tau_drive on the link
-    W_adjust: float = 0.0  # work of F_adjust on the carriage
+    W_adjust: float = 0.0  # work of F_adjust on the screw
     E_loss: float = 0.0    # dissipated by d_link, d_q, the screw's friction, payload catches
     E_added: float = 0.0   # brought in (taken out) by payload changes
 
