@@ -216,8 +216,8 @@ def many_phases(path: Path, count: int) -> Path:
 def test_phase_limit_and_many_phases_load_and_play(tmp_path: Path) -> None:
     """MAX_PHASES phases load and evaluate over the whole run (every 1 ms step), the
     vectorised evaluation agreeing with the scalar one; one more phase is refused naming the
-    limit. (That this is linear in the phases is timed in the slow test below and in
-    `make bench`, not here: a wall-time bound in `make test` fails on a loaded machine.)"""
+    limit. (That this is linear in the phases is timed in the slow test below, not here: a
+    wall-time bound in `make test` fails on a loaded machine.)"""
     scenario = scenarios.load(many_phases(tmp_path / "many.toml", core.MAX_PHASES))
     times = np.arange(round(scenario.duration / 1e-3) + 1) * 1e-3
     reference = scenario.reference(times)
