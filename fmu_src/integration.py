@@ -126,10 +126,15 @@ def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[flo
         end = terms(new)
         after, end_magnitude = sum(end), sum(map(abs, end))
         error = abs(after - before)
-        throughput = sum([abs(new[i] - s[i]) for i in works])
-        tolerance = ledger_tolerance(accuracy, throughput, magnitude, end_magnitude, n,
-                                     sum(map(abs, new[works[0]:])))
-        if error <= tolerance:
+        throughput = 0.0
+        for i in works:   # a loop, not sum() over a list comprehension: no frame of its own
+            throughput += abs(new[i] - s[i])
+        # the tolerance without its sub-steps' part, which only adds to it, decides most
+        # steps without summing the cumulative energies
+        if error <= accuracy * throughput + LEDGER_ROUNDING * (magnitude + end_magnitude) or (
+                error <= (tolerance := ledger_tolerance(
+                    accuracy, throughput, magnitude, end_magnitude, n,
+                    substep_rounding_scale(terms, new, after, works[0])))):
             _last_ledger = (new, p, events, after, end_magnitude, n)
             return new
         growth = (error / (0.5 * tolerance)) ** 0.25 if tolerance > 0.0 else math.inf
@@ -143,14 +148,39 @@ def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[flo
 
 
 def ledger_tolerance(accuracy: float, throughput: float, start_magnitude: float,
-                     end_magnitude: float, n: int, cumulative: float) -> float:
+                     end_magnitude: float, n: int, substep_scale: float) -> float:
     """The ledger change [J] a step of n sub-steps may make: accuracy [1] times its
     throughput [J] plus the ledger's rounding, LEDGER_ROUNDING times the sums of |term| [J]
-    at its start and end (one evaluation each) and n times the sum of |cumulative energy|
-    [J] at its end (each sub-step adds to each once). The stored energies are evaluated,
-    not accumulated, so their rounding does not grow with n."""
+    at its start and end (one evaluation each) and n times the rounding scale of a sub-step
+    [J] (`substep_rounding_scale`). The stored energies are evaluated, not accumulated, so
+    their evaluation's rounding does not grow with n."""
     return accuracy * throughput + LEDGER_ROUNDING * (start_magnitude + end_magnitude
-                                                      + n * cumulative)
+                                                      + n * substep_scale)
+
+
+# Relative size of the finite difference that measures the ledger's slope in a state
+# component [1]: far above the evaluation's rounding, far below the curvature's scale.
+SLOPE_STEP = 2.0 ** -30
+
+
+def substep_rounding_scale(terms: Callable[[S], Sequence[float]], state: S, total: float,
+                           first_energy: int) -> float:
+    """What one sub-step's rounding of the state can move the ledger by, per LEDGER_ROUNDING
+    [J]: the sum of |energy| of the cumulative energies (state[first_energy:], each added to
+    once), and of |x dL/dx| for each other component x of the state (x rounded to half an
+    ulp moves the ledger's sum L by dL/dx times that: |x| times the net generalised force
+    for a position, twice the kinetic energy for a speed), dL/dx by a finite difference
+    from total = sum(terms(state))."""
+    scale = sum(map(abs, state[first_energy:]))
+    components = list(state)
+    for i in range(first_energy):
+        x = components[i]
+        step = SLOPE_STEP * (abs(x) if x != 0.0 else 1.0)
+        components[i] = x + step
+        moved = sum(terms(tuple.__new__(type(state), components)))
+        components[i] = x
+        scale += abs(x * (moved - total) / step)
+    return scale
 
 
 def accepted_substeps(state: Any) -> int | None:

@@ -11,12 +11,13 @@ from __future__ import annotations
 import dataclasses
 import random
 from collections.abc import Callable, Iterable, Iterator
+from functools import partial
 from typing import Any
 
 import pytest
 from conftest import LEDGER, ledger_residual
 
-from fmu_src.integration import LEDGER_ROUNDING, accepted_substeps
+from fmu_src.integration import LEDGER_ROUNDING, accepted_substeps, substep_rounding_scale
 from fmu_src.parameters import DomainError
 from harness import registry
 
@@ -67,8 +68,8 @@ def worst_ratio_over(model: str, parameters: dict[str, Any],
     refused (fmi2Discard: the state kept). The bound (docs/energy_ledger.md) is accuracy
     times the throughput plus LEDGER_ROUNDING times: the sum of |term| at the start and at
     the end of the run (the residual's own evaluation), before and after each step's input
-    events (their booking), after the events and at the step's end, and n times the sum of
-    |cumulative energy| at the step's end (its n sub-steps)."""
+    events (their booking), after the events and at the step's end, and n times the rounding
+    scale of a sub-step at the step's end (integration.substep_rounding_scale)."""
     physics = MECHANISMS[model].physics
     p = dataclasses.replace(physics.Parameters(), **parameters)
     u, s = physics.Inputs(), physics.initial_state(p)
@@ -89,8 +90,11 @@ def worst_ratio_over(model: str, parameters: dict[str, Any],
         assert n is not None, "a step not under the ledger's control"
         switched_magnitude = magnitude(physics, p, new_inputs, switched)
         end_magnitude = magnitude(physics, p, new_inputs, new)
+        scale = substep_rounding_scale(partial(physics.ledger_terms, p, new_inputs), new,
+                                       sum(physics.ledger_terms(p, new_inputs, new)),
+                                       cumulative)
         rounding += (magnitude(physics, p, u, s) + 2.0 * switched_magnitude + end_magnitude
-                     + n * sum(map(abs, new[cumulative:])))
+                     + n * scale)
         u, s = new_inputs, new
         after = physics.outputs(p, u, s)._asdict()
         throughput += sum(abs(after[name] - out[name]) for name in flows)
@@ -147,6 +151,25 @@ def test_an_undriven_step_after_a_carriage_push_meets_the_bound() -> None:
                - sum(physics.ledger_terms(p, u, pushed))) > 1e-10
     worst, refused = worst_ratio_over("ActiveSpringBalancer", {}, steps)
     assert worst <= 1.0 and refused == 0
+
+
+@pytest.mark.parametrize("model", sorted(CASES))
+def test_outputs_kept_from_the_ledger_are_the_outputs(model: str) -> None:
+    """The outputs a step's end evaluation kept for its state and inputs (the ledger's terms
+    and the outputs computed once) are, bit for bit, those computed afresh (another inputs
+    object of the same values), along a random run."""
+    physics = MECHANISMS[model].physics
+    p = dataclasses.replace(physics.Parameters(), **CASES[model][0])
+    rng = random.Random(5)
+    u, s = physics.Inputs(), physics.initial_state(p)
+    for _ in range(30):
+        new_inputs = physics.Inputs(**CASES[model][1](rng))
+        s = physics.advance(p, new_inputs, physics.switch_inputs(p, u, new_inputs, s), 2e-3)
+        u = new_inputs
+        kept = physics.outputs(p, u, s)
+        assert kept == physics.outputs(p, physics.Inputs(*u), s)
+        assert tuple(physics.ledger_terms(p, u, s)) == tuple(
+            physics.ledger_terms(p, physics.Inputs(*u), s))
 
 
 def test_every_mechanism_declares_ledger_accuracy_with_its_default() -> None:
