@@ -263,3 +263,8 @@ def test_paper_design_keeps_eqs_10_and_16() -> None:
     u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
                        pulley_locked=False)
     assert physics.regulated_slider_position(p, u, math.pi) == pytest.approx(0.139, abs=1e-12)
+
+
+def test_event_inputs_are_the_inputs_after_tau_drive() -> None:
+    """The ledger's control takes the event inputs as u[1:] (self_regulating._controlled)."""
+    assert physics.Inputs._fields[1:] == physics.EVENT_INPUTS
