@@ -110,8 +110,8 @@ def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[flo
     accuracy times the step's throughput (the sum of |change| of each work) plus the
     ledger's rounding. Otherwise it is taken again from s with more sub-steps (RK4's error
     over a step falls as n^-4), at least twice as many; SubstepBoundError beyond
-    MAX_SUBSTEPS. The terms depend
-    on the state, the parameters p and the event inputs `events` only (see _last_ledger).
+    MAX_SUBSTEPS. The terms depend on the state, the parameters p and the event inputs
+    `events` only (see _last_ledger).
     """
     global _last_ledger
     accuracy = p.ledger_accuracy
@@ -130,7 +130,8 @@ def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[flo
         for i in works:   # a loop, not sum() over a list comprehension: no frame of its own
             throughput += abs(new[i] - s[i])
         # the tolerance without its sub-steps' part, which only adds to it, decides most
-        # steps without summing the cumulative energies
+        # steps without measuring the sub-steps' rounding scale (a terms evaluation per
+        # state component)
         if error <= accuracy * throughput + LEDGER_ROUNDING * (magnitude + end_magnitude) or (
                 error <= (tolerance := ledger_tolerance(
                     accuracy, throughput, magnitude, end_magnitude, n,
