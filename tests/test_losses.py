@@ -162,8 +162,10 @@ def test_the_drive_pays_what_the_ledger_stores_and_dissipates(scenario: str, los
     (+ W_adjust) = change of stored energy + E_loss - E_added (- W_worm). The drives' summed
     W_link is that W, and E_drawn >= E_in = E_copper + W + change of E_inductor, the drive's
     own balance, which holds to the first-order step error of its back-EMF (it sees the held
-    speed: docs/results.md, 2.3e-4 J of 10.3 J; at most 1.4e-3 J in these runs); the inductor ends
-    with 1e-9 J at most. So E_drawn >= E_copper + stored change + E_loss - E_added - W_worm."""
+    speed: docs/results.md, 2.3e-4 J of 10.3 J), an error that grows with the energy the drive
+    converts: 5e-4 J + 5e-5 E_in bounds it (at most 0.6 of that in these runs: 3.1e-4 J of
+    0.37 J; 2.1e-3 J of 120 J on the friction screw); the inductor ends with 1e-9 J at most.
+    So E_drawn >= E_copper + stored change + E_loss - E_added - W_worm."""
     _, model, row, first, last = run
     ledger = registry.registration(model).ledger
     drives = [k for k in ("W_drive", "W_adjust") if k in ledger]
@@ -172,7 +174,7 @@ def test_the_drive_pays_what_the_ledger_stores_and_dissipates(scenario: str, los
     others = sum(sign * (last[k] - first[k]) for k, sign in ledger.items()
                  if k not in drives)   # stored, E_loss, -E_added, -W_worm
     assert work == pytest.approx(others, abs=1e-8)
-    tolerance = 2e-3  # [J] the drive's balance (docstring)
+    tolerance = 5e-4 + 5e-5 * row.E_in  # [J] the drive's balance (docstring)
     assert row.E_drawn >= row.E_in - 1e-12
     assert row.E_in == pytest.approx(row.E_copper + work, abs=tolerance)
     assert row.E_drawn >= row.E_copper + others - tolerance
