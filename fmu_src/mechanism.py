@@ -1,7 +1,7 @@
 """The one interface of the FMUs of fmu_src (standard library only; docs/adding_a_mechanism.md).
 
 `Physics` is the contract every mechanism's pure physics module meets: the slave
-(`fmi_base.MechanismSlave`), the monolithic reference (`harness.reference`) and the tests use
+(`fmi_base.MechanismSlave`), the monolithic reference (`harness.run.reference`) and the tests use
 a mechanism through it alone.
 
 `Registration` is what the harness knows of an FMU beyond its slave class, declared once,
@@ -63,7 +63,7 @@ def no_input_events(p: Any, before: Any, after: Any, s: Any) -> Any:
     return s
 
 
-# OSP-IS port kinds (harness.osp): effort and flow of each
+# OSP-IS port kinds (harness.fmu.osp): effort and flow of each
 ANGULAR = "AngularMechanicalPort"   # Torque [N.m], AngularVelocity [rad/s]
 LINEAR = "LinearMechanicalPort"     # Force [N], LinearVelocity [m/s]
 ELECTROMAGNETIC = "ElectromagneticPort"  # Voltage [V], Current [A]
@@ -158,7 +158,7 @@ class Registration:
     physics: Any = None  # the mechanism's Physics module
     # the energy ledger: output -> sign; the signed sum is constant (docs/energy_ledger.md)
     ledger: Mapping[str, int] = field(default_factory=dict)
-    # the monolithic reference (harness.reference) can solve it as one ODE
+    # the monolithic reference (harness.run.reference) can solve it as one ODE
     monolithic_reference: bool = True
     # plot panels of a multi-joint mechanism after its joints' tracking panels:
     # (title, unit, output names)

@@ -1,9 +1,8 @@
 """Ciupitu 2018 passive translational counterweight: static example command and FMU.
 
-Reference values here are computed independently of fmu_src.ciupitu: closed-form stroke
-energies, the counterweight position from the bar/arm intersection (a quadratic in OB), and
-derivatives of energies by complex-step differentiation.
-"""
+Reference values here are computed independently of fmu_src.mechanisms.ciupitu.physics:
+closed-form stroke energies, the counterweight position from the bar/arm intersection (a
+quadratic in OB), and derivatives of energies by complex-step differentiation. """
 
 from __future__ import annotations
 
@@ -21,9 +20,10 @@ import pytest
 from fmpy.validation import validate_fmu
 from scipy.integrate import quad
 
-from fmu_src import ciupitu
-from harness import cli, fmu_build
-from harness.fmi import CoSimFMU, FMICallException
+from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from harness import cli
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU, FMICallException
 
 ROOT = Path(__file__).resolve().parent.parent
 G = 9.81

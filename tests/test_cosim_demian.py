@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 
-from harness import master, reference, scenarios
-from harness.drive import MOTORS
+from harness.run import master, reference
+from harness.run import scenario_files as scenarios
+from harness.run.drive import MOTORS
 
 SCENARIO = scenarios.load("demian2022")
 VARIANTS = ("compensated", "compensated_backdrivable", "uncompensated")

@@ -8,9 +8,10 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from harness import fmu_build, fmu_docs
-from harness.metrics import METRICS
-from harness.results import SUMMARY_COLUMNS
+from harness.fmu import build as fmu_build
+from harness.fmu import docs as fmu_docs
+from harness.run.metrics import METRICS
+from harness.run.results import SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from harness import cli, fmu_build
+from harness import cli
+from harness.fmu import build as fmu_build
 
 
 def snapshot(paths: list[Path]) -> dict[str, tuple[int, bytes]]:
@@ -58,8 +59,9 @@ def sources(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 
 def test_every_model_digests_its_own_modules(sources: Path) -> None:
-    """A module every slave imports (fmi_base) changes every FMU's digest; the controller's
-    (pid) only the PositionController's; a new module that no slave imports, none."""
+    """A module every slave imports (fmi/slave.py) changes every FMU's digest; the
+    controller's (pid) only the PositionController's; a new module that no slave imports,
+    none."""
     def digests() -> dict[str, str]:
         return {m: fmu_build.fmu_inputs(m, sources) for m in fmu_build.MODELS}
 
@@ -67,9 +69,9 @@ def test_every_model_digests_its_own_modules(sources: Path) -> None:
     assert len(set(original.values())) == len(fmu_build.MODELS)
     (sources / "unused_helper.py").write_text("VALUE = 1\n")
     assert digests() == original
-    for module, importers in (("pid", {"PositionController"}),
-                              ("fmi_base", set(fmu_build.MODELS))):
-        path = sources / f"{module}.py"
+    for module, importers in (("units/controller/pid.py", {"PositionController"}),
+                              ("fmi/slave.py", set(fmu_build.MODELS))):
+        path = sources / module
         text = path.read_text()
         path.write_text(text + "# changed\n")
         changed = {m for m, value in digests().items() if value != original[m]}
@@ -90,12 +92,12 @@ def test_a_changed_module_rebuilds_exactly_the_fmus_that_import_it(sources: Path
     guid = read_model_description(fmus[0]).guid
     before = snapshot(fmus)
     later = time.time() + 100.0
-    for path in sources.iterdir():
+    for path in sources.rglob("*"):
         os.utime(path, (later, later))
     assert not any(fmu_build.update(m, dest, sources) for m in models)
     assert snapshot(fmus) == before
 
-    with (sources / "pid.py").open("a") as module:
+    with (sources / "units" / "controller" / "pid.py").open("a") as module:
         module.write("# changed\n")
     assert [fmu_build.update(m, dest, sources) for m in models] == [True, False]
     after = snapshot(fmus)

@@ -11,10 +11,12 @@ import random
 import numpy as np
 import pytest
 
-from fmu_src.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
-from fmu_src.pid import DiscretePID, PIDGains, tustin_coefficients
-from harness import bench, master, scenarios
-from harness.fmi import FMUCallError
+from fmu_src.units.controller.pid import DiscretePID, PIDGains, tustin_coefficients
+from fmu_src.units.drive.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
+from harness import bench
+from harness.fmu.loader import FMUCallError
+from harness.run import master
+from harness.run import scenario_files as scenarios
 
 
 def test_a_refused_step_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -1,8 +1,8 @@
 """The FMUs in a host that is not a Python process (README, "Importing the FMUs").
 
-tests/native_host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
+harness/fmu/host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
 CLI, fmuCheck or OMSimulator is. It runs here with an empty environment (no LD_PRELOAD,
-PYTHONHOME or PYTHONPATH): the FMU's own runtime (harness/runtime/fmi2_runtime.c) must find
+PYTHONHOME or PYTHONPATH): the FMU's own runtime (harness/fmu/runtime/fmi2_runtime.c) must find
 Python by itself, with the interpreter the FMU was built with or any CPython 3.8 or later
 named by BALANCER_FMU_LIBPYTHON, and give the numbers FMPy gives.
 """
@@ -26,10 +26,11 @@ from conftest import FMI_DISCARD, FMI_ERROR, FMI_OK, open_fmu, run
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
-from harness import cli, fmu_build, registry
-from harness.fmi import CoSimFMU
+from harness import cli, registry
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU
 
-HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
+HOST_SOURCE = fmu_build.HOST_SOURCE
 STEP_SIZE = 1e-3
 # per model: parameters and input start values that make every run move, and the stop time
 # (its registration's moving_run)

@@ -19,8 +19,11 @@ from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 from test_fmu_quality import TableRows
 
-from harness import fmu_build, registry, scenarios, system
-from harness.fmi import CoSimFMU
+from harness import registry
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU
+from harness.run import scenario_files as scenarios
+from harness.systems import system
 
 # per model: the probe states (parameters and inputs held for a time; its registration's
 # dependency_probes) and the initialisation probes' parameters

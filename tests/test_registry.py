@@ -19,12 +19,18 @@ import pytest
 from conftest import open_fmu, run
 from fmpy.validation import validate_fmu
 
-from fmu_src import mechanism, prismatic
-from harness import bench, fmu_build, fmu_docs, osp, reference, registry, scenarios
+from fmu_src import mechanism
+from fmu_src.mechanisms.prismatic import physics as prismatic
+from harness import bench, registry
+from harness.fmu import build as fmu_build
+from harness.fmu import docs as fmu_docs
+from harness.fmu import osp
+from harness.run import reference
+from harness.run import scenario_files as scenarios
 
-HARNESS = Path(bench.__file__).resolve().parent
-# harness modules that design one mechanism, and so may name it
-DESIGN_TOOLS = ("ciupitu_design.py",)
+HARNESS = Path(registry.__file__).resolve().parent
+# the harness's room of the mechanisms' own design tools, which may name their mechanism
+DESIGN_TOOLS = HARNESS / "design"
 SCRATCH = Path(__file__).resolve().parent / "data" / "scratch_mechanism"
 SCRATCH_MODEL = "ScratchPendulum"
 POSITIONAL = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
@@ -137,25 +143,29 @@ def test_no_harness_or_shared_module_names_a_mechanism() -> None:
     generated sequencer_scenario.py is a scenario file's data.)"""
     names = set(MECHANISMS)
     assert len(names) >= 5
-    own = {*names, *(r.physics.__name__.rsplit(".", 1)[1] for r in MECHANISMS.values()),
-           "sequencer_scenario"}
-    shared = [p for p in sorted(registry.SOURCE_DIR.glob("*.py")) if p.stem not in own]
-    assert {"fmi_base", "ScenarioSequencer", "integration"} <= {p.stem for p in shared}
-    for path in [*sorted(HARNESS.glob("*.py")), *shared]:
-        if path.name not in DESIGN_TOOLS:
+    source = registry.SOURCE_DIR
+    shared = [p for p in sorted(source.rglob("*.py")) if p.relative_to(source).parts[0]
+              != "mechanisms" and p.stem != "sequencer_scenario"]
+    assert {"fmi/slave.py", "units/sequencer/ScenarioSequencer.py", "integration.py"} <= {
+        p.relative_to(source).as_posix() for p in shared}
+    for path in [*sorted(HARNESS.rglob("*.py")), *shared]:
+        if DESIGN_TOOLS not in path.parents:
             assert not _string_constants(path) & names, path.name
 
 
 @pytest.fixture
 def scratch_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
-    """A copy of fmu_src with the scratch mechanism's physics module and slave script added,
-    first on the import path."""
+    """A copy of fmu_src with the scratch mechanism's folder (its physics module and slave
+    script) added, first on the import path and the registry's source tree."""
     registry.mechanisms()  # the real modules imported first, from the source tree
     source = tmp_path / "src" / "fmu_src"
     shutil.copytree(registry.SOURCE_DIR, source, ignore=shutil.ignore_patterns("__pycache__"))
+    folder = source / "mechanisms" / "pendulum"
+    folder.mkdir()
     for path in SCRATCH.glob("*.py"):
-        shutil.copy(path, source)
+        shutil.copy(path, folder)
     monkeypatch.syspath_prepend(str(source.parent))
+    monkeypatch.setattr(registry, "SOURCE_DIR", source)
     yield source
     for name, module in list(sys.modules.items()):
         if str(getattr(module, "__file__", "")).startswith(str(tmp_path)):
@@ -169,7 +179,8 @@ def test_a_mechanism_added_as_its_own_files_is_wired_by_the_harness(
     models = registry.models(scratch_source)
     assert set(models) == {*fmu_build.MODELS, SCRATCH_MODEL}
     assert SCRATCH_MODEL in registry.mechanisms(scratch_source)
-    assert reference.physics_module(SCRATCH_MODEL).__name__ == "fmu_src.pendulum"
+    assert (reference.physics_module(SCRATCH_MODEL).__name__
+            == "fmu_src.mechanisms.pendulum.physics")
     (joint,) = osp.model_groups(SCRATCH_MODEL)
     assert (joint.kind, [m.variables for m in joint.members]) == (
         "AngularMechanicalPort", [("tau_drive",), ("omega",)])
@@ -178,8 +189,10 @@ def test_a_mechanism_added_as_its_own_files_is_wired_by_the_harness(
     assert max(run_.inputs["tau_drive"]) == 0.5 and run_.inputs["time"][-1] == 5.0
     loop = bench.mechanism_loop(SCRATCH_MODEL, registry.registration(SCRATCH_MODEL).joints())
     assert (loop.input, loop.outputs) == ("tau_drive", ("theta", "omega"))
-    assert {p.name for p in fmu_build.dependencies(SCRATCH_MODEL, scratch_source)} == {
-        "pendulum.py", "fmi_base.py", "integration.py", "mechanism.py", "parameters.py"}
+    assert {p.relative_to(scratch_source).as_posix()
+            for p in fmu_build.dependencies(SCRATCH_MODEL, scratch_source)} == {
+        "mechanisms/pendulum/physics.py", "fmi/slave.py", "integration.py", "mechanism.py",
+        "parameters.py"}
 
 
 def test_the_monolithic_reference_runs_the_added_mechanism(scratch_source: Path) -> None:

@@ -20,9 +20,12 @@ import pytest
 from conftest import LEDGER, failed_initialisation, ledger_residual, open_fmu
 from scipy.integrate import quad
 
-from fmu_src import ciupitu
-from fmu_src import rocking_counterweight as rocking
-from harness import fmu_build, master, rocking_design, scenarios
+from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from fmu_src.mechanisms.rocking_counterweight import physics as rocking
+from harness.design import rocking_counterweight as rocking_design
+from harness.fmu import build as fmu_build
+from harness.run import master
+from harness.run import scenario_files as scenarios
 
 CYCLE = scenarios.load("ciupitu2018")
 LAWS = rocking_design.VARIANTS

@@ -17,7 +17,7 @@ from conftest import failed_initialisation, open_fmu, refused_set, refused_step,
 from fmpy import read_model_description
 
 from harness import cli, registry
-from harness.fmi import CoSimFMU
+from harness.fmu.loader import CoSimFMU
 
 # Paper, Table 1
 M, C, W, A, B0, R_CW, R_WIRE, K, G = 3.0, 0.2, 0.35, 0.1, 0.06, 0.035, 0.01, 981.0, 9.81

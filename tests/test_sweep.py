@@ -1,4 +1,4 @@
-"""Parameter sweeps (harness.sweep): configuration paths, plans, equality with runs made one
+"""Parameter sweeps (harness.sweeps): configuration paths, plans, equality with runs made one
 by one, failed runs and defects, a sweep killed half way and restarted, and the plots drawn
 from a result table of known numbers."""
 
@@ -19,11 +19,13 @@ import pandas as pd
 import pytest
 from matplotlib.axes import Axes
 
-from harness import master, scenarios, sweep
-from harness.controller import ControllerDesign
+from harness import sweeps as sweep
 from harness.errors import UserError
-from harness.scenarios import Ramp
-from harness.sweep import definition, execution, plots
+from harness.run import master
+from harness.run import scenario_files as scenarios
+from harness.run.controller import ControllerDesign
+from harness.run.scenario_files import Ramp
+from harness.sweeps import definition, execution, plots
 
 DATA = Path(__file__).resolve().parent / "data"
 SMALL = DATA / "sweep_small.toml"    # 2 payloads x k in (981, -1) x 2 variants
@@ -117,7 +119,7 @@ def test_latin_hypercube_plan_is_stratified_and_stable(tmp_path: Path) -> None:
 
 
 def by_hand(payload: float, k: float) -> scenarios.Scenario:
-    """The short scenario with a payload and stiffness, built without harness.sweep."""
+    """The short scenario with a payload and stiffness, built without harness.sweeps."""
     base = scenarios.load(DATA / "short_regulation.toml")
     phases = tuple(replace(p, inputs={**p.inputs, "payload": Ramp(payload),
                                       "counterweight_added": Ramp(payload)})

@@ -1,4 +1,4 @@
-"""The franchetti2021 task as a system of FMUs (harness.system): SSP and OSP descriptions,
+"""The franchetti2021 task as a system of FMUs (harness.systems.system): SSP and OSP descriptions,
 runs in libcosim and in FMPy's SSP runner, against the harness's own FMPy loop.
 
 The system's masters step the four FMUs in parallel (Jacobi), which delays the control loop by
@@ -20,8 +20,12 @@ import pandas as pd
 import pytest
 from fmpy.ssp.ssd import read_ssd
 
-from harness import cli, fmu_build, master, results, scenarios, system
-from harness.drive import motors
+from harness import cli
+from harness.fmu import build as fmu_build
+from harness.run import master, results
+from harness.run import scenario_files as scenarios
+from harness.run.drive import motors
+from harness.systems import system
 
 SCENARIO = scenarios.load("franchetti2021")
 VARIANT = "unbalanced"   # the largest drive energies and a non-zero static load at the start
@@ -325,7 +329,7 @@ def test_sequencer_variant_number_selects_the_variant_by_position() -> None:
     """variant_number k plays the k-th variant of the scenario file, as `variant` naming it
     does; 0 leaves the choice to `variant`; a number past the last variant fails
     initialisation with a message naming the range."""
-    from harness.fmi import CoSimFMU, FMICallException
+    from harness.fmu.loader import CoSimFMU, FMICallException
 
     def played(parameters: dict[str, object], steps: int = 20, step: float = 1.0) -> np.ndarray:
         with CoSimFMU(fmu_build.fmu_path("ScenarioSequencer")) as fmu:

@@ -18,10 +18,10 @@ from fuzzing import hostile_floats
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fmu_src import scenario as core
-from harness import scenarios
+from fmu_src.units.sequencer import scenario as core
 from harness.errors import UserError
-from harness.sweep import definition
+from harness.run import scenario_files as scenarios
+from harness.sweeps import definition
 
 BASE = tomllib.loads((scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text())
 
