@@ -113,8 +113,8 @@ def fmpy_final_values(model: str) -> tuple[list[float], list[float]]:
 
 def test_the_cases_cover_every_fmu_built() -> None:
     """Against what is on disk, not the registry the cases are made from: every slave script
-    (fmu_src/<Model>.py, a capitalised name) and every FMU built into build/fmus."""
-    scripts = {path.stem for path in registry.SOURCE_DIR.glob("*.py") if path.stem[0].isupper()}
+    (fmu_src/<folders>/<Model>.py, a capitalised name) and every FMU built into build/fmus."""
+    scripts = {path.stem for path in registry.SOURCE_DIR.rglob("*.py") if path.stem[0].isupper()}
     assert set(CASES) == scripts
     assert {path.stem for path in fmu_build.DEFAULT_DEST.glob("*.fmu")} <= set(CASES)
 

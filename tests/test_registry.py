@@ -191,8 +191,9 @@ def test_a_mechanism_added_as_its_own_files_is_wired_by_the_harness(
     assert (loop.input, loop.outputs) == ("tau_drive", ("theta", "omega"))
     assert {p.relative_to(scratch_source).as_posix()
             for p in fmu_build.dependencies(SCRATCH_MODEL, scratch_source)} == {
-        "mechanisms/pendulum/physics.py", "fmi/slave.py", "integration.py", "mechanism.py",
-        "parameters.py"}
+        "mechanisms/pendulum/physics.py", "fmi/mechanism_slave.py", "fmi/slave.py",
+        "fmi/state.py", "fmi/variables.py", "fmi/failures.py", "fmi/model_description.py",
+        "integration.py", "mechanism.py", "parameters.py"}
 
 
 def test_the_monolithic_reference_runs_the_added_mechanism(scratch_source: Path) -> None:

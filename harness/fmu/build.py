@@ -116,12 +116,15 @@ def _imports_in(source: str) -> frozenset[str]:
 
 
 def script(model: str, source_dir: Path = SOURCE_DIR) -> Path:
-    """The slave script of the model under source_dir; UserError naming the models if there
-    is none."""
+    """The slave script of the model under source_dir: a registered one, or (a slave that
+    registers nothing, as the bench's floor) source_dir/<model>.py; UserError naming the
+    models if there is none."""
     found = registry.scripts(source_dir)
-    if model not in found:
-        raise UserError(f"unknown model {model!r}; choose from {', '.join(found)}")
-    return found[model]
+    if model in found:
+        return found[model]
+    if (source_dir / f"{model}.py").is_file():
+        return source_dir / f"{model}.py"
+    raise UserError(f"unknown model {model!r}; choose from {', '.join(found)}")
 
 
 def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:

@@ -47,30 +47,34 @@ except ImportError:  # not POSIX: no locks, so no serialisation and no stale-sta
 RESULTS_DIR = Path(__file__).resolve().parents[2] / "results"
 STAGING_PREFIX = ".staging."  # write_run's staging folders inside a result set
 SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size")
-# mechanism outputs a summary reports at the end of the run, where a variant's model has them
-# (NaN, an empty cell, for the others): W_adjust, the cumulative work of an adjusting actuator
-SUMMARY_OUTPUTS = ("W_adjust",)
+
+
+def summary_outputs() -> tuple[str, ...]:
+    """The mechanism outputs a summary reports at the end of the run, where a variant's model
+    has them (NaN, an empty cell, for the others): every registration's summary_outputs."""
+    return tuple(dict.fromkeys(name for r in registry.mechanisms().values()
+                               for name in r.summary_outputs))
 
 
 def summary_columns(results: list[RunResult]) -> list[str]:
     """Columns of a summary: SUMMARY_COLUMNS for one-joint runs; with several joints the
     totals, then each drive's metrics (see harness.run.metrics), then eps and the rest. Where the
     runs differ in their joints, every metric any of them has, in order of appearance; the
-    SUMMARY_OUTPUTS any of them has go before model."""
+    summary_outputs any of them has go before model."""
     metrics = dict.fromkeys(name for r in results for name in r.metrics)
-    outputs = [name for name in SUMMARY_OUTPUTS if any(name in r.series for r in results)]
+    outputs = [name for name in summary_outputs() if any(name in r.series for r in results)]
     return ["variant", *metrics, "eps", "W_phases", "eps_W", *outputs, "model", "step_size"]
 
 
 def _summary_row(run: RunResult) -> dict[str, object]:
-    """A run's metrics, its SUMMARY_OUTPUTS at the end and, for a one-joint run, its drive
+    """A run's metrics, its summary_outputs at the end and, for a one-joint run, its drive
     metrics also under the joint-suffixed names of several-joint runs (kept where the table
     has those columns)."""
     (joint, *others) = run.joint_phase_work or [None]
     suffixed = ({f"{name}_{joint}": value for name, value in run.metrics.items()}
                 if joint is not None and not others else {})
     return {**run.metrics, **suffixed,
-            **{name: float(run.series[name].iloc[-1]) for name in SUMMARY_OUTPUTS
+            **{name: float(run.series[name].iloc[-1]) for name in summary_outputs()
                if name in run.series}}
 
 
@@ -403,6 +407,6 @@ def summary_text(path: Path, scenario: Scenario) -> str:
             if column in table:
                 table[column] = np.degrees(table[column]) if joint.kind == "revolute" else (
                     1e3 * table[column])
-    shown += ["eps", "W_phases", "eps_W", *(c for c in SUMMARY_OUTPUTS if c in table)]
+    shown += ["eps", "W_phases", "eps_W", *(c for c in summary_outputs() if c in table)]
     return (f"{path.parent.name} (tracking errors in deg, or mm for prismatic joints)\n"
             + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))

@@ -11,7 +11,7 @@ from typing import Any
 
 from pythonfmu.default_experiment import DefaultExperiment
 
-from fmu_src.fmi.slave import MechanismSlave
+from fmu_src.fmi.mechanism_slave import MechanismSlave
 from fmu_src.mechanism import ANGULAR, LINEAR, Port, Registration, Run, rest_to_rest_move
 from fmu_src.mechanisms.active_spring import physics
 
@@ -96,6 +96,7 @@ INPUT_DEPENDENCIES = {
 
 REGISTRATION = Registration(
     physics=physics,
+    summary_outputs=("W_adjust",),
     ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),
            Port(LINEAR, "carriage", "F_adjust", "q_dot", "q")),
     ledger={"E_t": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "W_adjust": -1, "E_added": -1},

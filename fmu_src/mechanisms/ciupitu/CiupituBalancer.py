@@ -8,9 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from fmu_src.fmi.slave import ARM_OUTPUTS, PayloadArmSlave
-from fmu_src.mechanism import payload_arm
 from fmu_src.mechanisms.ciupitu import physics
+from fmu_src.mechanisms.payload_arm import ARM_OUTPUTS, PayloadArmSlave, payload_arm
 
 OUTPUTS = (
     ARM_OUTPUTS["theta"],

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from fmu_src.fmi.slave import ARM_OUTPUTS, PayloadArmSlave
-from fmu_src.mechanism import payload_arm
+from fmu_src.mechanisms.payload_arm import ARM_OUTPUTS, PayloadArmSlave, payload_arm
 from fmu_src.mechanisms.rocking_counterweight import physics
 
 OUTPUTS = (

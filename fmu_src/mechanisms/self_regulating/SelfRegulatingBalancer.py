@@ -10,7 +10,7 @@ from typing import Any
 
 from pythonfmu.default_experiment import DefaultExperiment
 
-from fmu_src.fmi.slave import MechanismSlave
+from fmu_src.fmi.mechanism_slave import MechanismSlave
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
 from fmu_src.mechanisms.self_regulating import physics
 from fmu_src.parameters import DomainError
