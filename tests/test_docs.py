@@ -9,7 +9,7 @@ import pytest
 from fmpy import read_model_description
 
 from harness.fmu import build as fmu_build
-from harness.fmu import docs as fmu_docs
+from harness.fmu import variable_pages
 from harness.run.metrics import METRICS
 from harness.run.results import SUMMARY_COLUMNS
 
@@ -28,9 +28,9 @@ TEXT_SUFFIXES = {".py", ".md", ".toml", ".txt", ".c", ".h", ".cfg", ".ini", ".ym
 def test_variable_pages_match_the_built_fmus(model):
     """docs/variables/<Model>.md is what `make docs` writes for the FMU as built now."""
     md = read_model_description(str(fmu_build.fmu_path(model)))
-    page = fmu_docs.DOCS_VARIABLES / f"{model}.md"
+    page = variable_pages.DOCS_VARIABLES / f"{model}.md"
     assert page.is_file(), f"{page} is missing: run `make docs`"
-    assert page.read_text() == fmu_docs.variables_markdown(md), (
+    assert page.read_text() == variable_pages.variables_markdown(md), (
         f"{page.relative_to(ROOT)} is out of date: run `make docs`")
 
 

@@ -13,6 +13,7 @@ import pytest
 from fmpy import read_model_description
 
 from harness import cli
+from harness.errors import UserError
 from harness.fmu import build as fmu_build
 
 
@@ -152,3 +153,16 @@ def test_a_binary_is_recompiled_when_its_inputs_change(tmp_path: Path) -> None:
     record.unlink()
     fmu_build.compiled(source, output, *options)
     assert record.exists() and snapshot([output]) != compiled
+
+
+def test_running_locates_a_built_fmu_and_never_builds(tmp_path: Path) -> None:
+    """`locate` returns an up-to-date FMU as it is and, for a missing one, names the command
+    that builds it without building anything."""
+    with pytest.raises(UserError, match=r"DcMotorDrive\.fmu is not built: build it with "
+                                        r"`python -m harness build-fmus --out "):
+        fmu_build.locate("DcMotorDrive", tmp_path)
+    assert list(tmp_path.iterdir()) == []
+    built = fmu_build.fmu_path("DcMotorDrive")
+    copy = shutil.copy2(built, tmp_path / built.name)
+    assert fmu_build.locate("DcMotorDrive", tmp_path) == copy
+    assert copy.read_bytes() == built.read_bytes()

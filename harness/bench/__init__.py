@@ -90,7 +90,7 @@ NATIVE_HOST_BUILD = fmu_build.DEFAULT_DEST.parent / "native_host" / "fmi2_host"
 class StepLoop:
     """A timed FMU and what the master sets and reads at every step (as harness.run.master)."""
 
-    fmu_path: Callable[[], Path]  # builds the FMU if it is stale
+    fmu_path: Callable[[], Path]  # the built FMU (the floors are built here, the others located)
     input: str
     outputs: tuple[str, ...]
 
@@ -98,7 +98,7 @@ class StepLoop:
 def mechanism_loop(model: str, joints: tuple[Port, ...]) -> StepLoop:
     """The master's step loop of a mechanism: its first joint's effort set (the others stay
     at their start values), every joint's position and speed read."""
-    return StepLoop(lambda: fmu_build.fmu_path(model), joints[0].effort,
+    return StepLoop(lambda: fmu_build.locate(model), joints[0].effort,
                     tuple(name for joint in joints for name in (joint.position, joint.flow)))
 
 
@@ -270,7 +270,7 @@ def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
     inputs = scenario.inputs(times, variant)
     record_every = max(1, round(master.RECORD_INTERVAL / step_size))
     efforts = [trace.effort.tolist() for trace in run.traces]
-    with CoSimFMU(fmu_build.fmu_path(run.model), f"replay.{scenario.name}") as fmu:
+    with CoSimFMU(fmu_build.locate(run.model), f"replay.{scenario.name}") as fmu:
         fmu.set({name: signal[0] for name, signal in inputs.items()})
         fmu.initialize(run.parameters, stop_time=scenario.duration)
         calls = master.FMICalls(fmu, [joint.effort for joint in joints],
@@ -374,7 +374,7 @@ def sweep_benchmark(runs: int = 12, workers: Sequence[int] = (1, 2)) -> pd.DataF
         path = Path(tmp) / "bench.toml"
         path.write_text(BENCH_SWEEP.format(runs=runs))
         sweep = sweep_definition.load(path)
-        fmu_build.fmu_path(sweep.scenario.model)
+        fmu_build.locate(sweep.scenario.model)
         for n in workers:
             out = Path(tmp) / f"workers_{n}"
             client = sweep_execution.local_client(n)

@@ -369,6 +369,22 @@ def fmu_path(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DI
     return dest / f"{model}.fmu"
 
 
+def locate(model: str, dest: Path = DEFAULT_DEST) -> Path:
+    """The built FMU dest/<model>.fmu for running, never building it: a UserError names the
+    command that builds it when it is missing or its recorded inputs are not the current ones
+    (`fmu_inputs`)."""
+    fmu = dest / f"{model}.fmu"
+    if not fmu.exists():
+        problem = "is not built"
+    elif stale(fmu, fmu_inputs(model)):
+        problem = "is out of date with fmu_src"
+    else:
+        return fmu
+    command = ("make fmu" if dest == DEFAULT_DEST
+               else f"python -m harness build-fmus --out {dest}")
+    raise UserError(f"{fmu} {problem}: build it with `{command}`")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", dest="dest", type=Path, default=DEFAULT_DEST, metavar="DIR",
                         help="output folder")

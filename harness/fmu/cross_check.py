@@ -3,8 +3,8 @@
 For every FMU of `harness.fmu.build.MODELS` it writes, under the destination folder,
 `fmus/2.0/cs/<platform>/pythonfmu/<pythonfmu version>/<Model>/` with
 
-- `<Model>.fmu`: a copy of build/fmus' FMU, built only if stale (`fmu_build.fmu_path`),
-  so the cross-check publishes the very FMU (bytes and GUID) the other commands use;
+- `<Model>.fmu`: a copy of build/fmus' FMU (`make fmu` builds it, `fmu_build.locate`), so
+  the cross-check publishes the very FMU (bytes and GUID) the other commands use;
 - `<Model>_in.csv`: its input signals, if it has inputs (every input; linear interpolation
   between rows). A step is written as a ramp over the communication step before it
   (`importer_inputs`), not as a repeated time: an importer that samples the inputs at its
@@ -138,7 +138,7 @@ needs glibc 2.32 and the GCC 12 C++ runtime.
 
 def export(model: str, dest: Path) -> Path:
     """Write the cross-check folder of one model under dest and return it."""
-    fmu = fmu_build.fmu_path(model)
+    fmu = fmu_build.locate(model)
     md = read_model_description(str(fmu))
     run = fmu_docs.reference_run(model)
     folder = model_dir(dest, model)

@@ -103,7 +103,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
 
     check_names(scenario, variant, parameters)
     if fmu is None:
-        context = CoSimFMU(fmu_build.fmu_path(model), f"{scenario.name}.{variant.name}")
+        context = CoSimFMU(fmu_build.locate(model), f"{scenario.name}.{variant.name}")
     else:
         if fmu.model_description.modelName != model:
             raise UserError(f"variant {variant.name} needs model {model}, "
@@ -370,7 +370,7 @@ def model_variables(model: str) -> dict[str, str]:
     """{variable name: causality} of one of our models; UserError for an unknown model."""
     if model not in fmu_build.MODELS:
         raise UserError(f"unknown model {model!r}; choose from {', '.join(fmu_build.MODELS)}")
-    path = fmu_build.fmu_path(model)
+    path = fmu_build.locate(model)
     try:
         description = read_model_description(str(path))
     except (zipfile.BadZipFile, OSError) as error:  # e.g. a truncated build

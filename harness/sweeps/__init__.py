@@ -64,7 +64,7 @@ def run_sweep(path: str | Path, out: Path = SWEEP_RESULTS_DIR, workers: int = 2,
     if todo:
         for model in {sweep.scenario.variant(v).model or sweep.scenario.model
                       for v in sweep.variants}:
-            fmu_build.fmu_path(model)  # build once here, not racing in the workers
+            fmu_build.locate(model)  # a missing FMU is one error here, not one per worker
         client = execution.local_client(workers) if scheduler is None else connect(scheduler)
         try:
             execution.execute(sweep, todo, out, client, chunk_size, quiet)

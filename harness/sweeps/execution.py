@@ -79,7 +79,7 @@ def _instance(model: str) -> CoSimFMU:
     if model not in _FMUS:
         if not _FMUS:
             atexit.register(_close_fmus)
-        _FMUS[model] = CoSimFMU(fmu_build.fmu_path(model), f"sweep.{model}")
+        _FMUS[model] = CoSimFMU(fmu_build.locate(model), f"sweep.{model}")
     return _FMUS[model]
 
 

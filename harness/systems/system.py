@@ -121,7 +121,7 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
     parameters: dict[str, dict[str, Value]] = {SEQUENCER: {"variant_number": number}}
     models = {SEQUENCER: fmu_build.SEQUENCER}
     connections = []
-    with CoSimFMU(fmu_build.fmu_path(model), f"{scenario.name}.{variant.name}.design") as fmu:
+    with CoSimFMU(fmu_build.locate(model), f"{scenario.name}.{variant.name}.design") as fmu:
         fmu.set(inputs)
         fmu.initialize(mechanism_parameters, stop_time=scenario.duration)
         for joint, motor in zip(scenario.joints, drive_motors, strict=True):
@@ -139,7 +139,7 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
     models[MECHANISM] = model
     parameters[MECHANISM] = mechanism_parameters
     connections += [(SEQUENCER, name, MECHANISM, name) for name in inputs]
-    fmus = {m: fmu_build.fmu_path(m) for m in set(models.values()) - {fmu_build.SEQUENCER}}
+    fmus = {m: fmu_build.locate(m) for m in set(models.values()) - {fmu_build.SEQUENCER}}
     fmus[fmu_build.SEQUENCER] = sequencer_fmu(scenario)
     return System(scenario, variant, step_size, models, parameters, tuple(connections), fmus)
 
@@ -153,8 +153,9 @@ def _plays(fmu: Path, scenario: scenarios.Scenario) -> bool:
 def sequencer_fmu(scenario: scenarios.Scenario) -> Path:
     """A ScenarioSequencer FMU that plays the scenario: build/fmus' one if it does, else one
     built for the (shipped) scenario into build/system/<scenario>/fmus/, rebuilt when its
-    inputs change (`fmu_build.fmu_path`)."""
-    default = fmu_build.fmu_path(fmu_build.SEQUENCER)
+    inputs change (`fmu_build.fmu_path`): the one FMU a system builds, as it is part of the
+    system's description."""
+    default = fmu_build.locate(fmu_build.SEQUENCER)
     if _plays(default, scenario):
         return default
     source = scenarios.scenario_file(scenario.name)  # ValueError naming the known scenarios
