@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import re
 from pathlib import Path
+from typing import Any
 
 from pythonfmu import Fmi2Causality
 
@@ -59,11 +60,21 @@ def registration(model: str, source_dir: Path | None = None) -> Registration | N
     return getattr(importlib.import_module(name), REGISTRATION, None)
 
 
+def _instance(model: str) -> Any:
+    """An instance of the model's slave class outside an FMU (no resources)."""
+    return getattr(importlib.import_module(module_name(model)), model)(
+        instance_name=f"registry.{model}", resources=None)
+
+
+def variable_names(model: str) -> tuple[str, ...]:
+    """The names of the model's FMI variables, as its FMU declares them."""
+    return tuple(var.name for var in _instance(model).vars.values())
+
+
 def input_units(model: str) -> dict[str, str | None]:
     """The unit of each input of the model's slave (None for a Boolean), as its FMU declares
     it: read from an instance of the slave class."""
-    slave = getattr(importlib.import_module(module_name(model)), model)(
-        instance_name=f"units.{model}", resources=None)
+    slave = _instance(model)
     return {var.name: slave.info[var.name].unit for var in slave.vars.values()
             if var.causality == Fmi2Causality.input}
 

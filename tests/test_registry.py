@@ -136,21 +136,42 @@ def _string_constants(path: Path) -> set[str]:
             if isinstance(node, ast.Constant) and isinstance(node.value, str)}
 
 
+# String constants outside the mechanisms' folders that are a mechanism's name by the rule
+# below but mean something else or are not derived yet, each with its reason:
+NOT_A_MECHANISM_NAME = {
+    # a sweep file's plot role (its x axis), not SelfRegulatingBalancer's spring length x
+    "sweeps/definition.py": {"x"}, "sweeps/plots.py": {"x"},
+    # the scenario format's default joint: the one-link mechanisms' common names
+    "units/sequencer/scenario.py": {"tau_gravity"},
+    # the one-joint figure (Franchetti 2021 Figure 5), whose panels several mechanisms share:
+    # not derived from the registrations yet, as that would change the committed plots' lines
+    "run/results.py": {"E_p", "E_e", "E_t", "delta_b", "q", "x", "OB", "Y_cw", "l_s"},
+}
+
+
 def test_no_harness_or_shared_module_names_a_mechanism() -> None:
     """The harness and the FMUs' shared modules reach the mechanisms through their
     registrations alone: no string constant of a harness module (its design tools aside) or
-    of an fmu_src module that belongs to no mechanism is a mechanism's model name. (The
-    generated sequencer_scenario.py is a scenario file's data.)"""
-    names = set(MECHANISMS)
-    assert len(names) >= 5
+    of an fmu_src module outside fmu_src/mechanisms is a mechanism's model name, or the name
+    of an output that not every mechanism has (and that is no variable of the drive, the
+    controller or the sequencer), but those of NOT_A_MECHANISM_NAME. (The generated
+    sequencer_scenario.py is a scenario file's data.)"""
+    assert len(MECHANISMS) >= 5
+    outputs = [set(r.physics.Outputs._fields) for r in MECHANISMS.values()]
+    units = {var for model in set(fmu_build.MODELS) - set(MECHANISMS)
+             for var in registry.variable_names(model)}
+    names = {*MECHANISMS, *(set().union(*outputs) - set.intersection(*outputs) - units)}
+    assert {"W_adjust", "delta_b", "OB", "Y_cw", "l_s", "q"} <= names
     source = registry.SOURCE_DIR
     shared = [p for p in sorted(source.rglob("*.py")) if p.relative_to(source).parts[0]
               != "mechanisms" and p.stem != "sequencer_scenario"]
     assert {"fmi/slave.py", "units/sequencer/ScenarioSequencer.py", "integration.py"} <= {
         p.relative_to(source).as_posix() for p in shared}
-    for path in [*sorted(HARNESS.rglob("*.py")), *shared]:
-        if DESIGN_TOOLS not in path.parents:
-            assert not _string_constants(path) & names, path.name
+    for root, paths in ((HARNESS, sorted(HARNESS.rglob("*.py"))), (source, shared)):
+        for path in paths:
+            if DESIGN_TOOLS not in path.parents:
+                allowed = NOT_A_MECHANISM_NAME.get(path.relative_to(root).as_posix(), set())
+                assert not (_string_constants(path) & names) - allowed, path
 
 
 @pytest.fixture
