@@ -1,4 +1,5 @@
-"""The demian2022 co-simulation (docs/mechanisms.md): the RP arm with two drives, against
+"""The demian2022 co-simulation (fmu_src/mechanisms/prismatic/README.md): the RP arm with two
+drives, against
 quantities derived here from the reconstructed Table 1 and the quintic reference, against
 the monolithic solve_ivp reference, and against the committed results."""
 

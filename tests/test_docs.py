@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
+from harness import registry
 from harness.fmu import build as fmu_build
 from harness.fmu import variable_pages
 from harness.run.metrics import METRICS
@@ -69,3 +70,12 @@ def test_relative_links_resolve():
               for target, _ in LINK.findall(page.read_text())
               if "://" not in target and not (page.parent / target).exists()]
     assert not broken, f"broken links: {broken}"
+
+
+def test_the_readme_lists_every_fmu_by_its_slave_script() -> None:
+    """The README's tour names the slave script of every registered FMU, and no other."""
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    listed = set(re.findall(r"`fmu_src/[\w/]+/([A-Z]\w+)\.py`", readme))
+    assert listed == set(fmu_build.MODELS)
+    for model, script in registry.scripts().items():
+        assert f"`{script.relative_to(ROOT).as_posix()}`" in readme, model

@@ -141,9 +141,10 @@ def test_declared_initial_dependencies_hold_at_initialisation(model: tuple[str, 
 
 
 def test_a_payload_set_without_a_step_shows_at_once(srb_fmu: Path) -> None:
-    """docs/mechanisms.md with L0 = 0: tau_gravity = [(m c + payload w) g - k a b] sin(theta),
-    balance_error = (m c + payload w) g - k a b and E_p = (m c + payload w) g cos(theta),
-    at the initial state (theta0, b0), from the payload just set."""
+    """fmu_src/mechanisms/self_regulating/README.md with L0 = 0:
+    tau_gravity = [(m c + payload w) g - k a b] sin(theta), balance_error = (m c + payload w) g
+    - k a b and E_p = (m c + payload w) g cos(theta), at the initial state (theta0, b0), from
+    the payload just set."""
     start = {v.name: float(v.start) for v in read_model_description(str(srb_fmu)).modelVariables
              if v.causality == "parameter" and v.type == "Real"}
     m, c, w, k, a, b, g, theta = (start[n] for n in ("m", "c", "w", "k", "a", "b0", "g",

@@ -1,8 +1,8 @@
-"""PrismaticCompensator FMU (docs/mechanisms.md), exercised through FMPy.
+"""PrismaticCompensator FMU (fmu_src/mechanisms/prismatic/README.md), exercised through FMPy.
 
-Static efforts are checked against eqs. 3.1 and 3.3 and the residuals docs/mechanisms.md states,
-computed here independently of `fmu_src.mechanisms.prismatic.physics`. Energy: E_grav +
-E_springs + E_kin
+Static efforts are checked against eqs. 3.1 and 3.3 and the residuals
+fmu_src/mechanisms/prismatic/README.md states, computed here independently of
+`fmu_src.mechanisms.prismatic.physics`. Energy: E_grav + E_springs + E_kin
 - W_drive - W_worm + E_loss - E_added must stay constant.
 
 With the drives off the arm leaves the paper's workspace (below the horizontal the k1 wire is

@@ -1,4 +1,5 @@
-"""The built SelfRegulatingBalancer FMU (docs/mechanisms.md) stepped through FMPy.
+"""The built SelfRegulatingBalancer FMU (fmu_src/mechanisms/self_regulating/README.md) stepped
+through FMPy.
 
 Expected numbers come from the paper (Franchetti et al. 2021, Table 1 and eqs. 8, 10, 16),
 from closed forms derived here, or from conservation laws; never from the model itself.
@@ -21,7 +22,7 @@ from harness.fmu.loader import CoSimFMU
 
 # Paper, Table 1
 M, C, W, A, B0, R_CW, R_WIRE, K, G = 3.0, 0.2, 0.35, 0.1, 0.06, 0.035, 0.01, 981.0, 9.81
-J_LINK = 0.16  # our default (docs/mechanisms.md): m (2 c)^2 / 3
+J_LINK = 0.16  # our default (fmu_src/mechanisms/self_regulating/README.md): m (2 c)^2 / 3
 DEG = math.pi / 180.0
 ENERGY = ("E_t", "E_kin", "E_cw")
 DT = 1e-3

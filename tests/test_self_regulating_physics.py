@@ -1,9 +1,8 @@
 """Pure physics of the self-regulating balancer (fmu_src.mechanisms.self_regulating.physics), no
 FMI: fast.
 
-Expected values are closed forms of docs/mechanisms.md and the paper's Table 1, derivatives
-taken numerically from the energies, or conservation laws.
-"""
+Expected values are closed forms of fmu_src/mechanisms/self_regulating/README.md and the paper's
+Table 1, derivatives taken numerically from the energies, or conservation laws. """
 
 from __future__ import annotations
 

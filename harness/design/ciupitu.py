@@ -1,6 +1,6 @@
 """`python -m harness ciupitu-design`: Ciupitu's counterweight for the franchetti2021 task.
 
-docs/mechanisms.md (Ciupitu): the `ciupitu` variant of franchetti2021 puts Ciupitu's sliding
+fmu_src/mechanisms/ciupitu/README.md: the `ciupitu` variant of franchetti2021 puts Ciupitu's sliding
 counterweight (CiupituBalancer) on the Franchetti link, whose own weight a fixed counterweight
 balances (m_fixed_cw c_fixed_cw = m c); the counterweight's mass m2 (G2 = m2 g) and the bar's
 OA and AB are chosen here, to minimise the drive's energy over the task. The variant's TOML

@@ -1,5 +1,5 @@
 """`python -m harness rocking-design`: Ciupitu's rocking counterweight (Figure 4b) designed for
-the paper's Section 4 example (docs/rocking_counterweight.md).
+the paper's Section 4 example (fmu_src/mechanisms/rocking_counterweight/README.md).
 
 The data are the translational example's (G_pv,max = 4 N at OP = 2 m, counterweight G2 = 3 N,
 the parabolic and the linear payload law over the workspace phi in [-pi/2, pi/2]); the

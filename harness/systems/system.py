@@ -456,7 +456,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--engine", choices=ENGINES, default="libcosim",
                         help="the master that runs the system")
     parser.add_argument("--scenario", default="franchetti2021",
-                        help="shipped scenario (franchetti2021, ciupitu2018, demian2022)")
+                        help=f"shipped scenario ({', '.join(scenarios.available())})")
     parser.add_argument("--variants", dest="variant", default="all", metavar="VARIANTS",
                         help="'all' or a comma-separated list (eps baselines are added)")
     parser.add_argument("--variant", dest="variant", default=argparse.SUPPRESS,

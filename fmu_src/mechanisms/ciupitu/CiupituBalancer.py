@@ -1,5 +1,5 @@
 """FMI 2.0 Co-Simulation slave of Ciupitu's passive translational counterweight
-(docs/mechanisms.md).
+(README.md).
 
 A thin layer over `fmu_src.mechanisms.ciupitu.physics`: it maps FMI variables to the physics and
 integrates it over each communication step. """

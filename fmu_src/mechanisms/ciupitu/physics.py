@@ -1,7 +1,7 @@
 """Physics of Ciupitu's passive translational counterweight (Ciupitu 2018, Figure 4a).
 
 Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
-`CiupituBalancer`, the harness command `ciupitu-example` and the tests (docs/mechanisms.md).
+`CiupituBalancer`, the harness command `ciupitu-example` and the tests (README.md).
 
 Geometry. A counterweight of weight G2 = m2 g slides along the arm on the side opposite to
 the payload; a bar of length AB joins it to the ground pivot A, a distance OA above O. The
@@ -508,7 +508,7 @@ switch_inputs = ledger.payload_switch(inertia)
 
 
 class Outputs(NamedTuple):
-    """Observable quantities (docs/mechanisms.md; SI units)."""
+    """Observable quantities (README.md; SI units)."""
 
     theta: float
     omega: float

@@ -1,4 +1,4 @@
-"""FMI 2.0 Co-Simulation slave of the Demian-Klimchik prismatic compensator (docs/mechanisms.md).
+"""FMI 2.0 Co-Simulation slave of the Demian-Klimchik prismatic compensator (README.md).
 
 A thin layer over `fmu_src.mechanisms.prismatic.physics`: it maps FMI variables to the physics
 and integrates it over each communication step. """

@@ -75,7 +75,7 @@ from fmu_src.parameters import check_ranges, parameter
 
 @dataclass(frozen=True)
 class Parameters:
-    """Parameters of the arm and compensator: Table 1 of the paper as read in docs/mechanisms.md.
+    """Parameters of the arm and compensator: Table 1 of the paper as read in README.md.
 
     Ours, not the paper's: r = 0.15 m (follows from Table 1's k1 by eq. 3.6), I1 = m1 l1^2/12
     (uniform rod l1 = 1 m about its centre, for m1 = 1 kg), no friction by default (d1 = d2 = 0
@@ -335,7 +335,7 @@ switch_inputs = no_input_events  # EVENT_INPUTS is empty
 
 
 class Outputs(NamedTuple):
-    """Observable quantities (docs/mechanisms.md; SI units)."""
+    """Observable quantities (README.md; SI units)."""
 
     q1: float
     q1_dot: float

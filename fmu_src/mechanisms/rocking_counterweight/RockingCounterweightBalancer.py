@@ -1,5 +1,5 @@
 """FMI 2.0 Co-Simulation slave of Ciupitu's rocking counterweight
-(docs/rocking_counterweight.md).
+(README.md).
 
 A thin layer over `fmu_src.mechanisms.rocking_counterweight.physics`: it maps FMI variables to
 the physics, applies the payload events at communication points and integrates the physics over

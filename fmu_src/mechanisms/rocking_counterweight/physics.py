@@ -3,7 +3,7 @@
 Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
 `RockingCounterweightBalancer`, the harness (`ciupitu-example`, the design in
 `harness.design.rocking_counterweight`) and the tests. The derivation is in
-docs/rocking_counterweight.md.
+README.md.
 
 Geometry, in the paper's frame XOY (X horizontal towards the payload's side, Y up: the
 project's frame mirrored, X = -x, docs/conventions.md) and the paper's arm angle
@@ -421,7 +421,7 @@ switch_inputs = ledger.payload_switch(inertia)
 
 
 class Outputs(NamedTuple):
-    """Observable quantities (docs/rocking_counterweight.md; SI units)."""
+    """Observable quantities (README.md; SI units)."""
 
     theta: float
     omega: float

@@ -1,4 +1,4 @@
-"""FMI 2.0 Co-Simulation slave of the self-regulating spring balancer (docs/mechanisms.md).
+"""FMI 2.0 Co-Simulation slave of the self-regulating spring balancer (README.md).
 
 A thin layer over `fmu_src.mechanisms.self_regulating.physics`: it maps FMI variables to the
 physics, integrates it over each communication step, and reports misuse through the FMU log. """

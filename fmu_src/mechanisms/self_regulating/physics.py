@@ -827,7 +827,7 @@ def counterweight_for(p: Parameters, b: float) -> float:
 
 
 class Outputs(NamedTuple):
-    """Observable quantities (docs/mechanisms.md; SI units)."""
+    """Observable quantities (README.md; SI units)."""
 
     theta: float
     omega: float

@@ -83,7 +83,7 @@ TOML = "\n".join((
     '[variants.active_relocation]',
     "# Ciupitu's Fig. 8 with Franchetti's link and ideal spring (the ActiveSpringBalancer's",
     '# defaults: spring on the link at x1A = b0, frame joint B at Y_B0 = a above O): instead of the',
-    '# slider, a second drive raises B on a self-locking screw (docs/active_spring.md). In phase',
+    '# slider, a second drive raises B on a self-locking screw (fmu_src/mechanisms/active_spring/README.md). In phase',
     '# III it follows the payload ramp to Y_B = (m c + payload w) g / (k x1A), i.e. q = payload w g',
     '# / (k x1A) = 1 kg 0.35 m 9.81 m/s2 / (981 N/m 0.06 m) = 58.33 mm; the payload ramps with the',
     "# quintic of q's reference, so the carriage keeps the link balanced throughout. The screw",
