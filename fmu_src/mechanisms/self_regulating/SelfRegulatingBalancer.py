@@ -12,7 +12,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.fmi.mechanism_slave import MechanismSlave
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
-from fmu_src.mechanisms.self_regulating import physics
+from fmu_src.mechanisms.self_regulating import design, physics
 from fmu_src.parameters import DomainError
 
 # How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
@@ -114,12 +114,12 @@ class SelfRegulatingBalancer(MechanismSlave):
         beyond BALANCE_TOLERANCE, naming the best position (and whether even that leaves
         more) and the counterweight that reaches it."""
         b = self.state.b
-        residual = physics.residual_torque_rms(p, payload, b)
+        residual = design.residual_torque_rms(p, payload, b)
         moment = (p.m * p.c + payload * p.w) * p.g
         if residual <= BALANCE_TOLERANCE * moment:
             return
-        best = physics.balancing_slider_position(p, payload)
-        least = physics.residual_torque_rms(p, payload, best)
+        best = design.balancing_slider_position(p, payload)
+        least = design.residual_torque_rms(p, payload, best)
         where = (f"the design cannot balance it: the least, {least:.3g} N m RMS, is at "
                  f"b = {best:.4f} m" if least > BALANCE_TOLERANCE * moment
                  else f"it balances at b = {best:.4f} m")
@@ -127,7 +127,7 @@ class SelfRegulatingBalancer(MechanismSlave):
                   f"slider was locked at b = {b:.4f} m, where the residual torque is "
                   f"{residual:.3g} N m RMS over a full turn ({100 * residual / moment:.1f} % "
                   f"of the gravity moment); {where} (regulation at 180 deg reaches it with "
-                  f"counterweight_added = {physics.counterweight_for(p, best):.4f} kg)")
+                  f"counterweight_added = {design.counterweight_for(p, best):.4f} kg)")
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         super().restore_hidden_state(hidden)
