@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from fmu_src.units.sequencer import scenario as core
+from fmu_src.units.sequencer import scenario_format
 from fmu_src.units.sequencer.scenario import RAMP_SHAPES, Joint, Phase, Ramp, Variant, ramp
 from harness import registry
 from harness.errors import UserError
@@ -128,7 +129,7 @@ def load(name_or_path: str | Path) -> Scenario:
     path = scenario_file(name_or_path)
     data = read_toml(path)
     try:
-        return core.parse(data, path.name, Scenario)
+        return scenario_format.parse(data, path.name, Scenario)
     except ValueError as error:  # the core is standard library only: it raises ValueError
         raise UserError(str(error)) from None
 

@@ -37,6 +37,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 from fmu_src.fmi.slave import ModelSlave, VariableInfo
 from fmu_src.mechanism import DocumentedRun, Registration, Run
 from fmu_src.units.sequencer import scenario as core
+from fmu_src.units.sequencer import scenario_format
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,7 @@ def embedded_scenario(resources: str | None) -> tuple[core.Scenario, dict[str, s
     else:
         from fmu_src.units.sequencer import sequencer_scenario
         module = vars(sequencer_scenario)
-    return core.parse(module["DATA"], f"{module['NAME']}.toml"), module["INPUT_UNITS"]
+    return scenario_format.parse(module["DATA"], f"{module['NAME']}.toml"), module["INPUT_UNITS"]
 
 
 def scenario_inputs(scenario: core.Scenario) -> dict[str, bool | float]:
