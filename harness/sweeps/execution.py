@@ -44,7 +44,8 @@ from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU, FMUCallError
 from harness.io import write_atomic, write_csv
 from harness.run import master, results
-from harness.sweeps.definition import RUN_METRICS, Run, Sweep, assignments, configure, plan
+from harness.sweeps.definition import RUN_METRICS, Run, Sweep, assignments, plan
+from harness.sweeps.paths import configure
 
 SWEEP_RESULTS_DIR = results.RESULTS_DIR / "sweeps"
 CHUNKS_PER_WORKER = 4              # at least this many tasks per worker, for load balance
