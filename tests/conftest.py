@@ -136,11 +136,14 @@ def failed_initialisation(model: str, parameters: Mapping[str, float]) -> str:
         fmu.close()
 
 
-def assert_reproduces_committed_summary(scenario: Scenario, runs: Iterable[RunResult]) -> None:
-    """The summary rows of these runs equal those of results/<scenario>/summary.csv. Columns
-    the runs alone do not have, per-joint columns of a scenario whose variants differ in
-    their joints, are empty in those rows or repeat the metric of the variant's one joint."""
-    committed = pd.read_csv(results.RESULTS_DIR / scenario.name / "summary.csv")
+def assert_reproduces_committed_summary(scenario: Scenario, runs: Iterable[RunResult],
+                                        folder: Path | None = None) -> None:
+    """The summary rows of these runs equal those of results/<scenario>/summary.csv (or of
+    the result set in folder). Columns the runs alone do not have, per-joint columns of a
+    scenario whose variants differ in their joints, are empty in those rows or repeat the
+    metric of the variant's one joint."""
+    folder = results.RESULTS_DIR / scenario.name if folder is None else folder
+    committed = pd.read_csv(folder / "summary.csv")
     fresh = results.summary(runs, scenario.baselines).set_index("variant")
     committed = committed.set_index("variant").loc[fresh.index]
     assert list(fresh.columns) == [c for c in committed.columns if c in fresh.columns]

@@ -225,3 +225,42 @@ def test_invalid_parameter_is_reported() -> None:
     and its range."""
     message = failed_initialisation("PrismaticCompensator", {"m2": 0.0})
     assert "m2 = 0.0 kg is outside (0.0, inf)" in message
+
+
+def real_spring_potential(q1: float, q2: float, free_length: float) -> float:
+    """V = E_grav + E_springs with springs k2 and k3 of this free length, from the anchor
+    coordinates (C = (0, c), D = d u, A = (0, a), B = e u), independently of the module."""
+    k1, k2, k3 = M2 * G / (2 * R), LC1 * M1 * G / (C * D), M2 * G * LS0 / (A * B)
+    u = (math.cos(q1), math.sin(q1))
+    e = B + RHO * q2
+    l2 = math.hypot(D * u[0], D * u[1] - C)
+    l3 = math.hypot(e * u[0], e * u[1] - A)
+    return ((M1 * LC1 + M2 * (LS0 + q2)) * G * u[1] + 0.5 * k1 * (R * max(u[1], 0.0)) ** 2
+            + 0.5 * k2 * (l2 - free_length) ** 2 + 0.5 * k3 * (l3 - free_length) ** 2)
+
+
+@pytest.mark.parametrize("q1, q2", [(0.1, 0.0), (0.35, 0.15), (0.7, 0.3)])
+def test_real_springs_load_the_joints_with_their_energy_gradient(fmu: CoSimFMU, q1: float,
+                                                                 q2: float) -> None:
+    """With a free length L0 the springs' energy is 1/2 k (l - L0)^2: the residuals are its
+    gradient (back-drivable: k3 loads q2 too, less the k1 wire's 2T), and the arm the design
+    equations balance exactly with ideal springs is left unbalanced on q1."""
+    free_length, h = 0.02, 1e-6
+    start(fmu, {**MODES["back_drivable"], "L0": free_length, "q1_0": q1, "q2_0": q2})
+    out = fmu.get(["tau1_gravity_residual", "f2_gravity_residual", "T_wire", "E_springs"])
+    dV_dq1 = (real_spring_potential(q1 + h, q2, free_length)
+              - real_spring_potential(q1 - h, q2, free_length)) / (2 * h)
+    dV_dq2 = (real_spring_potential(q1, q2 + h, free_length)
+              - real_spring_potential(q1, q2 - h, free_length)) / (2 * h)
+    assert out["tau1_gravity_residual"] == pytest.approx(dV_dq1, abs=1e-7)
+    assert out["f2_gravity_residual"] == pytest.approx(dV_dq2 - 2 * out["T_wire"], abs=1e-7)
+    ideal_residual = static_efforts(fmu, "back_drivable", q1, q2)[0]
+    assert abs(dV_dq1 - ideal_residual) > 1e-3  # the free length costs balance
+
+
+def test_energy_balance_with_real_springs(fmu: CoSimFMU) -> None:
+    drift, ranges, out = simulate(fmu, {**MODES["back_drivable"], "L0": 0.02, "q1_0": 0.2,
+                                        "q2_0": 0.14, "d1": 0.05, "d2": 0.5},
+                                  {"tau1": 0.1, "f2": 1.0})
+    assert drift < 1e-6
+    assert out["E_friction"] > 1e-3 and ranges["q1"][1] - ranges["q1"][0] > 0.05

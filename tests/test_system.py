@@ -62,7 +62,9 @@ def assert_agrees(summary: pd.DataFrame, series: pd.DataFrame,
                   harness_run: master.RunResult) -> None:
     variant = harness_run.variant
     expected = results.summary([harness_run], SCENARIO.baselines).set_index("variant")
-    numeric = [c for c in expected.columns if c not in ("model", "step_size", "eps", "eps_W")]
+    # the coupling's own error is the master's: Jacobi's delay triples it (tested apart)
+    numeric = [c for c in expected.columns if c not in ("model", "step_size", "eps", "eps_W")
+               and not c.startswith("W_bond_error")]
     for column in numeric:
         assert summary.loc[variant, column] == pytest.approx(
             expected.loc[variant, column], rel=METRIC_RTOL), column

@@ -36,6 +36,15 @@ controller and motor, the loop.
 reference (harness.run.reference): the relative error of each drive energy, which must shrink
 with the step.
 
+`ecco`: the coupling's own energy error (docs/results.md#power-bonds) against the steps
+taken, for franchetti2021's self_regulating and demian2022's compensated variants run as
+systems of FMUs in libcosim: at the fixed steps of `convergence` and under ECCO at
+ECCO_TOLERANCES. Per run the steps, E_drawn and its relative error against the monolithic
+reference (and E_in's, relative to E_drawn), the bonds' summed |W_bond_error| and the
+largest event lag (a phase start to the
+first communication point at or after it); `ecco.png` plots both errors against the steps
+(log-log).
+
 `sweep`: runs per second of a parameter sweep with 1 and 2 Dask worker processes.
 
 `cli_help`: wall time of `python -m harness --help` in a fresh interpreter, best of repeats.
@@ -353,6 +362,79 @@ def convergence(steps: int = 0, repeats: int = 0,
     return pd.DataFrame(rows)
 
 
+ECCO_CASES = (("franchetti2021", "self_regulating"), ("demian2022", "compensated"))
+# ECCO's absolute tolerances on a bond's energy residual per step [J], loose to tight
+ECCO_TOLERANCES = (1e-5, 1e-6, 1e-7)
+
+
+def ecco(steps: int = 0, repeats: int = 0,
+         cases: Sequence[tuple[str, str]] = ECCO_CASES,
+         step_sizes: Sequence[float] = CONVERGENCE_STEPS,
+         tolerances: Sequence[float] = ECCO_TOLERANCES) -> pd.DataFrame:
+    """E_drawn's relative error against the monolithic reference and the coupling's energy
+    error against the number of steps, per case: libcosim at each fixed step, then ECCO at
+    each tolerance (its first step 1 ms, the other settings their defaults)."""
+    from harness.systems import system
+
+    rows = []
+    for scenario_name, variant_name in cases:
+        scenario = scenarios.load(scenario_name)
+        variant = scenario.variant(variant_name)
+        ref = reference.simulate(scenario, variant).metrics
+        drawn = ref["E_drawn"]
+        runs = [("fixed", h, None, system.describe(scenario, variant, h))
+                for h in step_sizes]
+        runs += [("ecco", master.DEFAULT_STEP, tolerance, system.describe(
+            scenario, variant, master.DEFAULT_STEP,
+            ecco=system.EccoSettings(abs_tolerance=tolerance))) for tolerance in tolerances]
+        with tempfile.TemporaryDirectory() as folder:
+            for algorithm, h, tolerance, described in runs:
+                run = system.run_libcosim(described, None if tolerance is not None
+                                          else system.write_osp(described, Path(folder)))
+                bond_errors = [value for name, value in run.metrics.items()
+                               if name.startswith("W_bond_error")]
+                rows.append({
+                    "scenario": scenario_name, "variant": variant_name,
+                    "algorithm": algorithm, "step_size": run.step_size,
+                    "abs_tolerance": tolerance,
+                    "steps": run.metrics.get("steps", round(scenario.duration / h)),
+                    "E_drawn": run.metrics["E_drawn"], "E_drawn_ref": drawn,
+                    "err_E_drawn": abs(run.metrics["E_drawn"] - drawn) / drawn,
+                    # E_in has no rectification: relative to E_drawn, as in convergence
+                    "err_E_in": abs(run.metrics["E_in"] - ref["E_in"]) / drawn,
+                    "bond_error": sum(abs(e) for e in bond_errors),
+                    "rel_bond_error": sum(abs(e) for e in bond_errors) / drawn,
+                    "event_lag_max": run.metrics.get("event_lag_max", 0.0)})
+    return pd.DataFrame(rows)
+
+
+def ecco_plot(table: pd.DataFrame, path: Path) -> Path:
+    """ecco.png: per case, E_drawn's relative error and the coupling's relative energy error
+    (|W_bond_error| / E_drawn_ref) against the steps taken, fixed step and ECCO (log-log)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    from harness.io import save_figure
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for (case, rows), colour in zip(table.groupby(["scenario", "variant"], sort=False),
+                                    ("C0", "C1", "C2", "C3"), strict=False):
+        for algorithm, marker in (("fixed", "o-"), ("ecco", "s--")):
+            chosen = rows[rows.algorithm == algorithm]
+            for ax, column in zip(axes, ("err_E_drawn", "rel_bond_error"), strict=True):
+                ax.loglog(chosen.steps, chosen[column], marker, color=colour,
+                          label=f"{'/'.join(case)} {algorithm}")
+    for ax, title in zip(axes, ("E_drawn: relative error against the monolithic reference",
+                                "coupling: |W_bond_error| / E_drawn"), strict=True):
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("communication steps")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # decades only: minor labels overlap
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 BENCH_SWEEP = """
 name = "bench"
 scenario = "franchetti2021"
@@ -492,11 +574,15 @@ BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "master_share": master_share,
     # steps and repeats do not apply
     "convergence": lambda steps, repeats: convergence(),
+    "ecco": ecco,
     # runs/s of a parameter sweep with 1 and 2 worker processes; steps and repeats do not apply
     "sweep": lambda steps, repeats: sweep_benchmark(),
     # steps do not apply
     "cli_help": cli_help,
 }
+
+
+PLOTS: dict[str, Callable[[pd.DataFrame, Path], Path]] = {"ecco": ecco_plot}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -522,6 +608,8 @@ def run(args: argparse.Namespace) -> int:
     for name in names:
         tables[name] = BENCHMARKS[name](steps=args.steps, repeats=args.repeats)
         print(write_csv(tables[name], args.out / f"{name}.csv"))
+        if name in PLOTS:
+            print(PLOTS[name](tables[name], args.out / f"{name}.png"))
         print(tables[name].to_string(index=False))
     checked = checks(tables)
     if checked.empty:

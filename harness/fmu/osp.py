@@ -28,7 +28,7 @@ from xml.etree import ElementTree as ET
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
-from fmu_src.mechanism import Quantity
+from fmu_src.mechanism import Port, Quantity
 from harness import registry
 from harness.io import write_atomic
 
@@ -166,3 +166,35 @@ def _pairs(a: str, group_a: Group, b: str, group_b: Group) -> list[tuple[str, st
     for member_a, member_b in zip(group_a.members, group_b.members, strict=True):
         pairs.extend(_pairs(a, member_a, b, member_b))
     return pairs
+
+
+@dataclass(frozen=True)
+class PowerBond:
+    """A power bond (ECCO, docs/results.md#power-bonds): the effort `source` puts out
+    (source_effort, its output) is `sink`'s input (sink_effort), and the flow `sink` puts out
+    (sink_flow) is `source`'s input (source_flow). Both sides are registered ports."""
+
+    name: str
+    source: str
+    source_effort: str
+    source_flow: str
+    sink: str
+    sink_effort: str
+    sink_flow: str
+
+
+def power_bonds(models: dict[str, str], connections: tuple[tuple[str, str, str, str], ...]
+                ) -> list[PowerBond]:
+    """The power bonds of a system: every pair of registered ports (fmu_src.mechanism.Port,
+    harness.registry) of two components that the connections join effort to effort one way
+    and flow to flow the other way, e.g. the drive's shaft and the mechanism's joint. A
+    lead-screw drive's angular shaft meets a prismatic joint this way too."""
+    wired = set(connections)
+    ports = {component: [p for p in getattr(registry.registration(model), "ports", ())
+                         if isinstance(p, Port)] for component, model in models.items()}
+    return [PowerBond(f"{a}.{port_a.name}-{b}.{port_b.name}", a, port_a.effort, port_a.flow,
+                      b, port_b.effort, port_b.flow)
+            for (a, ports_a), (b, ports_b) in itertools.permutations(ports.items(), 2)
+            for port_a, port_b in itertools.product(ports_a, ports_b)
+            if (a, port_a.effort, b, port_b.effort) in wired
+            and (b, port_b.flow, a, port_a.flow) in wired]

@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from harness import interrupts
 from harness.errors import UserError
-from harness.run import master, results
+from harness.run import losses, master, results
 from harness.run import scenario_files as scenarios
 
 
@@ -41,6 +41,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="worker processes running the variants in parallel (default: "
                              "the number of CPUs; 1 runs them one after another in this "
                              "process)")
+    parser.add_argument("--losses", default="all",
+                        help="'all' (default), 'ideal' or 'realistic': the scenario as written, "
+                             "or with the losses of real parts (harness/losses/<scenario>.toml, "
+                             "into OUT/<scenario>/realistic/; with all, a scenario without one "
+                             "runs ideal only)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -69,15 +74,21 @@ def run_variant(scenario: scenarios.Scenario, name: str, step: float,
     return master.run(scenario, scenario.variant(name), step, progress=advance)
 
 
-def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out: Path,
-            workers: int = 1, quiet: bool = False) -> None:
+Plan = tuple[scenarios.Scenario, list[str]] | tuple[scenarios.Scenario, list[str], Path]
+
+
+def run_all(plans: list[Plan], step: float, out: Path, workers: int = 1,
+            quiet: bool = False) -> None:
     """Run every planned variant and write each scenario's result files (and print its
     summary) once its runs are done; with workers above 1 both in that many processes.
+    A plan is (scenario, variants) or (scenario, variants, folder): its result set goes to
+    the folder, by default OUT/<scenario>/.
     A SIGINT stops the runs (none is interrupted midway in its FMU, nor a write) and raises
     KeyboardInterrupt."""
-    jobs = [(index, scenario, name) for index, (scenario, names) in enumerate(plans)
+    folders = [plan[2] if len(plan) > 2 else out / plan[0].name for plan in plans]
+    jobs = [(index, scenario, name) for index, (scenario, names, *_) in enumerate(plans)
             for name in names]
-    remaining = {index: len(names) for index, (_, names) in enumerate(plans)}
+    remaining = {index: len(names) for index, (_, names, *_) in enumerate(plans)}
     runs: dict[tuple[int, str], master.RunResult] = {}
     total = sum(round(scenario.duration / step) for _, scenario, _ in jobs)
 
@@ -87,8 +98,8 @@ def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out:
         remaining[index] -= 1
         if remaining[index]:
             return None
-        scenario, names = plans[index]
-        return scenario, [runs.pop((index, n)) for n in names], out
+        scenario, names, *_ = plans[index]
+        return scenario, [runs.pop((index, n)) for n in names], folders[index]
 
     with interrupts.deferred(), tqdm(total=total, unit="step", unit_scale=True,
                                      disable=quiet) as bar:
@@ -134,11 +145,11 @@ def run_all(plans: list[tuple[scenarios.Scenario, list[str]]], step: float, out:
 
 
 def write_scenario(scenario: scenarios.Scenario, runs: list[master.RunResult],
-                   out: Path) -> str:
-    """Write one scenario's result files; their paths and its summary, to print."""
-    paths = results.write_run(runs, scenario, out / scenario.name)
-    return "\n".join([*map(str, paths),
-                      results.summary_text(out / scenario.name / "summary.csv", scenario)])
+                   folder: Path) -> str:
+    """Write one scenario's result files into folder; their paths and its summary, to
+    print."""
+    paths = results.write_run(runs, scenario, folder)
+    return "\n".join([*map(str, paths), results.summary_text(folder / "summary.csv", scenario)])
 
 
 def run(args: argparse.Namespace) -> int:
@@ -147,13 +158,15 @@ def run(args: argparse.Namespace) -> int:
     names = scenarios.available() if args.scenario == "all" else [args.scenario]
     plans = []
     for name in names:  # every scenario, option, output folder and summary checked first
-        scenario = scenarios.load(name)
-        scenario.check_step(args.step)
-        variants = selected_variants(scenario, args.variants)
-        for name in variants:
-            variant = scenario.variant(name)
-            master.check_names(scenario, variant, scenario.parameters | variant.parameters)
-        results.check_result_set(args.out / scenario.name)
-        plans.append((scenario, variants))
+        loaded = scenarios.load(name)
+        loaded.check_step(args.step)
+        variants = selected_variants(loaded, args.variants)
+        for loss_set, scenario in losses.loss_sets(loaded, args.losses):
+            for name in variants:
+                variant = scenario.variant(name)
+                master.check_names(scenario, variant, scenario.parameters | variant.parameters)
+            folder = losses.result_folder(args.out, scenario, loss_set)
+            results.check_result_set(folder)
+            plans.append((scenario, variants, folder))
     run_all(plans, args.step, args.out, args.workers, args.quiet)
     return 0

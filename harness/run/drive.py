@@ -78,28 +78,36 @@ def sampled_motor(motor: MotorParameters, dt: float, current: float = 0.0) -> Sa
     return SampledMotor(motor, discretise(motor, dt), current)
 
 
-def start_currents(motor: MotorParameters, dt: float, voltage: np.ndarray, omega: np.ndarray,
-                   average: np.ndarray) -> np.ndarray:
-    """The armature current [A] at the start of each of n zero-order-hold steps of dt [s] and
-    at the end of the last (n + 1 values), from the step-average currents [A] of a drive that
-    held V [V] and omega [rad/s or m/s] over each step (e.g. the `DcMotorDrive` FMU's i)."""
-    coefficients = zoh_coefficients(motor, dt)
-    start = coefficients.start_current(average, voltage, omega)
-    last = SampledMotor(motor, coefficients, float(start[-1]))
+def start_currents(motor: MotorParameters, dt: float | np.ndarray, voltage: np.ndarray,
+                   omega: np.ndarray, average: np.ndarray) -> np.ndarray:
+    """The armature current [A] at the start of each of n zero-order-hold steps of dt [s]
+    (one for all, or one per step) and at the end of the last (n + 1 values), from the
+    step-average currents [A] of a drive that held V [V] and omega [rad/s or m/s] over each
+    step (e.g. the `DcMotorDrive` FMU's i)."""
+    if np.ndim(dt) == 0:
+        coefficients = zoh_coefficients(motor, dt)
+        start = coefficients.start_current(average, voltage, omega)
+        last = SampledMotor(motor, coefficients, float(start[-1]))
+    else:
+        start = np.array([zoh_coefficients(motor, h).start_current(i, v, w) for h, i, v, w
+                          in zip(dt.tolist(), average.tolist(), voltage.tolist(),
+                                 omega.tolist(), strict=True)])
+        last = SampledMotor(motor, zoh_coefficients(motor, float(dt[-1])), float(start[-1]))
     last.step(float(voltage[-1]), float(omega[-1]))
     return np.append(start, last.current)
 
 
 @dataclass(frozen=True)
 class DriveTrace:
-    """One joint's drive over a run of n communication steps of step_size [s]: per step k < n
-    what it held and carried (n values), and at t_k = k step_size, k = 0..n, the armature
-    current and the joint (n + 1 values). Efforts in N m and positions in rad for a revolute
-    joint, N and m for a prismatic one."""
+    """One joint's drive over a run of n communication steps of step_size [s] (one for all,
+    or n of them: variable steps): per step k < n what it held and carried (n values), and at
+    each communication point t_k, k = 0..n, the armature current and the joint (n + 1
+    values). Efforts in N m and positions in rad for a revolute joint, N and m for a
+    prismatic one."""
 
     joint: Joint
     motor: MotorParameters
-    step_size: float
+    step_size: float | np.ndarray
     voltage: np.ndarray        # held over step k [V]
     current: np.ndarray        # armature current, average over step k [A]
     effort: np.ndarray         # effort the mechanism received over step k
@@ -114,6 +122,24 @@ class DriveTrace:
         return float(self.start_current[-1])
 
     @property
+    def steps(self) -> np.ndarray:
+        """The length of each step [s] (n values)."""
+        return np.broadcast_to(self.step_size, (len(self.voltage),))
+
+    @property
+    def times(self) -> np.ndarray:
+        """The communication points t_k [s], k = 0..n: k step_size, or the steps summed."""
+        if np.ndim(self.step_size) == 0:
+            return np.arange(len(self.position)) * self.step_size
+        return np.concatenate([[0.0], np.cumsum(self.step_size)])
+
+    @property
+    def shaft_effort(self) -> np.ndarray:
+        """The effort the drive applies over each step, eta N K_t i (the step average; it is
+        `effort` when the mechanism gets it without delay) [N m or N]."""
+        return self.motor.torque_per_amp * self.current
+
+    @property
     def travel(self) -> np.ndarray:
         """The joint's travel over each step [rad or m]."""
         return np.diff(self.position)
@@ -121,5 +147,11 @@ class DriveTrace:
     def energies(self) -> DriveEnergies:
         """Each step's energies [J], arrays of n (`fmu_src.units.drive.dc_motor.step_energies`)."""
         n = len(self.voltage)
-        return step_energies(self.motor, self.step_size, self.voltage, self.speed[:n],
-                             self.start_current[:n], self.current, self.effort, self.travel)
+        if np.ndim(self.step_size) == 0:
+            return step_energies(self.motor, self.step_size, self.voltage, self.speed[:n],
+                                 self.start_current[:n], self.current, self.effort, self.travel)
+        steps = [step_energies(self.motor, *values) for values in zip(
+            self.step_size.tolist(), self.voltage.tolist(), self.speed[:n].tolist(),
+            self.start_current[:n].tolist(), self.current.tolist(), self.effort.tolist(),
+            self.travel.tolist(), strict=True)]
+        return DriveEnergies(*(np.array(values) for values in zip(*steps, strict=True)))

@@ -320,27 +320,60 @@ def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.Data
     recorded: the FMU variables recorded every RECORD_INTERVAL from t = 0, one row each;
     traces: each joint's drive over the run, in the scenario's joint order.
     """
-    step_size = traces[0].step_size
-    record_every = max(1, round(RECORD_INTERVAL / step_size))
-    times = np.arange(len(traces[0].position)) * step_size
+    first = traces[0]
+    times = first.times
+    rows = recorded_points(times, first.step_size)[:len(recorded)]
     series = recorded.reset_index(drop=True)
-    series.insert(0, "time", times[::record_every][:len(series)])
+    series.insert(0, "time", times[rows])
     per_joint, joint_phase_work = {}, {}
     for joint, trace in zip(scenario.joints, traces, strict=True):
         energies = trace.energies()
         per_joint[joint.name] = metrics.drive_metrics(trace)
         joint_phase_work[joint.name] = {
-            name: float(np.sum(energies.W_link[round(t0 / step_size):round(t1 / step_size)]))
+            name: float(np.sum(energies.W_link[point_at(times, first.step_size, t0):
+                                               point_at(times, first.step_size, t1)]))
             for name, t0, t1 in scenario.phase_times()}
-        _add_drive_columns(series, trace, energies, suffix(scenario, joint), record_every)
+        _add_drive_columns(series, trace, energies, suffix(scenario, joint), rows)
     if len(scenario.joints) > 1:
         _add_total_columns(series, [suffix(scenario, joint) for joint in scenario.joints])
     for column in series.columns:
         if series[column].dtype == bool:
             series[column] = series[column].astype(int)
-    return RunResult(scenario.name, variant.name, model, step_size, series,
-                     metrics.run_metrics(per_joint), gains, parameters, joint_phase_work,
-                     messages)
+    run_metrics = metrics.run_metrics(per_joint)
+    step_size = first.step_size
+    if np.ndim(step_size) != 0:  # variable steps: the mean step, their number, the events
+        run_metrics |= {"steps": len(step_size),
+                        "event_lag_max": event_lag(times, scenario.phase_times())}
+        step_size = float(times[-1] / len(step_size))
+    return RunResult(scenario.name, variant.name, model, step_size, series, run_metrics,
+                     gains, parameters, joint_phase_work, messages)
+
+
+def recorded_points(times: np.ndarray, step_size: float | np.ndarray) -> np.ndarray:
+    """The communication points a run records (indexes into times [s]): every
+    RECORD_INTERVAL from t = 0; with variable steps the last point at or before each
+    multiple of RECORD_INTERVAL (each point once)."""
+    if np.ndim(step_size) == 0:
+        return np.arange(0, len(times), max(1, round(RECORD_INTERVAL / step_size)))
+    instants = np.arange(math.floor(times[-1] / RECORD_INTERVAL + 1e-9) + 1) * RECORD_INTERVAL
+    return np.unique(np.searchsorted(times, instants + 1e-9, side="right") - 1)
+
+
+def point_at(times: np.ndarray, step_size: float | np.ndarray, t: float) -> int:
+    """The index of the first communication point at or after t [s] (to 1 ns): with a fixed
+    step, the nearest multiple of it."""
+    if np.ndim(step_size) == 0:
+        return round(t / step_size)
+    return int(np.searchsorted(times, t - 1e-9))
+
+
+def event_lag(times: np.ndarray, phases: list[tuple[str, float, float]]) -> float:
+    """The largest delay [s] between a phase's start (where the scenario's inputs switch:
+    locks, payload) and the first communication point at or after it, where the mechanism
+    first sees the switch; 0 when every phase starts on a communication point (to 1 ns)."""
+    lags = [times[min(point_at(times, times, t0), len(times) - 1)] - t0
+            for _, t0, _ in phases[1:]]
+    return max((round(lag * 1e9) * 1e-9 for lag in lags), default=0.0)
 
 
 def run_parameters(scenario: Scenario, variant: Variant,
@@ -428,25 +461,26 @@ def input_changes(fmu: CoSimFMU, inputs: dict[str, np.ndarray]) -> dict[int, lis
 
 
 def _add_drive_columns(frame: pd.DataFrame, trace: DriveTrace, energies: DriveEnergies,
-                       suffix: str, every: int) -> None:
-    """One drive's columns at the recording instants: `<position>_ref`, then V, i, the effort
-    (named after the FMU input), P_elec, E_in and E_drawn with the joint's suffix; energies:
-    the trace's per-step energies.
+                       suffix: str, rows: np.ndarray) -> None:
+    """One drive's columns at the recorded communication points rows: `<position>_ref`, then
+    V, i, the effort (named after the FMU input), P_elec, E_in and E_drawn, and the power
+    bond's W_bond_drive, W_bond_joint, W_bond_error with the joint's suffix; energies: the
+    trace's per-step energies.
 
     The drive columns at time t_j hold the values of the step that starts at t_j (the last
     row holds those of the final step); cumulative energies are summed up to t_j.
     """
-    rows = len(frame)
     voltage, current = trace.voltage, trace.current
-    index = np.minimum(np.arange(rows) * every, len(voltage) - 1)
-    frame[f"{trace.joint.position}_ref"] = trace.reference[::every][:rows]
+    index = np.minimum(rows, len(voltage) - 1)
+    frame[f"{trace.joint.position}_ref"] = trace.reference[rows]
     frame[f"V{suffix}"] = voltage[index]
     frame[f"i{suffix}"] = current[index]
     frame[trace.joint.effort] = trace.effort[index]
     frame[f"P_elec{suffix}"] = (voltage * current)[index]
-    for name in ("E_in", "E_drawn"):
-        cumulative = np.concatenate([[0.0], np.cumsum(getattr(energies, name))])
-        frame[f"{name}{suffix}"] = cumulative[np.arange(rows) * every]
+    per_step = {"E_in": energies.E_in, "E_drawn": energies.E_drawn,
+                **dict(zip(metrics.BOND, metrics.bond_energies(trace, energies), strict=True))}
+    for name, values in per_step.items():
+        frame[f"{name}{suffix}"] = np.concatenate([[0.0], np.cumsum(values)])[rows]
 
 
 def _add_total_columns(frame: pd.DataFrame, suffixes: list[str]) -> None:

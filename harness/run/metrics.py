@@ -26,6 +26,9 @@ ENERGIES = DriveEnergies._fields
 METRICS = (*ENERGIES, "E_inductor", *(name for names in EFFORT_METRICS.values() for name in names),
            "i_rms", "V_peak", "track_err_max", "track_err_rms", "eps")
 TOTALS = (*ENERGIES, "E_inductor")
+# the power bond between drive and joint (docs/results.md#power-bonds): the energy that left
+# the drive, the energy that reached the joint and their difference, the coupling's error
+BOND = ("W_bond_drive", "W_bond_joint", "W_bond_error")
 
 
 def drive_metrics(trace: DriveTrace) -> dict[str, float]:
@@ -40,16 +43,34 @@ def drive_metrics(trace: DriveTrace) -> dict[str, float]:
     effort, current = trace.effort, trace.current
     error = trace.reference[:n] - trace.position[:n]
     peak, rms = EFFORT_METRICS[trace.joint.kind]
+    # RMS over time: with variable steps each step weighs its length
+    weights = None if np.ndim(trace.step_size) == 0 else trace.step_size
+    energies = trace.energies()
     return {
-        **{name: float(np.sum(energy)) for name, energy in trace.energies()._asdict().items()},
+        **{name: float(np.sum(energy)) for name, energy in energies._asdict().items()},
         "E_inductor": float(inductor_energy(trace.motor, trace.final_current)),
         peak: float(np.max(np.abs(effort))),
-        rms: float(np.sqrt(np.mean(effort ** 2))),
-        "i_rms": float(np.sqrt(np.mean(current ** 2))),
+        rms: float(np.sqrt(np.average(effort ** 2, weights=weights))),
+        "i_rms": float(np.sqrt(np.average(current ** 2, weights=weights))),
         "V_peak": float(np.max(np.abs(trace.voltage))),
         "track_err_max": float(np.max(np.abs(error))),
-        "track_err_rms": float(np.sqrt(np.mean(error ** 2))),
+        "track_err_rms": float(np.sqrt(np.average(error ** 2, weights=weights))),
+        **{name: float(np.sum(energy)) for name, energy
+           in zip(BOND, bond_energies(trace, energies), strict=True)},
     }
+
+
+def bond_energies(trace: DriveTrace, energies: DriveEnergies | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per step [J] (docs/results.md#power-bonds): the energy that left the drive through its
+    shaft, the effort it applied times the speed it held (tau_drive omega_held h, exact over
+    the step, as its torque is linear in its current); the energy the joint received, the
+    effort it held times its own travel (tau_held dq, exact: the mechanism integrates its
+    speed and its W_drive with the same sub-steps); and their difference, the coupling's."""
+    n = len(trace.voltage)
+    out = trace.shaft_effort * trace.speed[:n] * trace.steps
+    received = (trace.energies() if energies is None else energies).W_link
+    return out, received, received - out
 
 
 def run_metrics(per_joint: dict[str, dict[str, float]]) -> dict[str, float]:

@@ -408,5 +408,7 @@ def summary_text(path: Path, scenario: Scenario) -> str:
                 table[column] = np.degrees(table[column]) if joint.kind == "revolute" else (
                     1e3 * table[column])
     shown += ["eps", "W_phases", "eps_W", *(c for c in summary_outputs() if c in table)]
-    return (f"{path.parent.name} (tracking errors in deg, or mm for prismatic joints)\n"
+    folder = path.parent.name  # the scenario's, or its loss set's inside it (realistic)
+    title = folder if folder == scenario.name else f"{scenario.name} {folder}"
+    return (f"{title} (tracking errors in deg, or mm for prismatic joints)\n"
             + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))

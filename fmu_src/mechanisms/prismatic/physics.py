@@ -9,8 +9,12 @@ Potential energy, with lc2 = ls0 + q2, e = b + q* = b + rho q2 and S = max(sin q
 
     E_grav = (m1 lc1 + m2 lc2) g sin q1
     E_k1 = 1/2 k1 (r S)^2                        pin-slot spring, stretch s = r sin q1 (eq. 3.4)
-    E_k2 = 1/2 k2 |D - C|^2 = 1/2 k2 (c^2 + d^2 - 2 c d sin q1)
-    E_k3 = 1/2 k3 |B - A|^2 = 1/2 k3 (a^2 + e^2 - 2 a e sin q1)
+    E_k2 = 1/2 k2 (l2 - L0)^2,  l2 = |D - C|, l2^2 = c^2 + d^2 - 2 c d sin q1
+    E_k3 = 1/2 k3 (l3 - L0)^2,  l3 = |B - A|, l3^2 = a^2 + e^2 - 2 a e sin q1
+
+L0 is the free length of springs k2 and k3: 0 (the paper's) makes them zero-free-length, so
+that their energies are quadratic in the anchor coordinates and the design equations
+compensate exactly; a real spring (L0 > 0) scales each one's force by 1 - L0 / l.
 
 The k1 wire cannot push: below the horizontal (sin q1 < 0) it is slack, T = 0.
 
@@ -117,6 +121,8 @@ class Parameters:
     self_locking: bool = parameter(
         True, None, "The belt moving anchor B is driven through a self-locking worm (spring k3 "
         "exerts no force on q2); false: back-drivable")
+    L0: float = parameter(0.0, "m", "Free length of springs k2 and k3 (0: ideal "
+                          "zero-free-length springs, as the design equations assume)", min=0.0)
     d1: float = parameter(0.0, "N.m.s/rad", "Viscous friction of the revolute joint", min=0.0)
     d2: float = parameter(0.0, "N.s/m", "Viscous friction of the prismatic joint", min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
@@ -237,11 +243,21 @@ def efforts(p: Parameters, q1: float, q2: float) -> Efforts:
     e = p.b + rho * q2
     stretch = p.r * max(sin_q, 0.0)
     T = k1 * stretch
+    if p.L0:  # a real spring's force: k (l - L0) along it, k (1 - L0 / l) per unit length
+        k2 *= _free_length_factor(p, p.c * p.c + p.d * p.d - 2.0 * p.c * p.d * sin_q)
+        k3 *= _free_length_factor(p, p.a * p.a + e * e - 2.0 * p.a * e * sin_q)
     dV_dq1 = tau1_gravity + (T * p.r - p.c * p.d * k2 - p.a * e * k3) * cos_q
     dE3_dq2 = k3 * rho * (e - p.a * sin_q)
     f2_worm = 2.0 * T + (dE3_dq2 if p.self_locking else 0.0)
     return tuple.__new__(Efforts, (tau1_gravity, f2_gravity, dV_dq1,
                                    f2_gravity + dE3_dq2 - f2_worm, T, f2_worm))
+
+
+def _free_length_factor(p: Parameters, length_squared: float) -> float:
+    """1 - L0 / l of a spring of length l (its force per unit length over k); 1 where
+    l = 0, the zero-free-length limit (no direction to pull in)."""
+    length = math.sqrt(max(length_squared, 0.0))
+    return 1.0 - p.L0 / length if length > 0.0 else 1.0
 
 
 def _held_by_stop(p: Parameters, q2: float, q2_dot: float, force: float) -> bool:
@@ -363,9 +379,14 @@ def spring_energy(p: Parameters, q1: float, q2: float) -> float:
         return 0.0
     sin_q = math.sin(q1)
     e = p.b + p.rho_used * q2
-    return 0.5 * (p.k1_used * (p.r * max(sin_q, 0.0)) ** 2
-                  + p.k2_used * (p.c * p.c + p.d * p.d - 2.0 * p.c * p.d * sin_q)
-                  + p.k3_used * (p.a * p.a + e * e - 2.0 * p.a * e * sin_q))
+    l2_squared = p.c * p.c + p.d * p.d - 2.0 * p.c * p.d * sin_q
+    l3_squared = p.a * p.a + e * e - 2.0 * p.a * e * sin_q
+    energy = 0.5 * (p.k1_used * (p.r * max(sin_q, 0.0)) ** 2 + p.k2_used * l2_squared
+                    + p.k3_used * l3_squared)
+    if p.L0:  # 1/2 k (l - L0)^2 = 1/2 k l^2 + k L0 (L0 / 2 - l)
+        energy += sum(k * p.L0 * (0.5 * p.L0 - math.sqrt(max(squared, 0.0)))
+                      for k, squared in ((p.k2_used, l2_squared), (p.k3_used, l3_squared)))
+    return energy
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
