@@ -23,7 +23,7 @@ from harness import registry
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
 from harness.run import scenario_files as scenarios
-from harness.systems import system
+from harness.systems import description
 
 # per model: the probe states (parameters and inputs held for a time; its registration's
 # dependency_probes) and the initialisation probes' parameters
@@ -186,7 +186,7 @@ def test_reading_between_set_and_step_changes_no_result(name: str) -> None:
     assert runs[0] == runs[1]
 
 
-def feedthrough_graph(described: system.System, unknowns: str | None
+def feedthrough_graph(described: description.System, unknowns: str | None
                       ) -> dict[tuple[str, str], set[tuple[str, str]]]:
     """(component, variable) -> the variables it is computed from at one instant: the
     output feeding each connected input, and the inputs of each output as declared in
@@ -213,7 +213,7 @@ def test_the_franchetti_system_has_no_algebraic_loop(variant: str) -> None:
     at initialisation), where without them controller -> drive -> mechanism -> controller
     is a loop."""
     scenario = scenarios.load("franchetti2021")
-    described = system.describe(scenario, scenario.variant(variant))
+    described = description.describe(scenario, scenario.variant(variant))
     for unknowns in ("outputs", "initialUnknowns"):
         tuple(TopologicalSorter(feedthrough_graph(described, unknowns)).static_order())
     with pytest.raises(CycleError):

@@ -374,7 +374,7 @@ def ecco(steps: int = 0, repeats: int = 0,
     """E_drawn's relative error against the monolithic reference and the coupling's energy
     error against the number of steps, per case: libcosim at each fixed step, then ECCO at
     each tolerance (its first step 1 ms, the other settings their defaults)."""
-    from harness.systems import system
+    from harness.systems import description, engines, writers
 
     rows = []
     for scenario_name, variant_name in cases:
@@ -382,15 +382,15 @@ def ecco(steps: int = 0, repeats: int = 0,
         variant = scenario.variant(variant_name)
         ref = reference.simulate(scenario, variant).metrics
         drawn = ref["E_drawn"]
-        runs = [("fixed", h, None, system.describe(scenario, variant, h))
+        runs = [("fixed", h, None, description.describe(scenario, variant, h))
                 for h in step_sizes]
-        runs += [("ecco", master.DEFAULT_STEP, tolerance, system.describe(
+        runs += [("ecco", master.DEFAULT_STEP, tolerance, description.describe(
             scenario, variant, master.DEFAULT_STEP,
-            ecco=system.EccoSettings(abs_tolerance=tolerance))) for tolerance in tolerances]
+            ecco=description.EccoSettings(abs_tolerance=tolerance))) for tolerance in tolerances]
         with tempfile.TemporaryDirectory() as folder:
             for algorithm, h, tolerance, described in runs:
-                run = system.run_libcosim(described, None if tolerance is not None
-                                          else system.write_osp(described, Path(folder)))
+                run = engines.run_libcosim(described, None if tolerance is not None
+                                          else writers.write_osp(described, Path(folder)))
                 bond_errors = [value for name, value in run.metrics.items()
                                if name.startswith("W_bond_error")]
                 rows.append({

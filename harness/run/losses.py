@@ -22,6 +22,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from fmu_src.units.sequencer import scenario as core
+from fmu_src.units.sequencer import scenario_format
 from harness.errors import UserError
 from harness.run.scenario_files import Scenario, read_toml
 
@@ -48,8 +49,8 @@ def realistic(scenario: Scenario) -> Scenario:
     data = read_toml(path)
     where = path.name
     try:
-        core._unknown_keys(data, ("models", "variants"), where)
-        models = {model: core._parameter_values(values, f"{where} models.{model}")
+        scenario_format._unknown_keys(data, ("models", "variants"), where)
+        models = {model: scenario_format._parameter_values(values, f"{where} models.{model}")
                   for model, values in core.table(data.get("models", {}), "models").items()}
         used = {variant.model or scenario.model for variant in scenario.variants.values()}
         unused = sorted(set(models) - used)
@@ -64,8 +65,9 @@ def realistic(scenario: Scenario) -> Scenario:
         variants = {}
         for name, variant in scenario.variants.items():
             raw = core.table(overrides.get(name, {}), f"variants.{name}")
-            core._unknown_keys(raw, VARIANT_KEYS, f"variants.{name}")
-            own = core._parameter_values(raw.get("parameters", {}), f"variants.{name} parameters")
+            scenario_format._unknown_keys(raw, VARIANT_KEYS, f"variants.{name}")
+            own = scenario_format._parameter_values(raw.get("parameters", {}),
+                                                    f"variants.{name} parameters")
             targets = _phase_targets(scenario, variant, raw.get("phase_targets", {}),
                                      f"variants.{name} phase_targets")
             variants[name] = replace(
