@@ -85,6 +85,31 @@ def test_options_change_the_data() -> None:
         assert r[f"phi_max_Mu_{law}"] == pytest.approx(phi[Mu.argmax()], abs=1e-5)
 
 
+def test_eps_with_the_bar_beside_the_papers() -> None:
+    """`<law>_with_bar` counts the bar's moment, as the rocking counterweight's M_u does: the
+    counterweight then returns G2 times the rise of B over a stroke, 2 AB G2, so
+    E_b = |2 AB G2 - E_u| (0.932601 and 0.5 for the paper's data); max |M_u + M_bar| from a
+    dense grid of M_bar = G2 (dOB/dphi) sin(phi) with dOB/dphi by differences."""
+    r = example_json()
+    assert round(r["eps_parabolic_with_bar"], 6) == 0.932601
+    assert r["eps_linear_with_bar"] == pytest.approx(0.5, abs=1e-12)
+    assert round(r["eps_parabolic"], 6) == 0.973446       # the paper's, still beside it
+    data = dict(Gmax=6.0, OP=1.2, G2=2.5, OA=0.5, AB=1.5)
+    r = example_json(*(f"--{k}={v}" for k, v in data.items()))
+    E_u = {"parabolic": data["Gmax"] * data["OP"] * (1.0 + 4.0 / math.pi ** 2),
+           "linear": data["Gmax"] * data["OP"]}
+    phi = np.linspace(-np.pi / 2, np.pi / 2, 1_000_001)
+    s = (np.pi / 2 - phi) / (2 * np.pi)
+    OB = -data["OA"] * np.sin(phi) + np.sqrt(data["OA"] ** 2 * np.sin(phi) ** 2
+                                             + data["AB"] ** 2 - data["OA"] ** 2)
+    M_bar = data["G2"] * np.gradient(OB, phi) * np.sin(phi)
+    for law, G_pv in (("parabolic", 4 * s * (1 - s)), ("linear", 2 * s)):
+        E_b = abs(2.0 * data["AB"] * data["G2"] - E_u[law])
+        assert r[f"eps_{law}_with_bar"] == pytest.approx(1.0 - E_b / E_u[law], abs=1e-9)
+        Mu = np.abs((data["G2"] * OB - data["Gmax"] * G_pv * data["OP"]) * np.cos(phi) + M_bar)
+        assert r[f"max_abs_Mu_{law}_with_bar"] == pytest.approx(Mu.max(), abs=1e-6)
+
+
 def test_bad_data_exits_non_zero() -> None:
     done = example("--json", "--AB=1", "--OA=1")
     assert done.returncode != 0 and done.stdout == ""

@@ -202,6 +202,17 @@ def test_design_is_a_local_optimum(chosen: ciupitu_design.Design,
             assert objective(**(design | {name: moved})) > best, (name, moved)
 
 
+def test_design_is_the_global_optimum(chosen: ciupitu_design.Design,
+                                     objective: ciupitu_design.TaskEnergy) -> None:
+    """Over the bars OA in [0, 0.9 AB], each with its best mass (a second method, bounded
+    Brent): OA = 0 is the best, with the chosen m2, and every other bar draws more."""
+    grid = ciupitu_design.bar_grid(objective, chosen.AB)
+    assert grid[0][0] == 0.0
+    assert grid[0][1] == pytest.approx(chosen.m2, abs=1e-7)
+    assert grid[0][2] == pytest.approx(chosen.E_drawn, abs=1e-9)
+    assert min(drawn for _, _, drawn in grid[1:]) > chosen.E_drawn + 0.1
+
+
 @pytest.fixture(scope="module")
 def franchetti() -> dict[str, master.RunResult]:
     return {v: master.run(FRANCHETTI, FRANCHETTI.variant(v)) for v in ("ciupitu", "unbalanced")}

@@ -149,8 +149,8 @@ def test_pulley_released_after_the_slider(m_slider: float) -> None:
     (k (a + b_eq) - m_slider g) r / (g R) holds the slider at the design position b_eq
     (`design_position`; b0 = 60 mm, m_eff = 56 kg for a massless slider):
     m_eff y'' + d y' + k y = 0 for y = b - b_eq (overdamped), so the slider creeps back
-    from 59.7 mm with E_kin of a millijoule at most (before: it dipped to 33.4 mm and 2.7 J
-    appeared)."""
+    from 59.7 mm, its E_kin peaking 0.23-0.25 s later at 6.0e-6 J (massless; the 56 kg at
+    0.46 mm/s) or 1.18e-3 J (0.2 kg) (before: it dipped to 33.4 mm and 2.7 J appeared)."""
     b_eq = design_position(m_slider)
     m0 = (K * (A + b_eq) - m_slider * G) * R_WIRE / (G * R_CW)
     m_eff = m_slider + m0 * (R_CW / R_WIRE) ** 2
@@ -177,7 +177,8 @@ def test_pulley_released_after_the_slider(m_slider: float) -> None:
     assert rows[:, 0].min() > 0.0596 and rows[-1, 0] == pytest.approx(b_eq, abs=1e-5)
     kinetic = 0.5 * m_eff * overdamped_speed(m_eff, b1 - b_eq, v1, t) ** 2
     np.testing.assert_allclose(rows[:, 1], kinetic, rtol=0, atol=1e-10)
-    assert rows[:, 1].max() < 2e-3  # about a millijoule at most, not 2.7 J
+    # the peaks docs/energy_ledger.md quotes (the closed form's: 5.984e-6 J and 1.1841e-3 J)
+    assert rows[:, 1].max() == pytest.approx(6.0e-6 if m_slider == 0.0 else 1.18e-3, rel=5e-3)
     # the step after the release: the event's loss plus the damper's, d * integral of y'^2
     fine = np.linspace(0.0, DT, 20001)
     damper = D_SLIDER * np.trapezoid(overdamped_speed(m_eff, b1 - b_eq, v1, fine) ** 2, fine)

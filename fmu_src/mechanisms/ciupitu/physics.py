@@ -168,14 +168,22 @@ class StrokeResult(NamedTuple):
     phi_max_Mu: float     # rad, where |M_u| is largest
 
 
-def stroke(data: ExampleData, law: str) -> StrokeResult:
-    """Net stroke energies, eps and the largest |M_u| for one payload law of PAYLOAD_LAWS."""
+def stroke(data: ExampleData, law: str, with_bar: bool = False) -> StrokeResult:
+    """Net stroke energies, eps and the largest |M_u| for one payload law of PAYLOAD_LAWS.
+
+    with_bar: the unbalance is M_u + M_bar (the bar's moment counted, as the FMU's torque and
+    the rocking counterweight's M_u count it) instead of the paper's M_u."""
     validate_example(data)
     shape = PAYLOAD_LAWS[law]
 
     def unbalance(phi: float) -> Moments:
         G_pv = data.Gmax * shape(stroke_fraction(phi))
-        return moments(G_pv, data.OP, data.G2, data.OA, data.AB, phi)
+        OB, dOB, _ = _geometry(data.OA, data.AB, phi)
+        M = _moments(G_pv, data.OP, data.G2, OB, math.cos(phi))
+        if not with_bar:
+            return M
+        M_b = M.M_b + data.G2 * dOB * math.sin(phi)
+        return Moments(M.M_g, M_b, M_b + M.M_g)
 
     E_u = abs(gauss_legendre(lambda phi: unbalance(phi).M_g, -HALF_PI, HALF_PI))
     E_b = abs(gauss_legendre(lambda phi: unbalance(phi).M_u, -HALF_PI, HALF_PI))

@@ -212,20 +212,20 @@ class Parameters:
     J_link: float = _as_translational("J_link")
     w: float = _as_translational("w")
     m2: float = parameter(0.75, "kg", "Mass of the rocking counterweight (G2/g)", min=0.0)
-    x1A: float = parameter(-0.337281, "m", "Pivot A of the counterweight bar on the arm, "
+    x1A: float = parameter(-0.029334375, "m", "Pivot A of the counterweight bar on the arm, "
                            "along the arm towards the payload")
-    y1A: float = parameter(0.05974745, "m", "Pivot A of the counterweight bar on the arm, across "
+    y1A: float = parameter(-0.0143332, "m", "Pivot A of the counterweight bar on the arm, across "
                            "it (upwards when the arm is horizontal)")
-    XC: float = parameter(-0.000368025, "m", "Ground pivot C of bar 3, horizontal towards the "
+    XC: float = parameter(0.00174965, "m", "Ground pivot C of bar 3, horizontal towards the "
                           "payload's side (the paper's X = -x)")
-    YC: float = parameter(-0.016611175, "m", "Ground pivot C of bar 3, height above O")
-    AB: float = parameter(0.0281603, "m", "Length of the counterweight bar from A to the joint B "
+    YC: float = parameter(0.006236125, "m", "Ground pivot C of bar 3, height above O")
+    AB: float = parameter(0.02297925, "m", "Length of the counterweight bar from A to the joint B "
                           "with bar 3", min=0.0, min_exclusive=True)
-    BC: float = parameter(0.35, "m", "Length of bar 3, from B to the ground pivot C",
+    BC: float = parameter(0.0175, "m", "Length of bar 3, from B to the ground pivot C",
                           min=0.0, min_exclusive=True)
-    AC2: float = parameter(-0.090224925, "m", "Position of the counterweight on its bar, from A "
+    AC2: float = parameter(-0.299018125, "m", "Position of the counterweight on its bar, from A "
                            "along A -> B (signed)")
-    B_left: bool = parameter(True, None, "Assembly: B on the left of the line from A to C "
+    B_left: bool = parameter(False, None, "Assembly: B on the left of the line from A to C "
                              "(paper's frame), else on its right")
     m_fixed_cw: float = _as_translational("m_fixed_cw")
     c_fixed_cw: float = _as_translational("c_fixed_cw")
