@@ -21,7 +21,8 @@ from fmpy.validation import validate_fmu
 
 from fmu_src import mechanism
 from fmu_src.mechanisms.prismatic import physics as prismatic
-from harness import bench, registry
+from harness import registry
+from harness.bench import steps as bench_steps
 from harness.fmu import build as fmu_build
 from harness.fmu import docs as fmu_docs
 from harness.fmu import osp
@@ -208,7 +209,7 @@ def test_a_mechanism_added_as_its_own_files_is_wired_by_the_harness(
     run_ = fmu_docs.reference_run(SCRATCH_MODEL)
     assert run_.inputs.dtype.names == ("time", "tau_drive")
     assert max(run_.inputs["tau_drive"]) == 0.5 and run_.inputs["time"][-1] == 5.0
-    loop = bench.mechanism_loop(SCRATCH_MODEL, registry.registration(SCRATCH_MODEL).joints())
+    loop = bench_steps.mechanism_loop(SCRATCH_MODEL, registry.registration(SCRATCH_MODEL).joints())
     assert (loop.input, loop.outputs) == ("tau_drive", ("theta", "omega"))
     assert {p.relative_to(scratch_source).as_posix()
             for p in fmu_build.dependencies(SCRATCH_MODEL, scratch_source)} == {

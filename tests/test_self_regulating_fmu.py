@@ -460,10 +460,10 @@ def test_state_restore_replays_a_regulation_exactly(srb_fmu: Path) -> None:
 def test_bench_writes_the_step_cost_table(tmp_path: Path) -> None:
     """`python -m harness bench` (shortened): the floors (pythonfmu's binary and our runtime)
     and every mechanism timed, each ratio its cost over the floor's, and only the final CSVs
-    left in the folder (written atomically): the table and its checks. Whether each
-    mechanism's step is dearer than the floor's is a timing figure: the bench checks it
-    (bench.fmu_step_checks, tests/test_bench.py) and its exit status says whether it held,
-    which here only has to agree with checks.csv."""
+    left in the folder (written atomically): the table and its checks. Whether each mechanism's
+    step is dearer than the floor's is a timing figure: the bench checks it
+    (harness.bench.targets.fmu_step_checks, tests/test_bench.py) and its exit status says
+    whether it held, which here only has to agree with checks.csv."""
     status = cli.main(["bench", "--steps", "2000", "--repeats", "2", "--only", "fmu_step",
                        "--out", str(tmp_path)])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["checks.csv", "fmu_step.csv"]
