@@ -96,7 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step-count", dest="steps", type=int, default=20_000, metavar="N",
                         help="FMU steps per repeat")
     parser.add_argument("--steps", dest="steps", type=int, default=argparse.SUPPRESS,
-                        help=argparse.SUPPRESS)  # former spelling
+                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
     parser.add_argument("--repeats", type=int, default=3, help="repeats; the best counts")
     parser.add_argument("--out", type=Path, default=BENCH_DIR, help="output folder")
     parser.add_argument("--only", default="all",

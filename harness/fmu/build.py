@@ -389,7 +389,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", dest="dest", type=Path, default=DEFAULT_DEST, metavar="DIR",
                         help="output folder")
     parser.add_argument("--dest", dest="dest", type=Path, default=argparse.SUPPRESS,
-                        help=argparse.SUPPRESS)  # former spelling
+                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
     parser.add_argument(
         "--sequencer-scenario", metavar="NAME_OR_FILE",
         help=f"build only the {SEQUENCER}, playing this scenario (a name of "

@@ -156,7 +156,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", dest="dest", type=Path, default=DEFAULT_DEST, metavar="DIR",
                         help="cross-check repository folder (fmus/ is written inside)")
     parser.add_argument("--dest", dest="dest", type=Path, default=argparse.SUPPRESS,
-                        help=argparse.SUPPRESS)  # former spelling
+                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
 
 
 def run(args: argparse.Namespace) -> int:

@@ -66,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--variants", dest="variant", default="all", metavar="VARIANTS",
                         help="'all' or a comma-separated list (eps baselines are added)")
     parser.add_argument("--variant", dest="variant", default=argparse.SUPPRESS,
-                        help=argparse.SUPPRESS)  # former spelling
+                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
     parser.add_argument("--step", type=float, default=master.DEFAULT_STEP,
                         help="communication step [s] (default 1e-3)")
     parser.add_argument("--source", choices=("osp", "ssp"), default="osp",
