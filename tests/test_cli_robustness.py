@@ -304,7 +304,7 @@ def test_ciupitu_json_is_json_for_degenerate_data(capsys: pytest.CaptureFixture[
     from fmu_src.mechanisms.ciupitu import physics as ciupitu
 
     undefined = ciupitu.StrokeResult(0.0, 1.0, -math.inf, 6.0, -0.46)
-    monkeypatch.setattr(ciupitu, "stroke", lambda data, law: undefined._replace(
+    monkeypatch.setattr(ciupitu, "stroke", lambda data, law, with_bar=False: undefined._replace(
         eps=math.nan if law == "linear" else -math.inf))
     assert cli.main(["ciupitu-example", "--json"]) == 0
     captured = capsys.readouterr()

@@ -22,7 +22,7 @@ from fmu_src.integration import SubstepBoundError
 from fmu_src.parameters import DomainError
 from harness.errors import UserError
 from harness.fmu.loader import CoSimFMU, FMICallException, FMUCallError, LogMessage
-from harness.sweeps.definition import PathError, RefusedValueError
+from harness.sweeps.paths import PathError, RefusedValueError
 from tests.conftest import FMI_ERROR, SRB, open_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
