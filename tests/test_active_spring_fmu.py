@@ -92,30 +92,41 @@ def simulate(fmu: CoSimFMU, values: Mapping[str, float],
 
 PAYLOAD_CHANGES = [(0.5, {"payload": 1.2}), (1.5, {"payload": 0.3})]
 REAL_SPRING = {"F_s0": 20.0, "l_s0": 0.05, "X_B": -0.02}
+IDEAL = {"mu": 0.0}   # the screw's lossless limits
+# Tr 10x2 (lead 2 mm, pitch diameter 9 mm) on bronze, mu = 0.1, 15 deg flanks, the default
+TR10X2_ETA_F = math.tan(math.atan(0.002 / (math.pi * 0.009))) / math.tan(
+    math.atan(0.002 / (math.pi * 0.009)) + math.atan(0.1 / math.cos(math.radians(15.0))))
+SCREWS = {"ideal_self_locking": IDEAL, "lossless_back_drivable": {**IDEAL, "self_locking": False},
+          "tr10x2": {}, "back_drivable_friction": {"mu": 0.03, "self_locking": False}}
 
 
-@pytest.mark.parametrize("self_locking", [True, False], ids=["self_locking", "back_drivable"])
+@pytest.mark.parametrize("screw", SCREWS.values(), ids=SCREWS.keys())
 @pytest.mark.parametrize("spring", [{}, REAL_SPRING], ids=["zero_free_length", "real"])
 def test_energy_ledger_closes_with_the_drives_off(fmu: CoSimFMU, spring: dict,
-                                                  self_locking: bool) -> None:
-    """Drives off, an unbalanced swinging link with dampers, a carriage launched upwards (the
-    self-locking one stops and stays, the back-drivable one bounces on the spring), payloads
-    joining and leaving: the residual stays constant to 1e-9 J; nothing is booked to the
-    drives."""
-    drift, out = simulate(fmu, {**spring, "theta0": 1.0, "omega0": 2.0, "q_dot0": 0.05,
-                                "self_locking": self_locking}, PAYLOAD_CHANGES, 2.5)
+                                                  screw: dict) -> None:
+    """Drives off, an unbalanced swinging link with dampers, a carriage launched upwards (on a
+    self-locking screw it stops and stays, on a back-drivable one it bounces on the spring),
+    payloads joining and leaving: the residual stays constant to 1e-9 J; nothing is booked to
+    the drives."""
+    drift, out = simulate(fmu, {**spring, **screw, "theta0": 1.0, "omega0": 2.0,
+                                "q_dot0": 0.05}, PAYLOAD_CHANGES, 2.5)
     assert drift < 1e-9
     assert out["W_drive"] == 0.0 and out["W_adjust"] == 0.0
     assert out["E_loss"] > 0.1 and out["E_added"] != 0.0
-    assert (out["q"] > 0.0) == self_locking   # held where it stopped / pulled down
+    # held where it stopped / pulled down
+    assert (out["q"] > 0.0) == screw.get("self_locking", True)
 
 
-def test_energy_ledger_closes_with_the_drives_on(fmu: CoSimFMU) -> None:
-    """Both drives pushing, the self-locking carriage raised against the spring, then lowered:
-    residual within 1e-9 J; the actuator's work is counted in W_adjust."""
-    drift, out = simulate(fmu, {**REAL_SPRING, "theta0": 2.0},
-                          [(0.0, {"tau_drive": 0.3, "F_adjust": 120.0}), *PAYLOAD_CHANGES,
-                           (2.0, {"F_adjust": -2.0})], 2.5)
+@pytest.mark.parametrize("screw, lift, lower", [(IDEAL, 120.0, -2.0), ({}, 300.0, -80.0)],
+                         ids=["ideal", "tr10x2"])
+def test_energy_ledger_closes_with_the_drives_on(fmu: CoSimFMU, screw: dict, lift: float,
+                                                 lower: float) -> None:
+    """Both drives pushing, the self-locking carriage raised against the spring, then lowered
+    (the Tr 10x2 needs 1 / eta_f = 2.5 times the ideal screw's push to raise, and a push to
+    lower): residual within 1e-9 J; the actuator's work is counted in W_adjust."""
+    drift, out = simulate(fmu, {**REAL_SPRING, **screw, "theta0": 2.0},
+                          [(0.0, {"tau_drive": 0.3, "F_adjust": lift}), *PAYLOAD_CHANGES,
+                           (2.0, {"F_adjust": lower})], 2.5)
     assert drift < 1e-9
     assert abs(out["W_drive"]) > 0.01 and out["W_adjust"] > 0.1
 
@@ -132,19 +143,23 @@ def test_self_locking_carriage_holds_without_the_actuator(fmu: CoSimFMU) -> None
     assert out["F_lock"] == pytest.approx(out["m_q"] * G - out["F_q"], rel=1e-15)
 
 
+@pytest.mark.parametrize("screw, eta_f", [(IDEAL, 1.0), ({}, TR10X2_ETA_F)],
+                         ids=["ideal", "tr10x2"])
 @pytest.mark.parametrize("theta, cost", [(0.0, 4.2442), (math.pi, 11.1112)])
 def test_regulation_costs_the_spring_energy_and_holds(fmu: CoSimFMU, theta: float,
-                                                      cost: float) -> None:
+                                                      cost: float, screw: dict,
+                                                      eta_f: float) -> None:
     """Regulating for 1 kg at rest at the upright or hanging link: a P law on q (with the
-    spring's pull fed forward from F_q) raises B by the closed-form 58.3 mm; released, the
-    screw holds it. The actuator's work beyond its damper's loss is the energy stored,
-    1/2 k (Y'^2 - Y^2) - k x1A cos(theta) dY + m_q g dY: 4.24 J upright, 11.11 J hanging."""
-    start(fmu, {"theta0": theta})
+    load through the screw, (m_q g - F_q) / eta_f, fed forward) raises B by the closed-form
+    58.3 mm; released, the screw holds it. The actuator's work beyond what is dissipated
+    (dampers and the screw's friction) is the energy stored, 1/2 k (Y'^2 - Y^2) - k x1A
+    cos(theta) dY + m_q g dY: 4.24 J upright, 11.11 J hanging."""
+    start(fmu, {**screw, "theta0": theta})
     fmu.set({"payload": 1.0})
     target = balancing_travel(1.0)
     for n in range(1000):
         out = fmu.get(["q", "F_q"])
-        fmu.set({"F_adjust": 0.5 * G - out["F_q"] + 2000.0 * (target - out["q"])})
+        fmu.set({"F_adjust": (0.5 * G - out["F_q"]) / eta_f + 2000.0 * (target - out["q"])})
         fmu.step(n * DT, DT)
     fmu.set({"F_adjust": 0.0})
     for n in range(1000, 1200):
@@ -234,5 +249,9 @@ def test_model_description_declares_units_and_bounds() -> None:
 
 def test_invalid_parameter_is_reported() -> None:
     """A parameter out of range fails initialisation with fmi2Error and a message naming it
-    and its range."""
+    and its range; so does a self_locking the screw's friction contradicts (Tr 10x2 with
+    mu = 0.05: friction angle 2.97 deg < lead angle 4.05 deg)."""
     assert "k = 0.0 N/m is outside (0.0, inf)" in failed_initialisation(MODEL, {"k": 0.0})
+    assert "mu = 0.6 1 is outside [0.0, 0.5]" in failed_initialisation(MODEL, {"mu": 0.6})
+    assert "self_locking = true contradicts the screw" in failed_initialisation(
+        MODEL, {"mu": 0.05})

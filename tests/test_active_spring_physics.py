@@ -22,6 +22,9 @@ REAL_SPRING = {"F_s0": 20.0, "l_s0": 0.05, "X_B": 0.03}
 DEFAULT_OPTIONS = {"m1": M1, "OC1": OC1, "x1A": X1A, "w": W, "mp": 0.0, "dmp": 1.0, "k": K,
                    "Fs0": 0.0, "ls0": 0.0, "XB": 0.0, "YB": 0.1, "phi": 0.0}
 ANGLES = [0.0, 0.4, 1.0, math.pi / 2, 2.0, math.pi, 4.0, 5.5]
+IDEAL = {"mu": 0.0}   # the lossless limit of the screw (self-locking: the ideal lock)
+# screws with friction: the default Tr 10x2 (self-locking) and a back-drivable one
+FRICTION_SCREWS = {"tr10x2": {}, "back_drivable": {"mu": 0.03, "self_locking": False}}
 
 
 def ledger(p: physics.Parameters, payload: float, s: physics.State) -> float:
@@ -93,12 +96,12 @@ def run(p: physics.Parameters, schedule: list[tuple[float, float, float]], steps
 @pytest.mark.parametrize("spring", [{}, REAL_SPRING], ids=["zero_free_length", "real"])
 def test_ledger_closes_with_drives_dampers_and_payload_changes(spring: dict[str, float],
                                                                self_locking: bool) -> None:
-    """Payloads join (0 -> 0.3 kg) and leave (-> 0.1 kg) a swinging link while both drives
-    push, the carriage raised against the spring and then lowered with it (actuator forces
-    a few newtons either side of the load at the start): E_t + E_kin + E_loss - W_drive -
-    W_adjust - E_added is constant to 1e-9 J (measured 1e-11 to 9e-11 J)."""
-    p = physics.Parameters(**spring, omega0=0.5, q_dot0=0.02, self_locking=self_locking,
-                           J_drive=0.05, m_drive_q=0.3)
+    """Lossless screw. Payloads join (0 -> 0.3 kg) and leave (-> 0.1 kg) a swinging link while
+    both drives push, the carriage raised against the spring and then lowered with it
+    (actuator forces a few newtons either side of the load at the start): E_t + E_kin +
+    E_loss - W_drive - W_adjust - E_added is constant to 1e-9 J (measured 1e-11 to 9e-11 J)."""
+    p = physics.Parameters(**spring, **IDEAL, omega0=0.5, q_dot0=0.02,
+                           self_locking=self_locking, J_drive=0.05, m_drive_q=0.3)
     load = physics.spring(p, 1.0, p.Y_B0).F_q - p.m_q * G   # -71 N (real spring: -53 N)
     schedule = [(0.05, 2.0 - load, 0.0), (0.05, 0.5 - load, 0.3), (-0.05, -3.0 - load, 0.1),
                 (0.0, -1.0 - load, 0.1)]
@@ -129,13 +132,14 @@ def test_self_locking_carriage_holds_the_spring_without_the_actuator() -> None:
     """F_adjust = 0: the carriage stays put while the unbalanced link swings and the spring
     pulls on it with tens of newtons, held by the screw (F_lock = m_q g - F_q); back-drivable,
     the spring pulls it down."""
-    p = physics.Parameters(theta0=1.0)
+    p = physics.Parameters(**IDEAL, theta0=1.0)
     s, _ = run(p, [(0.0, 0.0, 2.0)], 500)
     assert s.q == 0.0 and s.q_dot == 0.0 and s.W_adjust == 0.0 and s.E_loss > 0.0
     assert abs(s.theta - 1.0) > 0.1
     o = physics.outputs(p, physics.Inputs(payload=2.0), s)
     assert o.F_q < -10.0 and o.F_lock == pytest.approx(p.m_q * G - o.F_q, rel=1e-15)
-    free, _ = run(physics.Parameters(theta0=1.0, self_locking=False), [(0.0, 0.0, 2.0)], 500)
+    free, _ = run(physics.Parameters(**IDEAL, theta0=1.0, self_locking=False),
+                  [(0.0, 0.0, 2.0)], 500)
     assert free.q < -0.01
 
 
@@ -146,7 +150,7 @@ def test_self_locking_carriage_lowered_by_the_actuator_dissipates_the_load(
     load, so (m_q + m_drive_q) q'' = F - d_q q' whatever the spring:
     q = F/d_q (t - tau (1 - exp(-t/tau))), tau = (m_q + m_drive_q) / d_q, and the load's work
     -L dq goes to E_loss. Link held balanced (defaults)."""
-    p = physics.Parameters(theta0=math.pi, m_drive_q=m_drive_q)
+    p = physics.Parameters(**IDEAL, theta0=math.pi, m_drive_q=m_drive_q)
     force, t = -2.0, 0.05
     s, drift = run(p, [(0.0, force, 0.0)], 50)
     tau = (0.5 + m_drive_q) / p.d_q
@@ -161,7 +165,7 @@ def test_self_locking_carriage_rises_only_when_the_actuator_beats_the_load() -> 
     """Raising against the load: an actuator force 1 N short of the load leaves the carriage at
     rest, 5 N over it raises it; the actuator's work then pays the spring's and the weight's
     energy (W_adjust = E_t gained + E_kin + E_loss) and the screw loses nothing."""
-    p = physics.Parameters(theta0=math.pi)
+    p = physics.Parameters(**IDEAL, theta0=math.pi)
     load = physics.spring(p, math.pi, p.Y_B0).F_q - p.m_q * G
     short, _ = run(p, [(0.0, -load - 1.0, 0.0)], 100)
     assert short.q == 0.0 and short.W_adjust == 0.0
@@ -174,6 +178,116 @@ def test_self_locking_carriage_rises_only_when_the_actuator_beats_the_load() -> 
     assert 0.0 < s.E_loss < p.d_q * (5.0 / p.d_q) ** 2 * 0.1
 
 
+# ---- the screw with friction --------------------------------------------------------------
+
+def thread_efficiencies(mu: float, lead: float, d2: float, flank: float) -> tuple[float, float]:
+    """The textbook power screw (thread of lead l on the pitch diameter d2, mu' = mu / cos of
+    the flank half-angle): raising a load F takes the torque F d2/2 (l + pi mu' d2) / (pi d2 -
+    mu' l), a load driving it gives F d2/2 (l - pi mu' d2) / (pi d2 + mu' l); the efficiencies
+    are the lossless torque F l / (2 pi) over the first and the second over it."""
+    mu_n, circumference = mu / math.cos(flank), math.pi * d2
+    raise_torque = d2 / 2 * (lead + mu_n * circumference) / (circumference - mu_n * lead)
+    driven_torque = d2 / 2 * (lead - mu_n * circumference) / (circumference + mu_n * lead)
+    lossless = lead / (2 * math.pi)
+    return lossless / raise_torque, driven_torque / lossless
+
+
+@pytest.mark.parametrize(("mu", "lead", "d2", "flank"), [
+    (0.1, 0.002, 0.009, 15.0),    # Tr 10x2 on bronze, the default: self-locking
+    (0.05, 0.004, 0.014, 15.0),   # Tr 16x4 well lubricated: back-drivable
+    (0.15, 0.006, 0.021, 0.0),    # a square thread
+])
+def test_screw_efficiencies_are_the_power_screw_torques(mu: float, lead: float, d2: float,
+                                                        flank: float) -> None:
+    lead_angle = math.atan(lead / (math.pi * d2))
+    expected = thread_efficiencies(mu, lead, d2, math.radians(flank))
+    assert physics.screw_efficiencies(mu, lead_angle, math.radians(flank)) == pytest.approx(
+        expected, rel=1e-12)
+
+
+def test_the_default_screw_is_a_self_locking_tr10x2_at_40_percent() -> None:
+    """Tr 10x2 (lead 2 mm, d2 = 9 mm: lambda = 4.05 deg), steel on lubricated bronze
+    (mu = 0.1, 15 deg flanks: rho' = 5.91 deg): eta_f = 0.403, eta_b = -0.46 (self-locking)."""
+    p = physics.Parameters()
+    assert math.degrees(p.lead_angle) == pytest.approx(4.046, abs=1e-3)
+    assert math.degrees(physics.friction_angle(p.mu, p.flank_angle)) == pytest.approx(
+        5.911, abs=1e-3)
+    assert (p.eta_forward, p.eta_backward) == pytest.approx(
+        thread_efficiencies(0.1, 0.002, 0.009, math.radians(15.0)), rel=1e-12)
+    assert p.eta_forward == pytest.approx(0.403, abs=5e-4) and p.eta_backward < 0.0
+    assert p.self_locking
+    lossless = physics.Parameters(mu=0.0)
+    assert (lossless.eta_forward, lossless.eta_backward) == (1.0, 0.0)
+    back_drivable = physics.Parameters(mu=0.0, self_locking=False)
+    assert (back_drivable.eta_forward, back_drivable.eta_backward) == (1.0, 1.0)
+
+
+@pytest.mark.parametrize("side", [-1.0, 1.0], ids=["just_below", "just_above"])
+def test_the_screw_self_locks_exactly_when_the_friction_angle_reaches_the_lead_angle(
+        side: float) -> None:
+    """mu at 1e-3 either side of tan(lambda) cos(15 deg), where rho' = lambda: below, eta_b > 0
+    and the hanging link's spring (160 N) pulls the carriage down with no actuator force;
+    above, eta_b < 0 and the screw holds it (F_lock = -L). A self_locking that contradicts
+    the friction is refused, naming it."""
+    lead_angle = physics.TR10X2_LEAD_ANGLE
+    mu = math.tan(lead_angle) * math.cos(math.radians(15.0)) * (1.0 + 1e-3 * side)
+    locking = side > 0.0
+    p = physics.Parameters(mu=mu, self_locking=locking, theta0=math.pi)
+    physics.validate(p)
+    assert (p.eta_backward > 0.0) != locking and abs(p.eta_backward) < 0.01
+    with pytest.raises(ValueError, match="^self_locking = "):
+        physics.validate(physics.Parameters(mu=mu, self_locking=not locking))
+    s, drift = run(p, [(0.0, 0.0, 0.0)], 100)
+    load = physics.spring(p, math.pi, p.Y_B0 + s.q).F_q - p.m_q * G
+    assert load < -150.0 and drift < 1e-9
+    if locking:
+        assert s.q == 0.0 and s.q_dot == 0.0 and s.W_adjust == 0.0
+        assert physics.outputs(p, physics.Inputs(), s).F_lock == -load
+    else:   # the load drives it, eta_b L against the damper: q' -> eta_b L / d_q
+        assert s.q < 0.0 and s.q_dot == pytest.approx(p.eta_backward * load / p.d_q, rel=0.05)
+
+
+@pytest.mark.parametrize("screw", [{}, {"mu": 0.15, "lead_angle": 0.1, "flank_angle": 0.0},
+                                   IDEAL], ids=["tr10x2", "square_thread", "ideal"])
+def test_constant_force_raises_the_carriage_at_the_screws_efficiency(screw: dict) -> None:
+    """Link hanging (theta = pi: no torque whatever B's height), no damper: a constant actuator
+    force F raises the carriage against L(q) = -(k (Y_B0 + x1A + q) + m_q g) until it stops at
+    q_max and the screw holds it; (M_q q'') = F + L / eta_f integrated over the rise gives
+    F q_max = (dE_e + dE_p) / eta_f, so q_max = 2 (F eta_f - k (Y_B0 + x1A) - m_q g) / k,
+    W_adjust = F q_max = (dE_e + dE_p) / eta_f and E_loss = (1 / eta_f - 1) (dE_e + dE_p)."""
+    p = physics.Parameters(**screw, theta0=math.pi, d_q=0.0, m_drive_q=2.0)
+    force = 250.0 / p.eta_forward
+    q_max = 2.0 * (force * p.eta_forward - K * (p.Y_B0 + X1A) - p.m_q * G) / K
+    s, drift = run(p, [(0.0, force, 0.0)], 400)
+    start = physics.outputs(p, physics.Inputs(), physics.initial_state(p))
+    end = physics.outputs(p, physics.Inputs(), s)
+    stored = end.E_t - start.E_t
+    assert s.q_dot == 0.0 and s.q == pytest.approx(q_max, rel=1e-6)
+    assert s.W_adjust == pytest.approx(stored / p.eta_forward, rel=1e-6)
+    assert s.E_loss == pytest.approx(stored * (1.0 / p.eta_forward - 1.0), rel=1e-6, abs=1e-6)
+    assert drift < 1e-9
+
+
+@pytest.mark.parametrize("screw", FRICTION_SCREWS.values(), ids=FRICTION_SCREWS.keys())
+@pytest.mark.parametrize("spring", [{}, REAL_SPRING], ids=["zero_free_length", "real"])
+def test_ledger_closes_on_a_screw_with_friction(spring: dict[str, float], screw: dict) -> None:
+    """Payloads join and leave a swinging link while both drives push, the carriage raised
+    through the screw (tens of newtons beyond load / eta_f) and lowered (tens of newtons
+    beyond eta_b load): the ledger is constant to 1e-9 J and the screw's friction is in
+    E_loss, beyond what the dampers dissipate. The run moves about 100 J, so the default
+    ledger_accuracy (1e-9 of the throughput) would allow 1e-7 J (measured 3e-10 to 9e-10 J);
+    at 1e-10 it stays within 1e-9 J (measured 1.3e-10 to 3.8e-10 J)."""
+    p = physics.Parameters(**spring, **screw, omega0=0.5, q_dot0=0.02, J_drive=0.05,
+                           m_drive_q=0.3, ledger_accuracy=1e-10)
+    load = physics.spring(p, math.pi, p.Y_B0).F_q - p.m_q * G   # the hanging link's, the most
+    lift, lower = -load / p.eta_forward, -load * p.eta_backward
+    schedule = [(0.05, 30.0 + lift, 0.0), (0.05, 10.0 + lift, 0.3), (-0.05, lower - 30.0, 0.1),
+                (0.0, lower - 10.0, 0.1)]
+    s, drift = run(p, schedule, 3000)
+    assert drift < 1e-9
+    assert s.W_adjust > 1.0 and s.E_loss > 0.5 * s.W_adjust and s.E_added != 0.0
+
+
 def test_balanced_link_accelerates_uniformly_under_a_constant_torque() -> None:
     """Balanced (defaults, no payload) and frictionless: theta = theta0 + tau t^2 / (2 J)."""
     p = physics.Parameters(d_link=0.0, theta0=0.5)
@@ -183,12 +297,16 @@ def test_balanced_link_accelerates_uniformly_under_a_constant_torque() -> None:
 
 # ---- the integrator's written-out stages ----------------------------------------------------
 
-STAGE_CASES = [   # (parameters, inputs, state): carriage at rest, held, moving, back-drivable
+STAGE_CASES = [   # (parameters, inputs, state): carriage at rest, held, moving, back-drivable;
+    # Tr 10x2 but where the lossless screws are named
     ({}, (0.1, 0.0, 0.5), (1.0, 0.3, 0.0, 0.0)),
     ({}, (0.1, -5.0, 0.0), (1.0, 0.3, 0.01, 0.0)),
     ({}, (-0.4, 30.0, 0.5), (0.7, -1.2, 0.02, 0.15)),
     ({**REAL_SPRING, "m_drive_q": 0.3}, (0.2, -20.0, 0.5), (2.5, 0.8, -0.01, -0.2)),
-    ({**REAL_SPRING, "self_locking": False}, (0.2, 3.0, 0.0), (-0.3, 0.5, 0.03, 0.1)),
+    ({**REAL_SPRING, **IDEAL, "self_locking": False}, (0.2, 3.0, 0.0), (-0.3, 0.5, 0.03, 0.1)),
+    ({**IDEAL, "m_drive_q": 0.3}, (0.2, -20.0, 0.5), (2.5, 0.8, -0.01, -0.2)),
+    # from rest the load breaks a back-drivable screw loose, against the actuator
+    ({"mu": 0.03, "self_locking": False}, (0.1, 5.0, 0.5), (2.8, 0.3, 0.0, 0.0)),
 ]
 
 
@@ -202,7 +320,7 @@ def test_stage_rates_are_the_spring_and_carriage_laws(params: dict, inputs: tupl
     rates = physics._stage_rates(p, physics.link_inertia(p, u.payload),
                                  physics.gravity_moment(p, u.payload))
     theta0, omega0, q, q_dot = start
-    direction = physics.motion_direction(u.F_adjust, q_dot)
+    direction = q_dot
     for theta, omega in [(theta0 + 0.37 * i, omega0 * (1.0 + 0.11 * i)) for i in range(40)]:
         s = physics.State(theta, omega, q, q_dot, 0.1, 0.2, 0.3, -0.0)
         Y_B = p.Y_B0 + q

@@ -17,8 +17,8 @@ from fmu_src.mechanisms.active_spring import physics
 
 
 class ActiveSpringBalancer(MechanismSlave):
-    """1-DOF link balanced by a spring whose frame joint a self-locking prismatic joint
-    moves along the vertical (Ciupitu 2018, Section 3)."""
+    """1-DOF link balanced by a spring whose frame joint a prismatic joint, driven through a
+    screw with thread friction, moves along the vertical (Ciupitu 2018, Section 3)."""
 
     physics = physics
     hidden_state = ("state", "previous_inputs", "compression_reported")
@@ -27,11 +27,11 @@ class ActiveSpringBalancer(MechanismSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.description = ("Spring gravity balancer with active relocation of the spring's "
-                            "frame joint by one self-locking prismatic joint (Ciupitu 2018, "
-                            "Fig. 8)")
+                            "frame joint by one prismatic joint on a screw with thread "
+                            "friction, self-locking by default (Ciupitu 2018, Fig. 8)")
         self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
-        self.add_input("F_adjust", 0.0, "N", "Actuator's force on the prismatic joint along +q "
-                       "(upward)")
+        self.add_input("F_adjust", 0.0, "N", "Actuator's force on the screw along +q (upward): "
+                       "its torque times 2 pi / lead")
         self.add_input("payload", 0.0, "kg", "Payload mass at distance w", min=0.0)
         for name, unit, description in OUTPUTS:
             self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
@@ -65,10 +65,10 @@ OUTPUTS = (
     ("F_s", "N", "Spring force F_s0 + k (l_s - l_s0), tension positive (eq. 19)"),
     ("tau_gravity", "N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta"),
     ("F_q", "N", "Spring's force on the carriage along +q"),
-    ("F_lock", "N", "Force of the self-locking screw on the carriage along +q (holding it, or "
-     "absorbing a load that would drive it)"),
-    ("F_hold", "N", "Actuator force that holds the carriage at rest: 0 through the self-locking "
-     "screw, m_q g - F_q when back-drivable"),
+    ("F_lock", "N", "Screw's reaction on the carriage along +q beyond F_adjust: holding it at "
+     "rest, its thread friction while it moves"),
+    ("F_hold", "N", "Least actuator force that holds the carriage at rest: 0 on a self-locking "
+     "screw, eta_b (m_q g - F_q) on a back-drivable one"),
     ("balance_error", "N.m", "(m c + payload w) g - x1A Y_B F_s / l_s; 0 when balanced "
      "(with X_B = 0, tau_gravity = balance_error sin(theta))"),
     ("E_p", "J", "Gravitational potential energy of link, payload and carriage"),
@@ -76,9 +76,9 @@ OUTPUTS = (
     ("E_t", "J", "Total potential energy E_p + E_e"),
     ("E_kin", "J", "Kinetic energy of link, payload, carriage and both drive rotors"),
     ("W_drive", "J", "Cumulative work of tau_drive on the link"),
-    ("W_adjust", "J", "Cumulative work of F_adjust on the carriage (the actuator's "
-     "mechanical work)"),
-    ("E_loss", "J", "Energy dissipated so far (d_link, d_q, self-locking screw, payload "
+    ("W_adjust", "J", "Cumulative work of F_adjust on the screw (the actuator's mechanical "
+     "work)"),
+    ("E_loss", "J", "Energy dissipated so far (d_link, d_q, the screw's friction, payload "
      "catches)"),
     ("E_added", "J", "Energy brought in (taken out) by payload changes"),
 )
@@ -100,7 +100,7 @@ REGISTRATION = Registration(
     ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),
            Port(LINEAR, "carriage", "F_adjust", "q_dot", "q")),
     ledger={"E_t": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "W_adjust": -1, "E_added": -1},
-    # the self-locking screw holds the carriage at rest: not one smooth ODE
+    # the screw's friction holds the carriage at rest: not one smooth ODE
     monolithic_reference=False,
     reference_run=rest_to_rest_move(
         {"tau_drive": (0.1, "N m"), "F_adjust": (0.5, "N")}, {"payload": 0.0},

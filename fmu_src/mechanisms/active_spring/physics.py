@@ -33,21 +33,32 @@ the torques about O
 
     tau_gravity = (m c + payload w) g sin(theta) - x1A F_s (Y_B sin(theta) + X_B cos(theta)) / l_s
 
-Self-locking transmission (`self_locking`, default true). The actuator's force F_adjust
-reaches the carriage through an ideal self-locking screw: lossless while the actuator drives
-the load (forward efficiency 1), not back-drivable (backward efficiency 0). Its reaction
-F_lock on the carriage:
-- at rest, the carriage moves only when F_adjust pushes it and overcomes a load opposing
-  that push; otherwise F_lock = -(F_adjust + L) holds it: the spring's pull costs no power;
-- moving against the load (L q_dot < 0), F_lock = 0: the actuator does the work on the spring;
-- moving with the load (L q_dot > 0), the load cannot drive the screw: F_lock = -L absorbs it
-  and its power L q_dot is dissipated (E_loss); a carriage whose speed would reverse stops
-  and stays (its remaining kinetic energy, a sub-step's worth, also goes to E_loss).
-So from rest the carriage moves only in the direction F_adjust pushes, and once stopped it
-stays.
-With `self_locking` false the screw is back-drivable: F_lock = 0 and the actuator must hold
-the load. W_adjust = integral of F_adjust q_dot dt is the actuator's mechanical work. No stroke
-limits: q is unbounded.
+The screw. The actuator's force F_adjust (its torque times 2 pi / lead, the force a lossless
+screw would give) reaches the carriage through a screw with thread friction: lead angle
+lambda, friction coefficient mu, flank half-angle beta, friction angle
+rho' = atan(mu / cos(beta)) (`screw_efficiencies`):
+
+    eta_f = tan(lambda) / tan(lambda + rho')     the actuator drives the load
+    eta_b = tan(lambda - rho') / tan(lambda)     the load drives the actuator
+
+and the screw self-locks exactly when rho' >= lambda (eta_b <= 0). The thread carries the
+load L (spring and carriage weight; the rotor's inertia, lumped into M_q, and the guide's
+damper d_q act beside it), so the actuator meets the effective load L_eff:
+- moving against the load (L q_dot < 0): L_eff = L / eta_f;
+- moving with the load (L q_dot > 0): L_eff = eta_b L (eta_b < 0: the actuator must push
+  the carriage along, the screw absorbs the load; eta_b > 0: the load drives it);
+- at rest: the carriage starts in the direction s = +-1 in which s (F_adjust + L_eff) > 0
+  (at most one), else the screw holds it with F_lock = -(F_adjust + L): holding costs no power.
+F_lock = L_eff - L is the screw's friction force on the carriage while it moves; its power
+-F_lock q_dot >= 0 goes to E_loss. The regime changes only where q_dot = 0: a carriage whose
+speed would change sign stops (its remaining kinetic energy, a sub-step's worth, goes to
+E_loss) and starts again only if the forces break it loose.
+Lossless limits, mu = 0: `self_locking` true is the ideal self-locking screw (eta_f = 1,
+eta_b = 0: lossless forward, the load's power absorbed), a lower bound of a real screw's
+cost; false a lossless back-drivable screw (eta_f = eta_b = 1). With mu > 0, `self_locking`
+must state what the friction does (rho' >= lambda), `validate` checks it.
+W_adjust = integral of F_adjust q_dot dt is the actuator's mechanical work. No stroke limits:
+q is unbounded.
 
 Balance. With X_B = 0, tau_gravity = balance_error sin(theta) exactly, where
 
@@ -63,7 +74,7 @@ momentum is conserved (omega scales by J_before / J_after), the kinetic energy l
 that inelastic catch goes to E_loss, and its potential energy on arrival, dm g w cos(theta),
 to E_added. A payload that leaves takes its potential and kinetic energy with it (E_added
 decreases by them). So E_t + E_kin + E_loss - W_drive - W_adjust - E_added stays constant,
-with E_loss also counting the dampers d_link and d_q and the self-locking screw's losses.
+with E_loss also counting the dampers d_link and d_q and the screw's friction.
 """
 
 from __future__ import annotations
@@ -78,6 +89,8 @@ from fmu_src.integration import first_substeps, ledger_accuracy, ledger_controll
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
+# Tr 10x2 (ISO 2904): lead 2 mm on a pitch diameter of 9 mm
+TR10X2_LEAD_ANGLE = math.atan(0.002 / (math.pi * 0.009))
 # A moving carriage takes sub-steps this much finer than the rate rule of fmu_src.integration:
 # its load (tens of newtons on a light carriage) multiplies its position error in the energy
 # ledger (1e-9 J per millisecond at the rate rule, 1e-12 J with this factor).
@@ -91,7 +104,12 @@ class Parameters:
     position b0 = 0.06 m, the frame joint above O at a = 0.1 m, which balances the bare link
     ((m c) g = k x1A Y_B0); a 0.5 kg carriage, damping 100 N s/m (time constant 5 ms).
 
-    Derived: carriage_inertia = m_q + m_drive_q, the inertia of the prismatic joint [kg].
+    The screw: a Tr 10x2 (lead angle 4.05 deg) with mu = 0.1, steel on lubricated bronze:
+    eta_f = 0.403, self-locking (README.md).
+
+    Derived: carriage_inertia = m_q + m_drive_q, the inertia of the prismatic joint [kg];
+    eta_forward and eta_backward, the screw's efficiencies (`screw_efficiencies`, the
+    lossless limits at mu = 0) [1].
     """
 
     m: float = parameter(3.0, "kg", "Link mass (the paper's m1)", min=0.0)
@@ -115,9 +133,18 @@ class Parameters:
     m_drive_q: float = parameter(0.0, "kg", "Drive inertia reflected to the prismatic joint "
                                  "(J_rotor N^2 of a lead screw, N = 2 pi / lead)", min=0.0)
     d_q: float = parameter(100.0, "N.s/m", "Viscous damping of the prismatic joint", min=0.0)
-    self_locking: bool = parameter(True, None, "The prismatic joint is driven through a "
-                                   "self-locking screw (the load cannot move it); false: "
-                                   "back-drivable")
+    self_locking: bool = parameter(True, None, "The screw holds any load that would drive "
+                                   "it; with mu = 0 the ideal self-locking screw (lossless "
+                                   "forward) or, false, a lossless back-drivable one; with "
+                                   "mu > 0 it must equal friction angle >= lead angle")
+    mu: float = parameter(0.1, "1", "Thread friction coefficient of the screw (steel on "
+                          "bronze, lubricated); 0: lossless (self_locking picks the limit)",
+                          min=0.0, max=0.5)
+    lead_angle: float = parameter(TR10X2_LEAD_ANGLE, "rad", "Lead angle of the screw, "
+                                  "atan(lead / (pi d2)) (Tr 10x2: 4.05 deg)", min=0.0,
+                                  max=math.pi / 4, min_exclusive=True)
+    flank_angle: float = parameter(15.0 * DEG, "rad", "Flank half-angle of the screw's thread "
+                                   "(trapezoidal 15 deg, square 0)", min=0.0, max=math.pi / 6)
     d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
     g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
     theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
@@ -132,12 +159,20 @@ class Parameters:
         # derived constants and what `outputs` keeps for the next step's rate, set here, in
         # __init__: an attribute added later (a cached_property) slows every read of the fields
         object.__setattr__(self, "carriage_inertia", self.m_q + self.m_drive_q)
+        if self.mu > 0.0:
+            eta_forward, eta_backward = screw_efficiencies(self.mu, self.lead_angle,
+                                                           self.flank_angle)
+        else:
+            eta_forward, eta_backward = 1.0, 0.0 if self.self_locking else 1.0
+        object.__setattr__(self, "eta_forward", eta_forward)
+        object.__setattr__(self, "eta_backward", eta_backward)
         object.__setattr__(self, "_kept_spring", [(None, 0.0, 0.0)])
         object.__setattr__(self, "_kept_payload", [(None, 0.0, 0.0, None)])   # _payload_terms
         # what `_stage_rates` reads, in one tuple
         object.__setattr__(self, "_stage_constants", (
             self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0, self.d_link,
-            self.d_q, self.carriage_inertia, self.m_q * self.g, self.self_locking))
+            self.d_q, self.carriage_inertia, self.m_q * self.g, 1.0 / eta_forward, eta_backward,
+            eta_forward == eta_backward == 1.0))
 
     @property
     def free_length(self) -> float:
@@ -145,9 +180,32 @@ class Parameters:
         return self.l_s0 - self.F_s0 / self.k
 
 
+def friction_angle(mu: float, flank_angle: float) -> float:
+    """The thread's effective friction angle rho' = atan(mu / cos(flank_angle)) [rad]."""
+    return math.atan(mu / math.cos(flank_angle))
+
+
+def screw_efficiencies(mu: float, lead_angle: float, flank_angle: float) -> tuple[float, float]:
+    """The screw's efficiencies [1], forward (the actuator drives the load)
+    tan(lambda) / tan(lambda + rho') and backward (the load drives the actuator)
+    tan(lambda - rho') / tan(lambda), for the friction coefficient mu, the lead angle lambda
+    and the flank half-angle [rad]; backward <= 0: self-locking."""
+    rho = friction_angle(mu, flank_angle)
+    tan_lead = math.tan(lead_angle)
+    return tan_lead / math.tan(lead_angle + rho), math.tan(lead_angle - rho) / tan_lead
+
+
 def validate(params: Parameters) -> None:
-    """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
+    """Raise ValueError naming the first parameter that is NaN or outside its physical range,
+    or a self_locking that contradicts the screw's friction."""
     check_ranges(params)
+    if params.mu > 0.0 and params.self_locking != (params.eta_backward <= 0.0):
+        rho = friction_angle(params.mu, params.flank_angle)
+        raise ValueError(
+            f"self_locking = {str(params.self_locking).lower()} contradicts the screw: its "
+            f"friction angle atan(mu / cos(flank_angle)) = {rho / DEG:.4g} deg is "
+            f"{'below' if rho < params.lead_angle else 'at least'} the lead angle "
+            f"{params.lead_angle / DEG:.4g} deg (self-locking exactly when at least)")
 
 
 class Inputs(NamedTuple):
@@ -170,8 +228,8 @@ class State(NamedTuple):
     q: float
     q_dot: float
     W_drive: float = 0.0   # work of tau_drive on the link
-    W_adjust: float = 0.0  # work of F_adjust on the carriage
-    E_loss: float = 0.0    # dissipated by d_link, d_q, the self-locking screw, payload catches
+    W_adjust: float = 0.0  # work of F_adjust on the screw
+    E_loss: float = 0.0    # dissipated by d_link, d_q, the screw's friction, payload catches
     E_added: float = 0.0   # brought in (taken out) by payload changes
 
 
@@ -239,35 +297,38 @@ def balance_error(p: Parameters, payload: float, theta: float, Y_B: float) -> fl
 
 def carriage(p: Parameters, F_adjust: float, load: float, q_dot: float,
              direction: float) -> tuple[float, float]:
-    """Acceleration of the carriage [m/s^2] and the self-locking screw's reaction F_lock [N],
-    for the actuator's force F_adjust and the load L = F_q - m_q g along +q [N].
+    """Acceleration of the carriage [m/s^2] and the screw's reaction F_lock [N], for the
+    actuator's force F_adjust and the load L = F_q - m_q g along +q [N].
 
-    direction: the sign of the motion the screw's regime is chosen for (that of q_dot, or of
-    F_adjust from rest), fixed over an integration sub-step so that its stages see one smooth
-    law; `motion_direction` gives it.
+    direction: the sign of q_dot at the start of the integration sub-step, fixed over it so
+    that its stages see one smooth law (0: from rest, the forces decide at each stage).
     """
-    if not p.self_locking:
+    inverse_eta_forward, eta_backward = 1.0 / p.eta_forward, p.eta_backward
+    if p.eta_forward == eta_backward == 1.0:     # lossless and back-drivable
         return (F_adjust + load - p.d_q * q_dot) / p.carriage_inertia, 0.0
-    lock = -load if load * direction > 0.0 else 0.0
-    push = F_adjust + load + lock
-    if q_dot == 0.0 and push * direction <= 0.0:    # held: no drive, or the load wins
-        return 0.0, -(F_adjust + load)
-    return (push - p.d_q * q_dot) / p.carriage_inertia, lock
-
-
-def motion_direction(F_adjust: float, q_dot: float) -> float:
-    """The carriage's direction of motion: that of q_dot, from rest that of F_adjust (0: none)."""
-    return q_dot if q_dot != 0.0 else F_adjust
+    if direction == 0.0:
+        direction = q_dot
+    if direction == 0.0:     # at rest: does the net force break the screw loose?
+        push = F_adjust + (load * inverse_eta_forward if load < 0.0 else load * eta_backward)
+        if push <= 0.0:
+            push = F_adjust + (load * inverse_eta_forward if load > 0.0 else
+                               load * eta_backward)
+            if push >= 0.0:
+                return 0.0, -(F_adjust + load)
+    else:
+        push = F_adjust + (load * inverse_eta_forward if load * direction < 0.0 else
+                           load * eta_backward)
+    return (push - p.d_q * q_dot) / p.carriage_inertia, push - F_adjust - load
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
                 direction: float | None = None) -> State:
     """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
     other mechanisms take it: a payload changes only at events here, so it is not used);
-    direction as for `carriage`, None for `motion_direction` at s."""
+    direction as for `carriage`, None for that of s's q_dot."""
     theta, omega, q, q_dot = s[:4]
     if direction is None:
-        direction = motion_direction(u.F_adjust, q_dot)
+        direction = q_dot
     omega_dot, q_ddot, loss_rate = _payload_terms(p, u.payload)[2](
         theta, omega, q, q_dot, direction, u.tau_drive, u.F_adjust)
     return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
@@ -302,8 +363,8 @@ def _stage_rates(p: Parameters, inertia: float, moment: float) -> StageRates:
     that only the parameters and the payload set read once: one call per stage.
     """
     sin, cos, hypot = math.sin, math.cos, math.hypot
-    (X_B, x1A, neg_x1A, Y_B0, k, F_s0, l_s0, d_link, d_q, M_q, weight_q,
-     self_locking) = p._stage_constants
+    (X_B, x1A, neg_x1A, Y_B0, k, F_s0, l_s0, d_link, d_q, M_q, weight_q, inverse_eta_forward,
+     eta_backward, lossless) = p._stage_constants
 
     def rates(theta: float, omega: float, q: float, q_dot: float, direction: float,
               tau_drive: float, F_adjust: float) -> tuple[float, float, float]:
@@ -316,15 +377,24 @@ def _stage_rates(p: Parameters, inertia: float, moment: float) -> StageRates:
         torque = moment * sin_t + neg_x1A * per_length * (Y_B * sin_t + X_B * cos_t)
         omega_dot = (tau_drive + torque - d_link * omega) / inertia
         load = -per_length * dy - weight_q
-        if not self_locking:
+        if lossless:
             q_ddot, lock = (F_adjust + load - d_q * q_dot) / M_q, 0.0
         else:
-            lock = -load if load * direction > 0.0 else 0.0
-            push = F_adjust + load + lock
-            if q_dot == 0.0 and push * direction <= 0.0:
+            moving, held = direction if direction != 0.0 else q_dot, False
+            if moving == 0.0:      # at rest: upwards, else downwards, else held
+                push = F_adjust + (load * inverse_eta_forward if load < 0.0 else
+                                   load * eta_backward)
+                if push <= 0.0:
+                    push = F_adjust + (load * inverse_eta_forward if load > 0.0 else
+                                       load * eta_backward)
+                    held = push >= 0.0
+            else:
+                push = F_adjust + (load * inverse_eta_forward if load * moving < 0.0 else
+                                   load * eta_backward)
+            if held:
                 q_ddot, lock = 0.0, -(F_adjust + load)
             else:
-                q_ddot = (push - d_q * q_dot) / M_q
+                q_ddot, lock = (push - d_q * q_dot) / M_q, push - F_adjust - load
         return omega_dot, q_ddot, d_link * omega * omega + d_q * q_dot * q_dot - lock * q_dot
 
     return rates
@@ -351,9 +421,11 @@ def _rate(p: Parameters, u: Inputs, s: State, J: float, moment: float) -> float:
         rate = damping_rate
     if speed > rate:
         rate = speed
-    if s.q_dot != 0.0 or u.F_adjust != 0.0 or not p.self_locking:   # the carriage moves
+    if s.q_dot != 0.0 or u.F_adjust != 0.0 or p.eta_backward > 0.0:   # the carriage moves
         M_q = p.carriage_inertia
-        carriage_rate = max(p.d_q / M_q, math.sqrt((p.k + per_length) / M_q),
+        # the screw's friction scales the spring's stiffness the carriage meets by 1 / eta_f
+        carriage_rate = max(p.d_q / M_q,
+                            math.sqrt((p.k + per_length) / p.eta_forward / M_q),
                             abs(s.q_dot) / max(l_s, p.x1A))
         rate = max(rate, CARRIAGE_ACCURACY * carriage_rate)
     return rate
@@ -365,17 +437,16 @@ def _rk4_step(rates: StageRates, tau_drive: float, F_adjust: float, s: Sequence[
     regime fixed by the motion at its start: the same numbers as `integration.rk4` over the
     full state (`derivatives`), bit for bit, with the stages in local floats."""
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
-    direction = q_dot if q_dot != 0.0 else F_adjust    # motion_direction, inlined
     half, sixth = 0.5 * h, h / 6.0
-    a1, b1, l1 = rates(theta, omega, q, q_dot, direction, tau_drive, F_adjust)
+    a1, b1, l1 = rates(theta, omega, q, q_dot, q_dot, tau_drive, F_adjust)
     o2, v2 = omega + half * a1, q_dot + half * b1
-    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, direction, tau_drive,
+    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, q_dot, tau_drive,
                        F_adjust)
     o3, v3 = omega + half * a2, q_dot + half * b2
-    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, direction, tau_drive,
+    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, q_dot, tau_drive,
                        F_adjust)
     o4, v4 = omega + h * a3, q_dot + h * b3
-    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, direction, tau_drive, F_adjust)
+    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, q_dot, tau_drive, F_adjust)
     return tuple.__new__(State, (
         theta + sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4),
         omega + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
@@ -394,10 +465,11 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     from the rate rule, raised until the energy ledger meets p.ledger_accuracy
     (`integration.ledger_controlled`).
 
-    A self-locking carriage whose speed changes sign within a sub-step stops: the sub-step is
-    split where the speed, interpolated linearly, reaches zero; there the carriage is held
-    at rest (the kinetic energy of the interpolation's residual speed goes to E_loss) and
-    the rest of the sub-step starts from rest.
+    A carriage whose speed changes sign within a sub-step stops (but on the lossless
+    back-drivable screw, whose law is smooth there): the sub-step is split where the speed,
+    interpolated linearly, reaches zero; there the carriage is at rest (the kinetic energy of
+    the interpolation's residual speed goes to E_loss) and the rest of the sub-step starts
+    from rest, where the screw holds it or the forces break it loose.
     """
     inertia, moment, rates = _payload_terms(p, u.payload)
     return ledger_controlled(lambda n: _integrate(p, u, s, dt, n, rates),
@@ -411,9 +483,10 @@ def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: Sta
     """`advance` over dt [s] in n RK4 sub-steps, for the stage rates of the payload."""
     h = dt / n
     tau_drive, F_adjust = u.tau_drive, u.F_adjust
+    lossless = p._stage_constants[-1]
     for _ in range(n):
         new = _rk4_step(rates, tau_drive, F_adjust, s, h)
-        if p.self_locking and new.q_dot * s.q_dot < 0.0:
+        if not lossless and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
             stopped = _rk4_step(rates, tau_drive, F_adjust, s, h_stop)
             stopped = stopped._replace(
@@ -485,9 +558,9 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     E_e = elastic_energy(p, l_s)
     E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
     F_adjust = u.F_adjust
-    _, F_lock = carriage(p, F_adjust, F_q - p.m_q * p.g, q_dot,
-                         q_dot if q_dot != 0.0 else F_adjust)   # motion_direction, inlined
-    F_hold = 0.0 if p.self_locking else p.m_q * p.g - F_q
+    _, F_lock = carriage(p, F_adjust, F_q - p.m_q * p.g, q_dot, q_dot)
+    # the least actuator force the screw holds the carriage with at rest
+    F_hold = max(p.eta_backward, 0.0) * (p.m_q * p.g - F_q)
     # built at C level: Outputs(...) is a Python call
     return tuple.__new__(Outputs, (
         theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque, F_q,

@@ -258,19 +258,20 @@ LEAD_SCREW_MOTOR = MotorParameters(N=2.0 * math.pi / 0.040)
 # The drive of a joint that must hold a load without power: the default motor (RE 30 data)
 # coupled directly to a self-locking trapezoidal screw Tr 10x2 (lead 2 mm), so N = 2 pi /
 # lead = 3141.6 motor rad per joint metre, K = N K_t = 81.4 N/A, reflected mass J_rotor N^2 =
-# 33.1 kg. Sized for the pull of franchetti2021's spring on its relocated frame joint
-# (ActiveSpringBalancer, k = 981 N/m): with the link hanging (theta = 180 deg) the carriage
-# carries k (Y_B + x1A) + m_q g, 162 N at the start and 219 N after relocating for 1 kg
-# (Y_B = 0.158 m), which is 2.7 A, within the motor's 3.44 A nominal current; 448 N (5.5 A,
-# briefly above nominal) for 5 kg, the end of the regulation sweep. Speed: 0.295 m/s no-load
-# at 24 V against 0.036 m/s at the peak of the 3 s quintic to 58 mm (0.18 m/s for 5 kg,
-# 18 V). Why a screw of this lead: its lead angle atan(lead / (pi d2)) = 4.0 deg (d2 = 9 mm)
-# is below the friction angle of a steel-on-bronze thread (5.7 deg at mu = 0.1), so the load
-# cannot back-drive it and the carriage stays where it is put without current; the 2 mm lead
-# is also the reduction the force needs, so no gearhead. The mechanism FMU models that screw
-# (self-locking, lossless forward): a real Tr 10x2 drives at about 40 % efficiency, so its
-# motor would supply about 2.5 times the mechanical work; eta = 1 here as for the other
-# drives (see the module docstring). The reflected mass dominates the joint (33.1 kg against
-# the 0.5 kg carriage), so the armature's back-EMF damps it at K_t^2 / (R_a J_rotor) = 326 1/s,
-# above 3 omega_c: the PID design then drops the derivative term (harness.run.controller).
+# 33.1 kg. Its effort is the force on the screw; the screw's thread friction is the mechanism
+# FMU's (ActiveSpringBalancer: forward efficiency 0.403 on a bronze nut), so eta = 1 here as
+# for the other drives (see the module docstring) and the motor's energies include the
+# screw's loss. Sized for the pull of franchetti2021's spring on its relocated frame joint
+# (k = 981 N/m): with the link hanging (theta = 180 deg) the carriage carries k (Y_B + x1A) +
+# m_q g, 162 N at the start and 219 N after relocating for 1 kg (Y_B = 0.158 m), which the
+# motor meets through the screw with up to 544 N, 6.7 A: twice the 3.44 A nominal current,
+# for the 3 s of regulation; 1110 N (13.7 A) for 5 kg, the end of the regulation sweep.
+# Speed: 0.295 m/s no-load at 24 V against 0.036 m/s at the peak of the 3 s quintic to 58 mm
+# (0.18 m/s for 5 kg). Why a screw of this lead: its lead angle atan(lead / (pi d2)) = 4.05
+# deg (d2 = 9 mm) is below the friction angle of a lubricated steel-on-bronze thread (5.91
+# deg at mu = 0.1 with 15 deg flanks), so the load cannot back-drive it and the carriage
+# stays where it is put without current; the 2 mm lead is also the reduction the force
+# needs, so no gearhead. The reflected mass dominates the joint (33.1 kg against the 0.5 kg
+# carriage), so the armature's back-EMF damps it at K_t^2 / (R_a J_rotor) = 326 1/s, above
+# 3 omega_c: the PID design then drops the derivative term (harness.run.controller).
 TRAPEZOIDAL_SCREW_MOTOR = MotorParameters(N=2.0 * math.pi / 0.002)
