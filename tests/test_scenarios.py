@@ -216,15 +216,15 @@ def many_phases(path: Path, count: int) -> Path:
     return path
 
 
-def test_phase_limit_and_many_phases_load_and_play_fast(tmp_path: Path) -> None:
-    """MAX_PHASES phases load and evaluate over the whole run (every 1 ms step) in well under
-    the 16 s + 67 s they took; one more phase is refused naming the limit."""
-    start = time.perf_counter()
+def test_phase_limit_and_many_phases_load_and_play(tmp_path: Path) -> None:
+    """MAX_PHASES phases load and evaluate over the whole run (every 1 ms step), the
+    vectorised evaluation agreeing with the scalar one; one more phase is refused naming the
+    limit. (That this is linear in the phases is timed in the slow test below, not here: a
+    wall-time bound in `make test` fails on a loaded machine.)"""
     scenario = scenarios.load(many_phases(tmp_path / "many.toml", core.MAX_PHASES))
     times = np.arange(round(scenario.duration / 1e-3) + 1) * 1e-3
     reference = scenario.reference(times)
     inputs = scenario.inputs(times, scenario.variant("a"))
-    assert time.perf_counter() - start < 2.0
     assert len(scenario.phases) == core.MAX_PHASES and len(times) == 100_001
     picked = times[::997]  # the vectorised evaluation is the core's scalar one
     segments = scenario.input_segments(scenario.variant("a"))
