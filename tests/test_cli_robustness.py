@@ -301,7 +301,7 @@ def test_ciupitu_json_is_json_for_degenerate_data(capsys: pytest.CaptureFixture[
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """Data with no unbalanced work (E_u = 0, as OP = 5e-324 m gave before the magnitude
     limits) leave eps undefined: written null, not NaN or -Infinity (which are not JSON)."""
-    from fmu_src.mechanisms.ciupitu import physics as ciupitu
+    from fmu_src.mechanisms.ciupitu import example as ciupitu
 
     undefined = ciupitu.StrokeResult(0.0, 1.0, -math.inf, 6.0, -0.46)
     monkeypatch.setattr(ciupitu, "stroke", lambda data, law, with_bar=False: undefined._replace(

@@ -18,21 +18,21 @@ import math
 import sys
 from dataclasses import fields
 
-from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from fmu_src.mechanisms.ciupitu import example as paper_example
 from fmu_src.mechanisms.rocking_counterweight import physics as rocking
 from harness.design import rocking_counterweight as rocking_design
 from harness.errors import UserError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    for f in fields(ciupitu.ExampleData):
+    for f in fields(paper_example.ExampleData):
         parser.add_argument(f"--{f.name}", type=float, default=f.default,
                             help=f"{f.metadata['description']} [{f.metadata['unit']}] "
                                  "(default: %(default)s, the paper's)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
 
 
-def results(strokes: dict[str, ciupitu.StrokeResult]) -> dict[str, float]:
+def results(strokes: dict[str, paper_example.StrokeResult]) -> dict[str, float]:
     """The JSON output: eps, max |M_u| [N m] and where it occurs [rad], per payload law."""
     return {key: value for law, r in strokes.items() for key, value in (
         (f"eps_{law}", r.eps), (f"max_abs_Mu_{law}", r.max_abs_Mu),
@@ -40,17 +40,17 @@ def results(strokes: dict[str, ciupitu.StrokeResult]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    data = ciupitu.ExampleData(**{f.name: getattr(args, f.name)
-                                  for f in fields(ciupitu.ExampleData)})
+    data = paper_example.ExampleData(**{f.name: getattr(args, f.name)
+                                  for f in fields(paper_example.ExampleData)})
     try:
-        ciupitu.validate_example(data)
+        paper_example.validate_example(data)
     except ValueError as error:  # messages start with the datum's name, i.e. the option's
         raise UserError(f"option --{error}") from None
-    strokes = {law: ciupitu.stroke(data, law) for law in ciupitu.PAYLOAD_LAWS}
-    strokes |= {f"{law}_with_bar": ciupitu.stroke(data, law, with_bar=True)
-                for law in ciupitu.PAYLOAD_LAWS}
+    strokes = {law: paper_example.stroke(data, law) for law in paper_example.PAYLOAD_LAWS}
+    strokes |= {f"{law}_with_bar": paper_example.stroke(data, law, with_bar=True)
+                for law in paper_example.PAYLOAD_LAWS}
     strokes |= {f"{law}_rocking": rocking.stroke(data, rocking_design.stored_linkage(law), law)
-                for law in ciupitu.PAYLOAD_LAWS}
+                for law in paper_example.PAYLOAD_LAWS}
     if args.json:
         values = results(strokes)
         undefined = [key for key, value in values.items() if not math.isfinite(value)]

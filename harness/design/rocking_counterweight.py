@@ -40,7 +40,7 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 from scipy.stats import qmc
 
-from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from fmu_src.mechanisms.ciupitu import example as paper_example
 from fmu_src.mechanisms.rocking_counterweight import physics as rocking
 from harness.run import scenario_files as scenarios
 
@@ -56,7 +56,7 @@ SAME_OPTIMUM = 1e-3           # local searches ending within this fraction of OP
 TIE = 1e-9                    # optima whose objectives differ by less (relative) are equal
 DESIGN_TOLERANCE = 2e-6       # m: a design value reproduces within this (rounding 1e-6 m)
 VARIABLES = ("x1A", "y1A", "XC", "YC", "AB", "BC", "AC2")
-PAPER = ciupitu.ExampleData()  # the paper's data
+PAPER = paper_example.ExampleData()  # the paper's data
 SCENARIO = "ciupitu2018"
 VARIANTS = {"parabolic": "parabolic_rocking", "linear": "linear_rocking"}  # law -> variant
 
@@ -68,7 +68,7 @@ class Design:
     law: str
     linkage: rocking.Linkage
     rms_Mu: float                   # N m, RMS of M_u over the workspace samples
-    stroke: ciupitu.StrokeResult    # eps (eq. 31) and max |M_u| of one stroke
+    stroke: paper_example.StrokeResult    # eps (eq. 31) and max |M_u| of one stroke
     optima: list[LocalOptimum]      # what the multistart found, best first
 
 
@@ -80,12 +80,12 @@ def transmission_margins(k: rocking.Linkage, mu_min: float = MU_MIN) -> tuple[fl
     return math.cos(mu_min) - cos_mu[0], math.cos(mu_min) + cos_mu[1]
 
 
-def unbalance(data: ciupitu.ExampleData, law: str, k: rocking.Linkage) -> np.ndarray:
+def unbalance(data: paper_example.ExampleData, law: str, k: rocking.Linkage) -> np.ndarray:
     """M_u [N m] at SAMPLES arm angles over the workspace (large where it cannot assemble)."""
-    shape = ciupitu.PAYLOAD_LAWS[law]
+    shape = paper_example.PAYLOAD_LAWS[law]
     values = []
     for phi in np.linspace(-0.5 * math.pi, 0.5 * math.pi, SAMPLES).tolist():
-        G_pv = data.Gmax * shape(ciupitu.stroke_fraction(phi))
+        G_pv = data.Gmax * shape(paper_example.stroke_fraction(phi))
         try:
             values.append(rocking.moments(G_pv, data.OP, data.G2, k, phi).M_u)
         except (ValueError, ZeroDivisionError):  # only at trial points outside the constraints
@@ -102,17 +102,17 @@ class LocalOptimum(NamedTuple):
     hits: int
 
 
-def objective(data: ciupitu.ExampleData, law: str, k: rocking.Linkage) -> float:
+def objective(data: paper_example.ExampleData, law: str, k: rocking.Linkage) -> float:
     """Mean M_u^2 [N^2 m^2] over the workspace samples."""
     return float(np.mean(unbalance(data, law, k) ** 2))
 
 
-def _bounds(data: ciupitu.ExampleData) -> list[tuple[float, float]]:
+def _bounds(data: paper_example.ExampleData) -> list[tuple[float, float]]:
     size = data.OP
     return [(-size, size)] * 4 + [(SHORTEST * size, size)] * 2 + [(-size, size)]
 
 
-def _local_search(data: ciupitu.ExampleData, law: str, B_left: bool, x0: np.ndarray,
+def _local_search(data: paper_example.ExampleData, law: str, B_left: bool, x0: np.ndarray,
                   ftol: float) -> tuple[float, np.ndarray] | None:
     """SLSQP from x0 within the bounds and the transmission constraint; None if it fails."""
     def linkage(x: np.ndarray) -> rocking.Linkage:
@@ -127,7 +127,7 @@ def _local_search(data: ciupitu.ExampleData, law: str, B_left: bool, x0: np.ndar
     return None
 
 
-def _polish(data: ciupitu.ExampleData, law: str, best: LocalOptimum) -> tuple[float, ...]:
+def _polish(data: paper_example.ExampleData, law: str, best: LocalOptimum) -> tuple[float, ...]:
     """The best optimum converged in x: least squares on the M_u samples (Gauss-Newton,
     which converges along the flat valleys where SLSQP's test on the objective stops early),
     unless that leaves the transmission constraint, which then fixes the valley and SLSQP
@@ -146,10 +146,10 @@ def _polish(data: ciupitu.ExampleData, law: str, best: LocalOptimum) -> tuple[fl
     return best.x
 
 
-def local_optima(law: str, data: ciupitu.ExampleData = PAPER, starts: int = STARTS,
+def local_optima(law: str, data: paper_example.ExampleData = PAPER, starts: int = STARTS,
                  screen: int = SCREEN) -> list[LocalOptimum]:
     """The local minima the multistart finds, best first (see the module docstring)."""
-    ciupitu.validate_example(data)
+    paper_example.validate_example(data)
     bounds = np.array(_bounds(data))
     unit = qmc.Sobol(len(VARIABLES), scramble=False).random_base2(screen)
     points = bounds[:, 0] + (bounds[:, 1] - bounds[:, 0]) * unit
@@ -176,7 +176,7 @@ def local_optima(law: str, data: ciupitu.ExampleData = PAPER, starts: int = STAR
     return [LocalOptimum(c[0][0], tuple(c[0][1].tolist()), c[0][2], len(c)) for c in clusters]
 
 
-def design(law: str, data: ciupitu.ExampleData = PAPER, starts: int = STARTS,
+def design(law: str, data: paper_example.ExampleData = PAPER, starts: int = STARTS,
            screen: int = SCREEN) -> Design:
     """The linkage minimising the mean M_u^2 over the workspace for one payload law: the best
     of local_optima, polished, rounded to 1e-6 m."""
@@ -197,7 +197,7 @@ def stored_linkage(law: str) -> rocking.Linkage:
     return rocking.Linkage(**scenarios.load(SCENARIO).variant(VARIANTS[law]).parameters)
 
 
-def report(designs: list[Design], data: ciupitu.ExampleData = PAPER) -> str:
+def report(designs: list[Design], data: paper_example.ExampleData = PAPER) -> str:
     """The designs, as the ciupitu2018 scenario's variant parameters, with their stroke, the
     multistart's evidence that they are the global optimum, and the translational
     counterweight's eps beside them (the paper's, and counting the bar's moment as the
@@ -211,7 +211,8 @@ def report(designs: list[Design], data: ciupitu.ExampleData = PAPER) -> str:
                      f"(+{d.optima[1].objective / best.objective - 1.0:.1%}, B_left = "
                      f"{str(d.optima[1].B_left).lower()})" if len(d.optima) > 1 else
                      "no other local optimum")
-        paper, with_bar = (ciupitu.stroke(data, d.law, with_bar=flag) for flag in (False, True))
+        paper, with_bar = (paper_example.stroke(data, d.law, with_bar=flag)
+                           for flag in (False, True))
         lines += [f"{d.law}: {values}, B_left = {str(d.linkage.B_left).lower()}",
                   f"  RMS M_u = {d.rms_Mu:.4f} N m, max |M_u| = {d.stroke.max_abs_Mu:.4f} N m "
                   f"at phi = {d.stroke.phi_max_Mu:.4f} rad, eps = {d.stroke.eps:.6f}",
@@ -224,9 +225,9 @@ def report(designs: list[Design], data: ciupitu.ExampleData = PAPER) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """No options: the data are the paper's (ciupitu.ExampleData defaults)."""
+    """No options: the data are the paper's (paper_example.ExampleData defaults)."""
 
 
 def run(args: argparse.Namespace) -> int:
-    print(report([design(law) for law in ciupitu.PAYLOAD_LAWS]))
+    print(report([design(law) for law in paper_example.PAYLOAD_LAWS]))
     return 0

@@ -58,6 +58,7 @@ from typing import Any, NamedTuple
 
 from fmu_src import ledger
 from fmu_src.integration import advance_arm, ledger_accuracy
+from fmu_src.mechanisms.ciupitu import example as paper_example
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from fmu_src.parameters import DomainError, check_ranges, parameter
 
@@ -165,22 +166,23 @@ def _moments(G_pv: float, OP: float, G2: float, dY: float, cos_phi: float) -> Mo
 
 
 # ---- static example of the paper (Section 4), with a rocking counterweight ----------------
-def stroke(data: ciupitu.ExampleData, k: Linkage, law: str) -> ciupitu.StrokeResult:
+def stroke(data: paper_example.ExampleData, k: Linkage, law: str) -> paper_example.StrokeResult:
     """Net stroke energies, eps (eq. 31) and the largest |M_u| for one payload law of
-    ciupitu.PAYLOAD_LAWS, read as for the translational counterweight (ciupitu.stroke); the
-    data's OA and AB are the translational bar's and are not used."""
-    ciupitu.validate_example(data)
+    paper_example.PAYLOAD_LAWS, read as for the translational counterweight
+    (paper_example.stroke); the data's OA and AB are the translational bar's and are not
+    used."""
+    paper_example.validate_example(data)
     check_linkage(k)
-    shape = ciupitu.PAYLOAD_LAWS[law]
+    shape = paper_example.PAYLOAD_LAWS[law]
 
     def unbalance(phi: float) -> Moments:
-        G_pv = data.Gmax * shape(ciupitu.stroke_fraction(phi))
+        G_pv = data.Gmax * shape(paper_example.stroke_fraction(phi))
         return moments(G_pv, data.OP, data.G2, k, phi)
 
-    E_u = abs(ciupitu.gauss_legendre(lambda phi: unbalance(phi).M_g, -HALF_PI, HALF_PI))
-    E_b = abs(ciupitu.gauss_legendre(lambda phi: unbalance(phi).M_u, -HALF_PI, HALF_PI))
-    phi_max = ciupitu.argmax(lambda phi: abs(unbalance(phi).M_u), -HALF_PI, HALF_PI)
-    return ciupitu.StrokeResult(E_u, E_b, 1.0 - E_b / E_u, abs(unbalance(phi_max).M_u),
+    E_u = abs(paper_example.gauss_legendre(lambda phi: unbalance(phi).M_g, -HALF_PI, HALF_PI))
+    E_b = abs(paper_example.gauss_legendre(lambda phi: unbalance(phi).M_u, -HALF_PI, HALF_PI))
+    phi_max = paper_example.argmax(lambda phi: abs(unbalance(phi).M_u), -HALF_PI, HALF_PI)
+    return paper_example.StrokeResult(E_u, E_b, 1.0 - E_b / E_u, abs(unbalance(phi_max).M_u),
                                 phi_max)
 
 
