@@ -13,7 +13,8 @@ The rate rule alone does not bound the energy ledger's error (docs/energy_ledger
 `ledger_controlled` checks each communication step against the ledger itself, whose exact
 rate of change is zero, so that its change over the step is the integration error itself,
 and takes the step again with more sub-steps until that error is within the mechanism's
-`ledger_accuracy` times the step's energy throughput (plus the ledger's own rounding).
+`ledger_accuracy` times the step's energy throughput plus the ledger's own rounding
+(`ledger_tolerance`).
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ MAX_SUBSTEPS = 20_000
 # The default of every mechanism's `ledger_accuracy` [1]: the ledger residual a step may add
 # per joule of energy throughput (|work| and |energy added|) of the step.
 LEDGER_ACCURACY = 1e-9
-# The ledger's rounding per sub-step and per evaluation, as a multiple of the magnitude of its
-# terms [1]: a sum of a few terms and n increments of the cumulative energies, each rounded to
-# half an ulp, with a margin of 8 so that the check is never decided by rounding alone.
+# The ledger's rounding, as a multiple of the magnitude of what is rounded [1]: one evaluation
+# of the terms (a sum of a few terms, each a few operations rounded to half an ulp) per sum of
+# |term|, and one sub-step's addition to each cumulative energy per |energy|, with a margin of
+# 8 so that the check is never decided by rounding alone (docs/energy_ledger.md).
 LEDGER_ROUNDING = 8.0 * sys.float_info.epsilon
 
 
@@ -86,12 +88,13 @@ def ledger_accuracy() -> Any:
 
 
 # The ledger at the end of the last step accepted (in any instance): (its state, the
-# parameters and event inputs of its terms, the terms' sum and magnitude). A step that starts
+# parameters and event inputs of its terms, the terms' sum and magnitude, the step's
+# sub-steps). A step that starts
 # from that very state object with the same parameters object and equal event inputs starts
 # from those terms (terms depend on nothing else), which saves one evaluation per step. The
 # references keep the objects alive, so an identity cannot be reused; one assignment replaces
 # the tuple, so a thread reads an old or a new one, never a mix.
-_last_ledger: tuple = (None, None, None, 0.0, 0.0)
+_last_ledger: tuple = (None, None, None, 0.0, 0.0, 0)
 
 
 def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[float]],
@@ -102,12 +105,13 @@ def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[flo
 
     terms(state): the ledger's signed terms [J], whose sum is constant in the exact solution
     (stored energies, E_loss, minus the works and E_added); works: the indices in the state
-    of the cumulative works. A step is accepted when the change of the sum is at most
+    of the cumulative works, the first of the state's cumulative energies (those from works[0]
+    on). A step is accepted when the change of the sum is at most `ledger_tolerance`:
     accuracy times the step's throughput (the sum of |change| of each work) plus the
-    ledger's rounding, LEDGER_ROUNDING (n + 2) times the sum of |term| at both ends.
-    Otherwise it is taken again from s with more sub-steps (RK4's error over a step falls as
-    n^-4), at least twice as many; SubstepBoundError beyond MAX_SUBSTEPS. The terms depend
-    on the state, the parameters p and the event inputs `events` only (see _last_ledger).
+    ledger's rounding. Otherwise it is taken again from s with more sub-steps (RK4's error
+    over a step falls as n^-4), at least twice as many; SubstepBoundError beyond
+    MAX_SUBSTEPS. The terms depend on the state, the parameters p and the event inputs
+    `events` only (see _last_ledger).
     """
     global _last_ledger
     accuracy = p.ledger_accuracy
@@ -122,11 +126,17 @@ def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[flo
         end = terms(new)
         after, end_magnitude = sum(end), sum(map(abs, end))
         error = abs(after - before)
-        throughput = sum([abs(new[i] - s[i]) for i in works])
-        tolerance = (accuracy * throughput
-                     + LEDGER_ROUNDING * (n + 2) * (magnitude + end_magnitude))
-        if error <= tolerance:
-            _last_ledger = (new, p, events, after, end_magnitude)
+        throughput = 0.0
+        for i in works:   # a loop, not sum() over a list comprehension: no frame of its own
+            throughput += abs(new[i] - s[i])
+        # the tolerance without its sub-steps' part, which only adds to it, decides most
+        # steps without measuring the sub-steps' rounding scale (a terms evaluation per
+        # state component)
+        if error <= accuracy * throughput + LEDGER_ROUNDING * (magnitude + end_magnitude) or (
+                error <= (tolerance := ledger_tolerance(
+                    accuracy, throughput, magnitude, end_magnitude, n,
+                    substep_rounding_scale(terms, new, after, works[0])))):
+            _last_ledger = (new, p, events, after, end_magnitude, n)
             return new
         growth = (error / (0.5 * tolerance)) ** 0.25 if tolerance > 0.0 else math.inf
         n = max(2 * n, math.ceil(n * growth)) if growth < MAX_SUBSTEPS else 2 * n
@@ -136,6 +146,49 @@ def ledger_controlled(run: Callable[[int], S], terms: Callable[[S], Sequence[flo
                 f"the bound of {MAX_SUBSTEPS} RK4 sub-steps over the step of {dt:.4g} s "
                 f"(ledger error {error:.3g} J with {n // 2} or more): take shorter "
                 "communication steps, or allow a larger ledger_accuracy")
+
+
+def ledger_tolerance(accuracy: float, throughput: float, start_magnitude: float,
+                     end_magnitude: float, n: int, substep_scale: float) -> float:
+    """The ledger change [J] a step of n sub-steps may make: accuracy [1] times its
+    throughput [J] plus the ledger's rounding, LEDGER_ROUNDING times the sums of |term| [J]
+    at its start and end (one evaluation each) and n times the rounding scale of a sub-step
+    [J] (`substep_rounding_scale`). The stored energies are evaluated, not accumulated, so
+    their evaluation's rounding does not grow with n."""
+    return accuracy * throughput + LEDGER_ROUNDING * (start_magnitude + end_magnitude
+                                                      + n * substep_scale)
+
+
+# Relative size of the finite difference that measures the ledger's slope in a state
+# component [1]: far above the evaluation's rounding, far below the curvature's scale.
+SLOPE_STEP = 2.0 ** -30
+
+
+def substep_rounding_scale(terms: Callable[[S], Sequence[float]], state: S, total: float,
+                           first_energy: int) -> float:
+    """What one sub-step's rounding of the state can move the ledger by, per LEDGER_ROUNDING
+    [J]: the sum of |energy| of the cumulative energies (state[first_energy:], each added to
+    once), and of |x dL/dx| for each other component x of the state (x rounded to half an
+    ulp moves the ledger's sum L by dL/dx times that: |x| times the net generalised force
+    for a position, twice the kinetic energy for a speed), dL/dx by a finite difference
+    from total = sum(terms(state))."""
+    scale = sum(map(abs, state[first_energy:]))
+    components = list(state)
+    for i in range(first_energy):
+        x = components[i]
+        step = SLOPE_STEP * (abs(x) if x != 0.0 else 1.0)
+        components[i] = x + step
+        moved = sum(terms(tuple.__new__(type(state), components)))
+        components[i] = x
+        scale += abs(x * (moved - total) / step)
+    return scale
+
+
+def accepted_substeps(state: Any) -> int | None:
+    """The sub-steps of the last step `ledger_controlled` accepted, if it ended in this very
+    state object; None otherwise."""
+    last = _last_ledger
+    return last[5] if last[0] is state else None
 
 
 def integrate(f: Callable[[S], S], s: S, dt: float, rate: float,

@@ -298,3 +298,8 @@ def test_regulation_sweep_slider_settles_at_its_static_equilibrium() -> None:
     for deg, threshold in ((0, 2.57), (30, 2.95), (60, 4.0)):
         assert settled(0.99 * threshold, deg) < p.b_max
         assert settled(1.01 * threshold, deg) == p.b_max
+
+
+def test_event_inputs_are_the_inputs_after_tau_drive() -> None:
+    """The ledger's control takes the event inputs as u[1:] (self_regulating._controlled)."""
+    assert physics.Inputs._fields[1:] == physics.EVENT_INPUTS

@@ -3,7 +3,8 @@ inputs sit at the extremes of what the mechanism is built for (efforts at +- ful
 zero, payloads none or full, locks either way, the active spring's screw with friction and
 in its lossless limits; tests/test_ledger_bound.py CASES) or anywhere
 between, and step sizes from 0.1 ms to 32 ms. The residual stays within ledger_accuracy
-(1e-9) times the energy throughput plus 1e-12 J at every communication point.
+(1e-9) times the energy throughput plus the ledger's rounding at every communication point
+(test_ledger_bound.worst_ratio_over, docs/energy_ledger.md).
 `make test` runs a few fixed examples, `make fuzz` (HYPOTHESIS_PROFILE=deep) thousands.
 """
 

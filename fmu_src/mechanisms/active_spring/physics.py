@@ -82,6 +82,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING, NamedTuple
 
 from fmu_src import ledger
@@ -473,7 +474,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """
     inertia, moment, rates = _payload_terms(p, u.payload)
     return ledger_controlled(lambda n: _integrate(p, u, s, dt, n, rates),
-                             lambda state: ledger_terms(p, u, state), (4, 5), s,
+                             partial(ledger_terms, p, u), (4, 5), s,
                              first_substeps(dt, _rate(p, u, s, inertia, moment)), dt, p,
                              (u.payload,))
 

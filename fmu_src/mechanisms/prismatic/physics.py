@@ -64,7 +64,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 from typing import NamedTuple
 
 from fmu_src.integration import (
@@ -341,9 +341,9 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     from the rate rule, raised until the energy ledger meets p.ledger_accuracy
     (`integration.ledger_controlled`)."""
     return ledger_controlled(
-        lambda n: integrate_substeps(lambda state: _derivatives(p, u, state), s, dt, n,
-                                     lambda state: _apply_stops(p, state)),
-        lambda state: ledger_terms(p, u, state), (4, 5), s,
+        lambda n: integrate_substeps(partial(_derivatives, p, u), s, dt, n,
+                                     partial(_apply_stops, p)),
+        partial(ledger_terms, p, u), (4, 5), s,
         first_substeps(dt, characteristic_rate(p, u, s)), dt, p)
 
 

@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields
+from functools import partial
 from typing import Any, NamedTuple
 
 from fmu_src import ledger
@@ -244,6 +245,8 @@ class Parameters:
         # cached_property) slows every read of the fields.
         object.__setattr__(self, "linkage", Linkage.of(self))
         object.__setattr__(self, "_last_terms", [(None, None, ())])
+        # (state, inputs, outputs): what `ledger_terms` computed last, for `outputs`
+        object.__setattr__(self, "_kept_outputs", [(None, None, None)])
 
     @property
     def J_fixed(self) -> float:
@@ -395,13 +398,25 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     tau = u.tau_drive
     rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
     return advance_arm(_arm_rates(p, u.payload, tau), s, tau, dt, rate,
-                       lambda state: ledger_terms(p, u, state), p, u.payload)
+                       partial(ledger_terms, p, u), p, u.payload)
 
 
 def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
     """The signed terms of the energy ledger [J], E_p, E_kin, E_loss, -W_drive and -E_added
-    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md)."""
-    return (*mechanical_energies(p, u.payload, s), s.E_loss, -s.W_drive, -s.E_added)
+    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md). The outputs
+    come with them, from the same energies, kept for `outputs` (the end of a step is
+    evaluated once, for the ledger's control and the slave)."""
+    theta, payload, g, m2 = s.theta, u.payload, p.g, p.m2
+    q, _, _, gravity = _arm_terms(p, payload, theta)
+    M = _moments(payload * g, p.w, m2 * g, q.dY, math.sin(theta))  # sin(theta) = cos(phi)
+    E_p, E_kin = mechanical_energies(p, payload, s)
+    W_drive, E_loss, E_added = s.W_drive, s.E_loss, s.E_added
+    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
+    p._kept_outputs[0] = (s, u, tuple.__new__(Outputs, (
+        theta, s.omega, gravity, E_p, E_kin,
+        *M, q.X, q.Y, q.psi,                            # M_g, M_b, M_u, X_cw, Y_cw, psi
+        W_drive, E_loss, E_added)))
+    return E_p, E_kin, E_loss, -W_drive, -E_added
 
 
 def mechanical_energies(p: Parameters, payload: float, s: State) -> tuple[float, float]:
@@ -442,14 +457,10 @@ class Outputs(NamedTuple):
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
-    """All outputs for the state s and inputs u."""
-    theta, omega, payload, g, m2 = s.theta, s.omega, u.payload, p.g, p.m2
-    q, J, _, gravity = _arm_terms(p, payload, theta)
-    M = _moments(payload * g, p.w, m2 * g, q.dY, math.sin(theta))  # sin(theta) = cos(phi)
-    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
-    return tuple.__new__(Outputs, (
-        theta, omega, gravity,
-        g * (math.cos(theta) * _arm_moment(p, payload) + m2 * q.Y),    # E_p
-        0.5 * J * omega ** 2,                                           # E_kin
-        *M, q.X, q.Y, q.psi,                            # M_g, M_b, M_u, X_cw, Y_cw, psi
-        s.W_drive, s.E_loss, s.E_added))
+    """All outputs for the state s and inputs u (those `ledger_terms` computed with them at the
+    end of the step, if it did)."""
+    kept = p._kept_outputs[0]
+    if kept[0] is not s or kept[1] is not u:
+        ledger_terms(p, u, s)
+        kept = p._kept_outputs[0]
+    return kept[2]

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 from typing import NamedTuple
 
 from fmu_src.integration import (
@@ -152,6 +152,13 @@ class Parameters:
         parameters, the latest first (a locked slider and a held payload repeat them at every
         step; a payload event reads them before and after it)."""
         return [((math.nan, math.nan), ())] * 2
+
+    @cached_property
+    def _kept_outputs(self) -> list:
+        """[(state, inputs, outputs)]: the outputs `ledger_terms` computed last with these
+        parameters, for `outputs` of the very same state and inputs objects (the end of a
+        step: the ledger's control evaluates it, then the slave reads its outputs)."""
+        return [(None, None, None)]
 
 
 def validate(params: Parameters) -> None:
@@ -460,20 +467,11 @@ def _mechanical_energies(p: Parameters, u: Inputs, s: State, mass: float
             0.5 * mass * v * v)
 
 
-def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
-    """The signed terms of the energy ledger [J], E_t + E_cw + E_kin (in parts), E_loss,
-    -W_drive and -E_added (as `outputs` reports them): their sum is constant
-    (docs/energy_ledger.md)."""
-    mass = p.m_slider if u.slider_locked else slider_mass(p, u)
-    return (*_mechanical_energies(p, u, s, mass), s.E_loss, -s.W_drive, -s.E_added)
-
-
 def _controlled(p: Parameters, u: Inputs, s: State, dt: float, run: Callable[[int], State],
                 n: int) -> State:
-    """run(n), the step of dt [s] from s with n sub-steps, under the ledger's control."""
-    return ledger_controlled(run, lambda state: ledger_terms(p, u, state), (5,), s, n, dt, p,
-                             (u.payload, u.counterweight_added, u.slider_locked,
-                              u.pulley_locked))
+    """run(n), the step of dt [s] from s with n sub-steps, under the ledger's control (its
+    event inputs u[1:], EVENT_INPUTS in field order)."""
+    return ledger_controlled(run, partial(ledger_terms, p, u), (5,), s, n, dt, p, u[1:])
 
 
 def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
@@ -751,7 +749,20 @@ class Outputs(NamedTuple):
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
-    """All outputs for the state s and inputs u."""
+    """All outputs for the state s and inputs u (those `ledger_terms` computed with them at the
+    end of the step, if it did)."""
+    kept = p._kept_outputs[0]
+    if kept[0] is not s or kept[1] is not u:
+        ledger_terms(p, u, s)
+        kept = p._kept_outputs[0]
+    return kept[2]
+
+
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_t + E_cw + E_kin (in parts), E_loss,
+    -W_drive and -E_added (as `outputs` reports them): their sum is constant
+    (docs/energy_ledger.md). The outputs come with them, from the same energies, kept for
+    `outputs` (the end of a step is evaluated once, for the ledger's control and the slave)."""
     theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
     _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
@@ -763,11 +774,14 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     E_e = 0.5 * p.k * (x - p.L0) ** 2
     E_cw = -(p.M0 + counterweight_added) * p.g * s_cw
     mass = p.m_slider if slider_locked else slider_mass(p, u)
-    E_kin = 0.5 * J * omega ** 2 + 0.5 * mass * v ** 2
+    E_link = 0.5 * J * omega ** 2
+    E_kin = E_link + 0.5 * mass * v ** 2
     F_t = p.k * (b - p.a * cos_t) * factor
     F_n = p.k * p.a * sin_t * factor
     tau_gravity = (moment - spring * factor) * sin_t
     at_stop = not slider_locked and (b <= p.b_min or b >= p.b_max)  # slider_at_stop
     # Built by tuple.__new__ in field order: Outputs(...) would add a Python call per step.
-    return _new(Outputs, (theta, omega, b, delta_b, x, F_t, F_n, tau_gravity, balance_error,
-                          E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))
+    out = _new(Outputs, (theta, omega, b, delta_b, x, F_t, F_n, tau_gravity, balance_error,
+                         E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))
+    p._kept_outputs[0] = (s, u, out)
+    return E_p, E_e, E_cw, E_link, 0.5 * mass * v * v, E_loss, -W_drive, -E_added
