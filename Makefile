@@ -51,7 +51,7 @@ sweep: fmu
 
 # docs/variables/<Model>.md from the built FMUs' model descriptions
 docs: fmu
-	$(PY) -m harness.fmu_docs
+	$(PY) -m harness docs
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check fmu_src harness tests

@@ -1,15 +1,14 @@
 """The one interface of the FMUs of fmu_src (standard library only; docs/adding_a_mechanism.md).
 
 `Physics` is the contract every mechanism's pure physics module meets: the slave
-(`fmi_base.MechanismSlave`), the monolithic reference (`harness.reference`) and the tests use
-a mechanism through it alone.
+(`fmu_src.fmi.mechanism_slave.MechanismSlave`), the monolithic reference
+(`harness.run.reference`) and the tests use a mechanism through it alone.
 
-`Registration` is what the harness knows of an FMU beyond its slave class, declared once,
-as `REGISTRATION`, in the FMU's slave script `fmu_src/<Model>.py`: the build finds the FMUs by
-it (`harness.registry`), and the OSP ports, the documented reference run, the monolithic
+`Registration` is what the harness knows of an FMU beyond its slave class, declared once, as
+`REGISTRATION`, in the FMU's slave script `fmu_src/<folders>/<Model>.py`: the build finds the
+FMUs by it (`harness.registry`), and the OSP ports, the documented reference run, the monolithic
 reference, the bench's step loops, the plots and the tests' per-model cases are read from it.
-Everything in it is plain data, so the FMU carries it with the standard library only.
-"""
+Everything in it is plain data, so the FMU carries it with the standard library only. """
 
 from __future__ import annotations
 
@@ -63,7 +62,7 @@ def no_input_events(p: Any, before: Any, after: Any, s: Any) -> Any:
     return s
 
 
-# OSP-IS port kinds (harness.osp): effort and flow of each
+# OSP-IS port kinds (harness.fmu.osp): effort and flow of each
 ANGULAR = "AngularMechanicalPort"   # Torque [N.m], AngularVelocity [rad/s]
 LINEAR = "LinearMechanicalPort"     # Force [N], LinearVelocity [m/s]
 ELECTROMAGNETIC = "ElectromagneticPort"  # Voltage [V], Current [A]
@@ -158,28 +157,14 @@ class Registration:
     physics: Any = None  # the mechanism's Physics module
     # the energy ledger: output -> sign; the signed sum is constant (docs/energy_ledger.md)
     ledger: Mapping[str, int] = field(default_factory=dict)
-    # the monolithic reference (harness.reference) can solve it as one ODE
+    # the monolithic reference (harness.run.reference) can solve it as one ODE
     monolithic_reference: bool = True
     # plot panels of a multi-joint mechanism after its joints' tracking panels:
     # (title, unit, output names)
     plot_panels: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
+    # outputs a result summary reports at the end of a run (an adjusting actuator's work)
+    summary_outputs: tuple[str, ...] = ()
 
     def joints(self) -> tuple[Port, ...]:
         """The mechanism's joints: its ports with a position, in the master's order."""
         return tuple(p for p in self.ports if isinstance(p, Port) and p.position is not None)
-
-
-def payload_arm(physics: Any, reference_outputs: tuple[str, ...], **more: Any) -> Registration:
-    """The registration of a one-link arm with a drive torque and a payload at distance w
-    (`fmi_base.PayloadArmSlave`): its joint theta, the ledger E_p + E_kin + E_loss - W_drive
-    - E_added, a rest-to-rest move without payload recording reference_outputs, a payload of
-    2 kg that moves it, and a probe with both inputs acting; more: further fields."""
-    return Registration(
-        physics=physics,
-        ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
-        ledger={"E_p": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
-        reference_run=rest_to_rest_move({"tau_drive": (0.1, "N m")}, {"payload": 0.0},
-                                        reference_outputs, "; no payload"),
-        moving_run=Run({}, {"payload": 2.0}, 2.0),
-        dependency_probes=(Run({}, {"tau_drive": 1.0, "payload": 0.5}, 0.3),),
-        **more)

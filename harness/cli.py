@@ -24,34 +24,36 @@ class Command(NamedTuple):
 
 
 COMMANDS = {
-    "build-fmus": Command("harness.fmu_build",
+    "build-fmus": Command("harness.fmu.build",
                           "build the FMUs of fmu_src whose inputs changed into build/fmus"),
-    "cosim": Command("harness.cosim",
+    "cosim": Command("harness.run.cosim",
                      "co-simulate scenario variants and write CSV series, summary and plots"),
-    "system": Command("harness.system",
+    "system": Command("harness.systems.system",
                       "run scenario variants as a system of FMUs (SSP/OSP) in libcosim or "
                       "FMPy's SSP runner; results as the harness writes them"),
-    "compare": Command("harness.compare",
+    "compare": Command("harness.run.compare",
                        "compare two result CSV files signal by signal within tolerances"),
-    "ciupitu-example": Command("harness.ciupitu_example",
+    "ciupitu-example": Command("harness.design.ciupitu_example",
                                "Ciupitu 2018 Section 4 example: eps and max |M_u| for "
                                "parabolic and linear payloads"),
-    "ciupitu-design": Command("harness.ciupitu_design",
+    "ciupitu-design": Command("harness.design.ciupitu",
                               "choose the Ciupitu counterweight (m2, OA, AB) of franchetti2021 "
                               "by minimising E_drawn"),
-    "active-design": Command("harness.active_design",
+    "active-design": Command("harness.design.active_spring",
                              "Ciupitu 2018 Fig. 8: the frame joint ordinate Y_B that balances "
                              "a payload change (eq. 27, solved numerically)"),
-    "rocking-design": Command("harness.rocking_design",
+    "rocking-design": Command("harness.design.rocking_counterweight",
                               "design Ciupitu's rocking counterweight (Figure 4b) for the "
                               "Section 4 example by least squares on M_u"),
-    "sweep": Command("harness.sweep", "run a parameter sweep file on Dask and write "
+    "sweep": Command("harness.sweeps", "run a parameter sweep file on Dask and write "
                      "results/sweeps/<name>.parquet/.csv/plots"),
     "bench": Command("harness.bench",
                      "benchmarks: FMU step cost against a trivial FMU and in a C host, "
                      "co-simulation real-time factor, step convergence, sweep scaling "
                      "(results/bench)"),
-    "cross-check": Command("harness.cross_check",
+    "docs": Command("harness.fmu.variable_pages",
+                    "write docs/variables/<Model>.md from the built FMUs' model descriptions"),
+    "cross-check": Command("harness.fmu.cross_check",
                            "write every FMU with its reference result in the FMI cross-check "
                            "layout (build/cross-check) and validate it"),
 }

@@ -1,7 +1,7 @@
 """ActiveSpringBalancer FMU (Ciupitu 2018 Fig. 8), exercised through FMPy: balance against
 the closed form, the energy ledger with the drives off and on, the self-locking carriage,
 state save/restore across a payload change, and bad input. Independent numbers only: the
-closed forms are restated here, not taken from `fmu_src.active_spring`."""
+closed forms are restated here, not taken from `fmu_src.mechanisms.active_spring.physics`."""
 
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from conftest import (
 )
 from fmpy import read_model_description
 
-from harness.fmi import CoSimFMU
-from harness.fmu_build import fmu_path
+from harness.fmu.build import fmu_path
+from harness.fmu.loader import CoSimFMU
 
 MODEL = "ActiveSpringBalancer"
 G, M, C, J_LINK, W, X1A, K, Y_B0 = 9.81, 3.0, 0.2, 0.16, 0.35, 0.06, 981.0, 0.1

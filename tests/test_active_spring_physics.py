@@ -1,6 +1,7 @@
 """Ciupitu 2018 Fig. 8 (spring frame joint relocated by a prismatic joint): the physics of
-`fmu_src.active_spring` and the `active-design` command, against closed forms, finite
-differences, conservation laws and eq. 27 written out here in the paper's own frame."""
+`fmu_src.mechanisms.active_spring.physics` and the `active-design` command, against closed
+forms, finite differences, conservation laws and eq. 27 written out here in the paper's own
+frame."""
 
 from __future__ import annotations
 
@@ -10,9 +11,10 @@ from functools import partial
 
 import pytest
 
-from fmu_src import active_spring as physics
 from fmu_src import integration
-from harness import active_design, cli
+from fmu_src.mechanisms.active_spring import physics
+from harness import cli
+from harness.design import active_spring as active_design
 
 G = 9.81
 M1, OC1, X1A, W, K = 3.0, 0.2, 0.06, 0.35, 981.0   # the defaults (Franchetti's Table 1 link)

@@ -1,9 +1,8 @@
 """Ciupitu 2018 passive translational counterweight: static example command and FMU.
 
-Reference values here are computed independently of fmu_src.ciupitu: closed-form stroke
-energies, the counterweight position from the bar/arm intersection (a quadratic in OB), and
-derivatives of energies by complex-step differentiation.
-"""
+Reference values here are computed independently of fmu_src.mechanisms.ciupitu.physics:
+closed-form stroke energies, the counterweight position from the bar/arm intersection (a
+quadratic in OB), and derivatives of energies by complex-step differentiation. """
 
 from __future__ import annotations
 
@@ -21,9 +20,11 @@ import pytest
 from fmpy.validation import validate_fmu
 from scipy.integrate import quad
 
-from fmu_src import ciupitu
-from harness import cli, fmu_build
-from harness.fmi import CoSimFMU, FMICallException
+from fmu_src.mechanisms.ciupitu import example as paper_example
+from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from harness import cli
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU, FMICallException
 
 ROOT = Path(__file__).resolve().parent.parent
 G = 9.81
@@ -135,12 +136,12 @@ def test_bad_data_message(option: str, words: tuple[str, ...],
 def test_bar_reaction_changes_the_stroke_energy() -> None:
     """The FMU's torque -dE_p/dtheta includes the bar's reaction that the paper's M_b omits:
     over a stroke the counterweight then gives back 2 AB G2 (the rise of B times G2)."""
-    params = ciupitu.paper_example_parameters()
+    params = paper_example.paper_example_parameters()
     for law, eps in (("parabolic", 0.9326006587), ("linear", 0.5)):
         def Q(phi: float, law: str = law) -> float:    # generalised force along phi
-            payload = 4.0 * ciupitu.PAYLOAD_LAWS[law](ciupitu.stroke_fraction(phi)) / G
+            payload = 4.0 * paper_example.PAYLOAD_LAWS[law](paper_example.stroke_fraction(phi)) / G
             return -ciupitu.tau_gravity(params, payload, np.pi / 2 - phi)
-        E_u = ciupitu.stroke(ciupitu.ExampleData(), law).E_u
+        E_u = paper_example.stroke(paper_example.ExampleData(), law).E_u
         E_b = abs(quad(Q, -np.pi / 2, np.pi / 2, epsabs=1e-12)[0])
         assert 1.0 - E_b / E_u == pytest.approx(eps, abs=1e-9)
 

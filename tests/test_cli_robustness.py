@@ -17,9 +17,11 @@ import pandas as pd
 import pytest
 from conftest import write
 
-from harness import cli, results, scenarios
+from harness import cli
 from harness.errors import UserError
-from harness.sweep import definition, execution
+from harness.run import results
+from harness.run import scenario_files as scenarios
+from harness.sweeps import definition, execution
 
 SHORT = '''
 name = "short"
@@ -153,7 +155,7 @@ def test_out_of_range_input_is_one_line(tmp_path: Path,
 
 
 def test_truncated_fmu_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from harness.fmi import CoSimFMU
+    from harness.fmu.loader import CoSimFMU
 
     broken = tmp_path / "Broken.fmu"
     broken.write_bytes(b"PK\x03\x04 truncated")
@@ -299,7 +301,7 @@ def test_ciupitu_json_is_json_for_degenerate_data(capsys: pytest.CaptureFixture[
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """Data with no unbalanced work (E_u = 0, as OP = 5e-324 m gave before the magnitude
     limits) leave eps undefined: written null, not NaN or -Infinity (which are not JSON)."""
-    from fmu_src import ciupitu
+    from fmu_src.mechanisms.ciupitu import example as ciupitu
 
     undefined = ciupitu.StrokeResult(0.0, 1.0, -math.inf, 6.0, -0.46)
     monkeypatch.setattr(ciupitu, "stroke", lambda data, law, with_bar=False: undefined._replace(
@@ -518,9 +520,9 @@ def test_user_mistake_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureF
                                          argv: list[str], named: tuple[str, ...]) -> None:
     """Each of these ended in a traceback, ran for minutes, or exited 0 with a wrong result
     (issue 22); now one line naming the field, exit 2, before any run or file written."""
-    import harness.sweep
+    import harness.sweeps
 
-    monkeypatch.setattr(harness.sweep, "SCHEDULER_TIMEOUT", 1.0, raising=False)
+    monkeypatch.setattr(harness.sweeps, "SCHEDULER_TIMEOUT", 1.0, raising=False)
     paths = _files(tmp_path, **({} if callable(files) else files))
     if callable(files):
         files(paths)

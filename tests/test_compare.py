@@ -15,7 +15,7 @@ import pytest
 from conftest import write
 
 from harness import cli
-from harness.compare import compare, read_result
+from harness.run.compare import compare, read_result
 
 
 @pytest.fixture

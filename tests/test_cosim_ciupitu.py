@@ -3,10 +3,9 @@ of the FMU's Lagrangian model in closed form, and the ciupitu variant of franche
 design, its drive energy, the monolithic reference).
 
 Expected values are computed here from the paper's data and the quintic reference, not with
-fmu_src.ciupitu or the harness's scenario functions; eps on the drawn energy from the
-monolithic reference, an independent integration of the same system; the design's predicted
-energy from the rigid arm it reduces to, along the franchetti2021 reference.
-"""
+fmu_src.mechanisms.ciupitu.physics or the harness's scenario functions; eps on the drawn energy
+from the monolithic reference, an independent integration of the same system; the design's
+predicted energy from the rigid arm it reduces to, along the franchetti2021 reference. """
 
 from __future__ import annotations
 
@@ -17,9 +16,11 @@ import pytest
 from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 from scipy.integrate import quad
 
-from fmu_src import ciupitu
-from harness import ciupitu_design, master, reference, results, scenarios
-from harness.drive import MotorParameters
+from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from harness.design import ciupitu as ciupitu_design
+from harness.run import master, reference, results
+from harness.run import scenario_files as scenarios
+from harness.run.drive import MotorParameters
 
 MOTOR = MotorParameters()
 G = 9.81

@@ -1,4 +1,5 @@
-"""The demian2022 co-simulation (docs/mechanisms.md): the RP arm with two drives, against
+"""The demian2022 co-simulation (fmu_src/mechanisms/prismatic/README.md): the RP arm with two
+drives, against
 quantities derived here from the reconstructed Table 1 and the quintic reference, against
 the monolithic solve_ivp reference, and against the committed results."""
 
@@ -10,8 +11,9 @@ import numpy as np
 import pytest
 from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 
-from harness import master, reference, scenarios
-from harness.drive import MOTORS
+from harness.run import master, reference
+from harness.run import scenario_files as scenarios
+from harness.run.drive import MOTORS
 
 SCENARIO = scenarios.load("demian2022")
 VARIANTS = ("compensated", "compensated_backdrivable", "uncompensated")

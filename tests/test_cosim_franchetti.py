@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 
-from fmu_src import active_spring
-from fmu_src.self_regulating import Parameters
-from harness import master, reference, results, scenarios
-from harness.drive import MOTORS, MotorParameters
+from fmu_src.mechanisms.active_spring import physics as active_spring
+from fmu_src.mechanisms.self_regulating.physics import Parameters
+from harness.run import master, reference, results
+from harness.run import scenario_files as scenarios
+from harness.run.drive import MOTORS, MotorParameters
 
 SCENARIO = scenarios.load("franchetti2021")
 VARIANTS = ("self_regulating", "unregulated", "unbalanced")

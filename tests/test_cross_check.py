@@ -13,8 +13,12 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.cross_check import validate_vendor_repo
 from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
-from harness import cli, cross_check, fmu_build, fmu_docs, scenarios
-from harness.fmi import CoSimFMU
+from harness import cli
+from harness.fmu import build as fmu_build
+from harness.fmu import cross_check
+from harness.fmu import docs as fmu_docs
+from harness.fmu.loader import CoSimFMU
+from harness.run import scenario_files as scenarios
 
 INPUT_MODELS = [m for m in fmu_build.MODELS if fmu_docs.reference_run(m).inputs is not None]
 

@@ -8,9 +8,11 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from harness import fmu_build, fmu_docs
-from harness.metrics import METRICS
-from harness.results import SUMMARY_COLUMNS
+from harness import registry
+from harness.fmu import build as fmu_build
+from harness.fmu import variable_pages
+from harness.run.metrics import METRICS
+from harness.run.results import SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -27,9 +29,9 @@ TEXT_SUFFIXES = {".py", ".md", ".toml", ".txt", ".c", ".h", ".cfg", ".ini", ".ym
 def test_variable_pages_match_the_built_fmus(model):
     """docs/variables/<Model>.md is what `make docs` writes for the FMU as built now."""
     md = read_model_description(str(fmu_build.fmu_path(model)))
-    page = fmu_docs.DOCS_VARIABLES / f"{model}.md"
+    page = variable_pages.DOCS_VARIABLES / f"{model}.md"
     assert page.is_file(), f"{page} is missing: run `make docs`"
-    assert page.read_text() == fmu_docs.variables_markdown(md), (
+    assert page.read_text() == variable_pages.variables_markdown(md), (
         f"{page.relative_to(ROOT)} is out of date: run `make docs`")
 
 
@@ -68,3 +70,12 @@ def test_relative_links_resolve():
               for target, _ in LINK.findall(page.read_text())
               if "://" not in target and not (page.parent / target).exists()]
     assert not broken, f"broken links: {broken}"
+
+
+def test_the_readme_lists_every_fmu_by_its_slave_script() -> None:
+    """The README's tour names the slave script of every registered FMU, and no other."""
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    listed = set(re.findall(r"`fmu_src/[\w/]+/([A-Z]\w+)\.py`", readme))
+    assert listed == set(fmu_build.MODELS)
+    for model, script in registry.scripts().items():
+        assert f"`{script.relative_to(ROOT).as_posix()}`" in readme, model

@@ -9,9 +9,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from fmu_src.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
-from fmu_src.pid import PIDGains, tustin_coefficients
-from harness.controller import (
+from fmu_src.units.controller.pid import PIDGains, tustin_coefficients
+from fmu_src.units.drive.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
+from harness.run.controller import (
     ControllerDesign,
     design_pid,
     design_report,
@@ -19,8 +19,8 @@ from harness.controller import (
     discretise,
     reduced_plant,
 )
-from harness.drive import MOTORS, motor_system
-from harness.drive import discretise as discretise_motor
+from harness.run.drive import MOTORS, motor_system
+from harness.run.drive import discretise as discretise_motor
 
 MOTOR = MotorParameters()
 LINK_INERTIA = 0.16 + MOTOR.J_drive  # Franchetti link plus reflected rotor [kg m^2]

@@ -1,4 +1,5 @@
-"""One energy account: the drive's energies of `fmu_src.dc_motor` (per step and as rates), the
+"""One energy account: the drive's energies of `fmu_src.units.drive.dc_motor` (per step and as
+rates), the
 metrics summed from a `DriveTrace`, and effort metrics named by joint kind."""
 
 from __future__ import annotations
@@ -9,16 +10,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from fmu_src.dc_motor import (
+from fmu_src.units.drive.dc_motor import (
     MotorParameters,
     SampledMotor,
     drive_powers,
     step_energies,
     zoh_coefficients,
 )
-from fmu_src.scenario import Joint
-from harness.drive import DriveTrace, start_currents
-from harness.metrics import drive_metrics
+from fmu_src.units.sequencer.scenario import Joint
+from harness.run.drive import DriveTrace, start_currents
+from harness.run.metrics import drive_metrics
 
 MOTOR = MotorParameters()
 REVOLUTE = Joint("theta", "theta", "omega", "tau_drive", "theta0", "J_link", "d_link",

@@ -7,8 +7,13 @@ from __future__ import annotations
 import pytest
 from conftest import open_fmu
 
-from fmu_src.dc_motor import MotorParameters, SampledMotor, copper_energy, zoh_coefficients
-from harness import fmu_build
+from fmu_src.units.drive.dc_motor import (
+    MotorParameters,
+    SampledMotor,
+    copper_energy,
+    zoh_coefficients,
+)
+from harness.fmu import build as fmu_build
 
 MOTOR = MotorParameters()
 V = 24.0

@@ -1,5 +1,5 @@
 """Power bonds (docs/results.md#power-bonds): the coupling's energy per drive-to-joint bond in
-every run, and libcosim's ECCO algorithm on the systems of harness.system.
+every run, and libcosim's ECCO algorithm on the systems of harness.systems.system.
 
 The bond's two sides are integrals of the same effort against two speeds: the drive's
 (tau omega_held h) and the joint's (tau_held dq). With the harness's master the effort is the
@@ -18,11 +18,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import cli, master, metrics, osp, registry, scenarios, system
+from harness import cli, registry
+from harness.fmu import osp
+from harness.run import master, metrics
+from harness.run import scenario_files as scenarios
+from harness.systems import description, engines, writers
 
 FRANCHETTI = scenarios.load("franchetti2021")
 DEMIAN = scenarios.load("demian2022")
-OSP = f"{{{system.OSP_NS}}}"
+OSP = f"{{{writers.OSP_NS}}}"
 
 
 @functools.cache
@@ -36,7 +40,7 @@ def harness_run(scenario_name: str, variant: str, step: float) -> master.RunResu
     (DEMIAN, "compensated", 2)])
 def test_bonds_are_the_registered_ports_the_osp_files_declare(
         scenario: scenarios.Scenario, variant: str, count: int) -> None:
-    described = system.describe(scenario, scenario.variant(variant))
+    described = description.describe(scenario, scenario.variant(variant))
     bonds = described.bonds
     assert len(bonds) == count == len(scenario.for_variant(scenario.variant(variant)).joints)
     for bond in bonds:
@@ -103,10 +107,10 @@ def test_ecco_osp_file_loads_in_libcosim(tmp_path: Path) -> None:
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimObserver import CosimObserver
 
-    settings = system.EccoSettings(abs_tolerance=1e-6)
-    described = system.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"),
+    settings = description.EccoSettings(abs_tolerance=1e-6)
+    described = description.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"),
                                 ecco=settings)
-    path = system.write_osp(described, tmp_path / "one")
+    path = writers.write_osp(described, tmp_path / "one")
     root = ET.parse(path).getroot()
     assert root.find(f"{OSP}Algorithm").text == "ecco"
     configuration = root.find(f"{OSP}EccoConfiguration")
@@ -119,15 +123,15 @@ def test_ecco_osp_file_loads_in_libcosim(tmp_path: Path) -> None:
     execution.add_observer(CosimObserver.create_last_value())  # exposes the bonds' inputs
     assert execution.step(5)
     assert execution.status().current_time > 0
-    two = system.describe(DEMIAN, DEMIAN.variant("compensated"), ecco=settings)
+    two = description.describe(DEMIAN, DEMIAN.variant("compensated"), ecco=settings)
     with pytest.raises(AssertionError, match="number of powerbonds"):
-        CosimExecution.from_osp_config_file(str(system.write_osp(two, tmp_path / "two")))
+        CosimExecution.from_osp_config_file(str(writers.write_osp(two, tmp_path / "two")))
 
 
 def test_fixed_algorithm_is_the_default_and_writes_no_bond(tmp_path: Path) -> None:
-    described = system.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"))
+    described = description.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"))
     assert described.ecco is None
-    text = system.write_osp(described, tmp_path).read_text()
+    text = writers.write_osp(described, tmp_path).read_text()
     assert "<Algorithm>fixedStep</Algorithm>" in text
     assert "powerBond" not in text and "EccoConfiguration" not in text
     assert cli.parser("system").parse_args(["system"]).algorithm == "fixed"
@@ -148,9 +152,9 @@ def test_ecco_runs_demian2022_with_variable_steps_and_reports_its_events() -> No
     """ECCO's steps vary; its E_drawn agrees with the harness's; the phases' starts are not
     all hit, and the lag it reports is the first point at or after each start, at most the
     largest step; the mechanism sees the scenario's switches no earlier than scheduled."""
-    settings = system.EccoSettings(abs_tolerance=1e-5)
-    described = system.describe(DEMIAN, DEMIAN.variant("compensated"), ecco=settings)
-    run = system.run_libcosim(described)
+    settings = description.EccoSettings(abs_tolerance=1e-5)
+    described = description.describe(DEMIAN, DEMIAN.variant("compensated"), ecco=settings)
+    run = engines.run_libcosim(described)
     harness = harness_run("demian2022", "compensated", master.DEFAULT_STEP)
     assert run.metrics["E_drawn"] == pytest.approx(harness.metrics["E_drawn"], rel=0.01)
     steps = run.metrics["steps"]
@@ -167,10 +171,10 @@ def test_ecco_runs_demian2022_with_variable_steps_and_reports_its_events() -> No
 
 @pytest.mark.slow   # about 20 s: ECCO on the 35 s task with its locks
 def test_ecco_lock_switches_at_the_first_point_after_the_phase_start() -> None:
-    settings = system.EccoSettings(abs_tolerance=1e-6)
-    described = system.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"),
+    settings = description.EccoSettings(abs_tolerance=1e-6)
+    described = description.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"),
                                 ecco=settings)
-    run = system.run_libcosim(described)
+    run = engines.run_libcosim(described)
     series = run.series
     lag = run.metrics["event_lag_max"]
     assert 0 < lag <= settings.max_step
@@ -210,11 +214,11 @@ def test_ecco_with_its_step_frozen_reproduces_the_fixed_step(tmp_path: Path) -> 
     """Change rates of 1 keep ECCO at its first step (to libcosim's rounding of the step to
     the time, about 1 ns a step): the same Jacobi master as the fixed step, so the variable-
     step accounting must give the fixed step's figures."""
-    fixed_system = system.describe(DEMIAN, DEMIAN.variant("compensated"))
-    fixed = system.run_libcosim(fixed_system, system.write_osp(fixed_system, tmp_path))
-    frozen = system.run_libcosim(system.describe(
+    fixed_system = description.describe(DEMIAN, DEMIAN.variant("compensated"))
+    fixed = engines.run_libcosim(fixed_system, writers.write_osp(fixed_system, tmp_path))
+    frozen = engines.run_libcosim(description.describe(
         DEMIAN, DEMIAN.variant("compensated"),
-        ecco=system.EccoSettings(min_change_rate=1.0, max_change_rate=1.0)))
+        ecco=description.EccoSettings(min_change_rate=1.0, max_change_rate=1.0)))
     assert frozen.metrics["steps"] == pytest.approx(DEMIAN.duration / master.DEFAULT_STEP,
                                                     rel=1e-3)
     for name in ("E_drawn", "E_in", "E_copper", "W_link", *(

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from conftest import LEDGER, SRB, ledger_residual, open_fmu, run
 
-from harness.fmi import CoSimFMU
-from harness.fmu_build import fmu_path
+from harness.fmu.build import fmu_path
+from harness.fmu.loader import CoSimFMU
 
 DT = 1e-3
 # Paper, Table 1, and our defaults (d_slider)

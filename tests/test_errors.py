@@ -21,8 +21,8 @@ import harness
 from fmu_src.integration import SubstepBoundError
 from fmu_src.parameters import DomainError
 from harness.errors import UserError
-from harness.fmi import CoSimFMU, FMICallException, FMUCallError, LogMessage
-from harness.sweep.definition import PathError, RefusedValueError
+from harness.fmu.loader import CoSimFMU, FMICallException, FMUCallError, LogMessage
+from harness.sweeps.paths import PathError, RefusedValueError
 from tests.conftest import FMI_ERROR, SRB, open_fmu
 
 ROOT = Path(__file__).resolve().parents[1]

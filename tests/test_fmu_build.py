@@ -12,7 +12,9 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from harness import cli, fmu_build
+from harness import cli
+from harness.errors import UserError
+from harness.fmu import build as fmu_build
 
 
 def snapshot(paths: list[Path]) -> dict[str, tuple[int, bytes]]:
@@ -58,8 +60,9 @@ def sources(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 
 def test_every_model_digests_its_own_modules(sources: Path) -> None:
-    """A module every slave imports (fmi_base) changes every FMU's digest; the controller's
-    (pid) only the PositionController's; a new module that no slave imports, none."""
+    """A module every slave imports (fmi/slave.py) changes every FMU's digest; the
+    controller's (pid) only the PositionController's; a new module that no slave imports,
+    none."""
     def digests() -> dict[str, str]:
         return {m: fmu_build.fmu_inputs(m, sources) for m in fmu_build.MODELS}
 
@@ -67,9 +70,9 @@ def test_every_model_digests_its_own_modules(sources: Path) -> None:
     assert len(set(original.values())) == len(fmu_build.MODELS)
     (sources / "unused_helper.py").write_text("VALUE = 1\n")
     assert digests() == original
-    for module, importers in (("pid", {"PositionController"}),
-                              ("fmi_base", set(fmu_build.MODELS))):
-        path = sources / f"{module}.py"
+    for module, importers in (("units/controller/pid.py", {"PositionController"}),
+                              ("fmi/slave.py", set(fmu_build.MODELS))):
+        path = sources / module
         text = path.read_text()
         path.write_text(text + "# changed\n")
         changed = {m for m, value in digests().items() if value != original[m]}
@@ -90,12 +93,12 @@ def test_a_changed_module_rebuilds_exactly_the_fmus_that_import_it(sources: Path
     guid = read_model_description(fmus[0]).guid
     before = snapshot(fmus)
     later = time.time() + 100.0
-    for path in sources.iterdir():
+    for path in sources.rglob("*"):
         os.utime(path, (later, later))
     assert not any(fmu_build.update(m, dest, sources) for m in models)
     assert snapshot(fmus) == before
 
-    with (sources / "pid.py").open("a") as module:
+    with (sources / "units" / "controller" / "pid.py").open("a") as module:
         module.write("# changed\n")
     assert [fmu_build.update(m, dest, sources) for m in models] == [True, False]
     after = snapshot(fmus)
@@ -150,3 +153,16 @@ def test_a_binary_is_recompiled_when_its_inputs_change(tmp_path: Path) -> None:
     record.unlink()
     fmu_build.compiled(source, output, *options)
     assert record.exists() and snapshot([output]) != compiled
+
+
+def test_running_locates_a_built_fmu_and_never_builds(tmp_path: Path) -> None:
+    """`locate` returns an up-to-date FMU as it is and, for a missing one, names the command
+    that builds it without building anything."""
+    with pytest.raises(UserError, match=r"DcMotorDrive\.fmu is not built: build it with "
+                                        r"`python -m harness build-fmus --out "):
+        fmu_build.locate("DcMotorDrive", tmp_path)
+    assert list(tmp_path.iterdir()) == []
+    built = fmu_build.fmu_path("DcMotorDrive")
+    copy = shutil.copy2(built, tmp_path / built.name)
+    assert fmu_build.locate("DcMotorDrive", tmp_path) == copy
+    assert copy.read_bytes() == built.read_bytes()

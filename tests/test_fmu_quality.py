@@ -1,4 +1,4 @@
-"""Quality checks every FMU of harness.fmu_build.MODELS must pass (a new model is covered by
+"""Quality checks every FMU of harness.fmu.build.MODELS must pass (a new model is covered by
 adding it there): a valid and complete model description, documentation naming every
 variable with its unit, exact state save/restore, reset, independent instances, and the same
 results in DNV's libcosim as in FMPy.
@@ -26,7 +26,7 @@ from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
 from libcosimpy.CosimObserver import CosimObserver
 from libcosimpy.CosimSlave import CosimLocalSlave
 
-from harness import fmu_build
+from harness.fmu import build as fmu_build
 
 STEPS = 200
 INPUT_VALUE = 0.1

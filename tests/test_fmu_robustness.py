@@ -24,17 +24,17 @@ from conftest import (
 from fmpy import read_model_description
 from pythonfmu.enums import Fmi2Status
 
-from fmu_src import self_regulating
 from fmu_src.integration import (
     MAX_SUBSTEPS,
     STEP_RATE_PRODUCT,
     SubstepBoundError,
     substeps,
 )
+from fmu_src.mechanisms.self_regulating import physics as self_regulating
+from fmu_src.mechanisms.self_regulating.SelfRegulatingBalancer import SelfRegulatingBalancer
 from fmu_src.parameters import DomainError
-from fmu_src.SelfRegulatingBalancer import SelfRegulatingBalancer
-from harness import fmu_build
-from harness.fmi import CoSimFMU, FMICallException
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU, FMICallException
 
 SRB, PRISMATIC, CIUPITU = "SelfRegulatingBalancer", "PrismaticCompensator", "CiupituBalancer"
 DT = 1e-3

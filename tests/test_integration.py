@@ -16,8 +16,6 @@ from typing import NamedTuple
 import pytest
 from conftest import controlled_reference
 
-from fmu_src import ciupitu
-from fmu_src import rocking_counterweight as rocking
 from fmu_src.integration import (
     MAX_SUBSTEPS,
     SubstepBoundError,
@@ -25,6 +23,8 @@ from fmu_src.integration import (
     integrate_substeps,
     ledger_controlled,
 )
+from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from fmu_src.mechanisms.rocking_counterweight import physics as rocking
 
 
 class ArmState(NamedTuple):

@@ -20,8 +20,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness import cosim, interrupts, results, scenarios
+from harness import interrupts
 from harness.errors import UserError
+from harness.run import cosim, results
+from harness.run import scenario_files as scenarios
 from tests.conftest import SRB
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,7 +71,7 @@ def test_processes_started_while_blocked_do_not_get_sigint() -> None:
 def slave_raising_sigint(srb_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """SelfRegulatingBalancer instances made from now on get a SIGINT inside their 200th
     do_step, in the slave's own Python code (as a Ctrl-C mostly lands: there the time goes)."""
-    from harness.fmi import CoSimFMU
+    from harness.fmu.loader import CoSimFMU
     CoSimFMU(srb_fmu).close()  # the slave module imported into this interpreter
     slave_class = sys.modules[SRB].SelfRegulatingBalancer
     do_step = slave_class.do_step

@@ -15,9 +15,14 @@ import pandas as pd
 import pytest
 from conftest import assert_reproduces_committed_summary
 
-from fmu_src import active_spring, self_regulating
-from harness import active_design, cli, losses, master, registry, scenarios
+from fmu_src.mechanisms.active_spring import physics as active_spring
+from fmu_src.mechanisms.self_regulating import design as self_regulating_design
+from fmu_src.mechanisms.self_regulating import physics as self_regulating
+from harness import cli, registry
+from harness.design import active_spring as active_design
 from harness.errors import UserError
+from harness.run import losses, master
+from harness.run import scenario_files as scenarios
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "results"
@@ -121,7 +126,7 @@ def test_the_slider_sits_where_the_design_rule_puts_it() -> None:
     assert p.b_design == pytest.approx(p.b0, abs=1e-9)
     assert p.b0 > self_regulating.Parameters().b0 + 0.02  # a free length moves it out
     # regulating 1 kg adds 1 kg to the counterweight, as in the ideal set: the rule's M0
-    assert self_regulating.counterweight_for(
+    assert self_regulating_design.counterweight_for(
         p, p.b_design + p.g * p.R / (p.r * p.k)) == pytest.approx(1.0, rel=1e-12)
 
 

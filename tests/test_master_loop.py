@@ -11,10 +11,12 @@ import random
 import numpy as np
 import pytest
 
-from fmu_src.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
-from fmu_src.pid import DiscretePID, PIDGains, tustin_coefficients
-from harness import bench, master, scenarios
-from harness.fmi import FMUCallError
+from fmu_src.units.controller.pid import DiscretePID, PIDGains, tustin_coefficients
+from fmu_src.units.drive.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
+from harness import bench
+from harness.fmu.loader import FMUCallError
+from harness.run import loop, master
+from harness.run import scenario_files as scenarios
 
 
 def test_a_refused_step_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -55,7 +57,7 @@ def test_the_fused_drive_step_is_the_pid_and_the_motor_to_the_last_bit() -> None
     positions = [rng.uniform(-0.3, 0.3) * (k % 400 < 200) for k in range(n)]
     speeds = [rng.uniform(-1.0, 1.0) for _ in range(n)]
     efforts = (ctypes.c_double * 2)()
-    drive = master.DriveLoop(pid, motor, references, efforts, 1)
+    drive = loop.DriveLoop(pid, motor, references, efforts, 1)
     saturated = 0
     for k in range(n):
         drive.step(k, positions[k], speeds[k])
@@ -74,7 +76,7 @@ def test_the_master_share_replays_each_run_to_the_bit() -> None:
     """`bench.master_share` on demian2022's variants: the replay of each run's efforts ends
     where the run ended (it raises otherwise), and the master's share is the difference of
     the closed-loop step's cost and its FMU calls'. That the FMU calls cost less than the whole
-    step is a timing figure: `make bench` checks it (bench.master_share_checks)."""
+    step is a timing figure: `make bench` checks it (harness.bench.targets.master_share_checks)."""
     table = bench.master_share(repeats=1, scenario_name="demian2022")
     assert list(table.variant) == list(scenarios.load("demian2022").variants)
     assert (table.fmu_calls_us_per_step > 0.0).all()

@@ -1,8 +1,8 @@
 """The FMUs in a host that is not a Python process (README, "Importing the FMUs").
 
-tests/native_host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
+harness/fmu/host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
 CLI, fmuCheck or OMSimulator is. It runs here with an empty environment (no LD_PRELOAD,
-PYTHONHOME or PYTHONPATH): the FMU's own runtime (harness/runtime/fmi2_runtime.c) must find
+PYTHONHOME or PYTHONPATH): the FMU's own runtime (harness/fmu/runtime/fmi2_runtime.c) must find
 Python by itself, with the interpreter the FMU was built with or any CPython 3.8 or later
 named by BALANCER_FMU_LIBPYTHON, and give the numbers FMPy gives.
 """
@@ -26,10 +26,11 @@ from conftest import FMI_DISCARD, FMI_ERROR, FMI_OK, open_fmu, run
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
-from harness import cli, fmu_build, registry
-from harness.fmi import CoSimFMU
+from harness import cli, registry
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU
 
-HOST_SOURCE = Path(__file__).resolve().parent / "native_host" / "fmi2_host.c"
+HOST_SOURCE = fmu_build.HOST_SOURCE
 STEP_SIZE = 1e-3
 # per model: parameters and input start values that make every run move, and the stop time
 # (its registration's moving_run)
@@ -112,8 +113,8 @@ def fmpy_final_values(model: str) -> tuple[list[float], list[float]]:
 
 def test_the_cases_cover_every_fmu_built() -> None:
     """Against what is on disk, not the registry the cases are made from: every slave script
-    (fmu_src/<Model>.py, a capitalised name) and every FMU built into build/fmus."""
-    scripts = {path.stem for path in registry.SOURCE_DIR.glob("*.py") if path.stem[0].isupper()}
+    (fmu_src/<folders>/<Model>.py, a capitalised name) and every FMU built into build/fmus."""
+    scripts = {path.stem for path in registry.SOURCE_DIR.rglob("*.py") if path.stem[0].isupper()}
     assert set(CASES) == scripts
     assert {path.stem for path in fmu_build.DEFAULT_DEST.glob("*.fmu")} <= set(CASES)
 

@@ -1,4 +1,4 @@
-"""The OSP interface specification of the FMUs (harness.osp): `<Model>_OspModelDescription.xml`
+"""The OSP interface specification of the FMUs (harness.fmu.osp): `<Model>_OspModelDescription.xml`
 valid against the OSP-IS 1.0.1 schema (tests/data/osp, see SOURCE.md there), written beside
 each FMU by the build, with ports whose units and causalities are those of their quantity."""
 
@@ -10,7 +10,9 @@ import pytest
 from fmpy import read_model_description
 from lxml import etree
 
-from harness import fmu_build, osp, scenarios
+from harness.fmu import build as fmu_build
+from harness.fmu import osp
+from harness.run import scenario_files as scenarios
 
 SCHEMA = Path(__file__).parent / "data" / "osp" / "OspModelDescription-1.0.1.xsd"
 NS = {"osp": osp.NAMESPACE}

@@ -19,8 +19,11 @@ from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 from test_fmu_quality import TableRows
 
-from harness import fmu_build, registry, scenarios, system
-from harness.fmi import CoSimFMU
+from harness import registry
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU
+from harness.run import scenario_files as scenarios
+from harness.systems import description
 
 # per model: the probe states (parameters and inputs held for a time; its registration's
 # dependency_probes) and the initialisation probes' parameters
@@ -138,9 +141,10 @@ def test_declared_initial_dependencies_hold_at_initialisation(model: tuple[str, 
 
 
 def test_a_payload_set_without_a_step_shows_at_once(srb_fmu: Path) -> None:
-    """docs/mechanisms.md with L0 = 0: tau_gravity = [(m c + payload w) g - k a b] sin(theta),
-    balance_error = (m c + payload w) g - k a b and E_p = (m c + payload w) g cos(theta),
-    at the initial state (theta0, b0), from the payload just set."""
+    """fmu_src/mechanisms/self_regulating/README.md with L0 = 0:
+    tau_gravity = [(m c + payload w) g - k a b] sin(theta), balance_error = (m c + payload w) g
+    - k a b and E_p = (m c + payload w) g cos(theta), at the initial state (theta0, b0), from
+    the payload just set."""
     start = {v.name: float(v.start) for v in read_model_description(str(srb_fmu)).modelVariables
              if v.causality == "parameter" and v.type == "Real"}
     m, c, w, k, a, b, g, theta = (start[n] for n in ("m", "c", "w", "k", "a", "b0", "g",
@@ -182,7 +186,7 @@ def test_reading_between_set_and_step_changes_no_result(name: str) -> None:
     assert runs[0] == runs[1]
 
 
-def feedthrough_graph(described: system.System, unknowns: str | None
+def feedthrough_graph(described: description.System, unknowns: str | None
                       ) -> dict[tuple[str, str], set[tuple[str, str]]]:
     """(component, variable) -> the variables it is computed from at one instant: the
     output feeding each connected input, and the inputs of each output as declared in
@@ -209,7 +213,7 @@ def test_the_franchetti_system_has_no_algebraic_loop(variant: str) -> None:
     at initialisation), where without them controller -> drive -> mechanism -> controller
     is a loop."""
     scenario = scenarios.load("franchetti2021")
-    described = system.describe(scenario, scenario.variant(variant))
+    described = description.describe(scenario, scenario.variant(variant))
     for unknowns in ("outputs", "initialUnknowns"):
         tuple(TopologicalSorter(feedthrough_graph(described, unknowns)).static_order())
     with pytest.raises(CycleError):

@@ -1,7 +1,8 @@
-"""PrismaticCompensator FMU (docs/mechanisms.md), exercised through FMPy.
+"""PrismaticCompensator FMU (fmu_src/mechanisms/prismatic/README.md), exercised through FMPy.
 
-Static efforts are checked against eqs. 3.1 and 3.3 and the residuals docs/mechanisms.md states,
-computed here independently of `fmu_src.prismatic`. Energy: E_grav + E_springs + E_kin
+Static efforts are checked against eqs. 3.1 and 3.3 and the residuals
+fmu_src/mechanisms/prismatic/README.md states, computed here independently of
+`fmu_src.mechanisms.prismatic.physics`. Energy: E_grav + E_springs + E_kin
 - W_drive - W_worm + E_loss - E_added must stay constant.
 
 With the drives off the arm leaves the paper's workspace (below the horizontal the k1 wire is
@@ -18,9 +19,9 @@ from collections.abc import Iterator, Mapping
 import pytest
 from conftest import failed_initialisation, ledger_residual
 
-from fmu_src import prismatic
-from harness.fmi import CoSimFMU
-from harness.fmu_build import fmu_path
+from fmu_src.mechanisms.prismatic import physics as prismatic
+from harness.fmu.build import fmu_path
+from harness.fmu.loader import CoSimFMU
 
 G = 9.81
 LC1, LS0, M1, M2 = 0.5, 0.25, 1.0, 0.5

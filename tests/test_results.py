@@ -1,4 +1,4 @@
-"""Result sets (harness.results.write_run): no row is dropped whatever the layouts, staging
+"""Result sets (harness.run.results.write_run): no row is dropped whatever the layouts, staging
 folders left by killed writers are removed and live ones kept, concurrent writers keep every
 row, a corrupt summary is refused before simulating, a full disk leaves the set as it was."""
 
@@ -20,9 +20,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import cli, cosim, results, scenarios
-from harness.master import RunResult
-from harness.results import RESULTS_DIR, STAGING_PREFIX
+from harness import cli
+from harness.run import cosim, results
+from harness.run import scenario_files as scenarios
+from harness.run.master import RunResult
+from harness.run.results import RESULTS_DIR, STAGING_PREFIX
 
 VARIANTS = [f"v{index}" for index in range(12)]
 SCENARIO = '''

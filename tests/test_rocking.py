@@ -20,9 +20,12 @@ import pytest
 from conftest import LEDGER, failed_initialisation, ledger_residual, open_fmu
 from scipy.integrate import quad
 
-from fmu_src import ciupitu
-from fmu_src import rocking_counterweight as rocking
-from harness import fmu_build, master, rocking_design, scenarios
+from fmu_src.mechanisms.ciupitu import example as paper_example
+from fmu_src.mechanisms.rocking_counterweight import physics as rocking
+from harness.design import rocking_counterweight as rocking_design
+from harness.fmu import build as fmu_build
+from harness.run import master
+from harness.run import scenario_files as scenarios
 
 CYCLE = scenarios.load("ciupitu2018")
 LAWS = rocking_design.VARIANTS
@@ -205,9 +208,10 @@ def test_static_eps_of_the_designs(law: str, eps: float) -> None:
     """eps of one stroke (eq. 31, net work) beside the translational counterweight's: the
     designs balance better than the bar of Figure 4a, with either reading of its moment
     (like for like: the rocking M_u counts its bars, the translational with_bar its bar)."""
-    data = ciupitu.ExampleData()
+    data = paper_example.ExampleData()
     rocking_stroke = rocking.stroke(data, rocking_design.stored_linkage(law), law)
-    for translational in (ciupitu.stroke(data, law), ciupitu.stroke(data, law, with_bar=True)):
+    for translational in (paper_example.stroke(data, law),
+                          paper_example.stroke(data, law, with_bar=True)):
         assert rocking_stroke.eps > translational.eps
         assert rocking_stroke.max_abs_Mu < 0.5 * translational.max_abs_Mu
     assert rocking_stroke.eps == pytest.approx(eps, abs=5e-7)
@@ -273,7 +277,7 @@ def test_scenario_holds_the_design(law: str) -> None:
 
 def test_rocking_design_report_gives_the_translational_eps_like_for_like() -> None:
     designs = [rocking_design.Design(law, rocking_design.stored_linkage(law), 0.0,
-                                     rocking.stroke(ciupitu.ExampleData(),
+                                     rocking.stroke(paper_example.ExampleData(),
                                                     rocking_design.stored_linkage(law), law),
                                      [rocking_design.LocalOptimum(1.0, (), True, 2)])
                for law in LAWS]

@@ -1,4 +1,4 @@
-"""The FMUs' own FMI 2.0 runtime (harness/runtime/fmi2_runtime.c) under stress, in a C host.
+"""The FMUs' own FMI 2.0 runtime (harness/fmu/runtime/fmi2_runtime.c) under stress, in a C host.
 
 tests/native_host/fmi2_stress.c loads unzipped FMUs as a long-running importing tool does,
 with an empty environment unless stated: load and unload cycles with state round trips
@@ -33,7 +33,7 @@ from conftest import FMI_ERROR, SRB
 from fmpy import read_model_description
 from test_native_host import libpythons
 
-from harness import fmu_build
+from harness.fmu import build as fmu_build
 
 TESTS = Path(__file__).resolve().parent
 STRESS_SOURCE = TESTS / "native_host" / "fmi2_stress.c"

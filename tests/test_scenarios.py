@@ -1,4 +1,5 @@
-"""Scenario files: the standard-library core (fmu_src.scenario) and the harness's vectorised
+"""Scenario files: the standard-library core (fmu_src.units.sequencer.scenario) and the
+harness's vectorised
 evaluation give the same signals, the expected values come out at known instants, bad files
 are rejected with clear messages, and the ScenarioSequencer FMU plays a scenario as the
 harness does."""
@@ -20,10 +21,12 @@ from conftest import play_sequencer
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from fmu_src import scenario as core
-from fmu_src import sequencer_scenario
-from harness import drive, fmu_build, scenarios
-from harness.fmi import CoSimFMU
+from fmu_src.units.sequencer import scenario as core
+from fmu_src.units.sequencer import sequencer_scenario
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU
+from harness.run import drive
+from harness.run import scenario_files as scenarios
 
 SHIPPED = [(name, variant) for name in scenarios.available()
            for variant in scenarios.load(name).variants]
@@ -364,7 +367,7 @@ def test_sequencer_state_restore_replays(sequencer: Path) -> None:
 
 UNKNOWN_VARIANT_SCRIPT = """
 import os, sys
-from harness.fmi import CoSimFMU, FMICallException
+from harness.fmu.loader import CoSimFMU, FMICallException
 with CoSimFMU(sys.argv[1], "unknown") as fmu:
     fmu.slave.setupExperiment(startTime=0.0)
     fmu.slave.enterInitializationMode()

@@ -1,4 +1,5 @@
-"""The built SelfRegulatingBalancer FMU (docs/mechanisms.md) stepped through FMPy.
+"""The built SelfRegulatingBalancer FMU (fmu_src/mechanisms/self_regulating/README.md) stepped
+through FMPy.
 
 Expected numbers come from the paper (Franchetti et al. 2021, Table 1 and eqs. 8, 10, 16),
 from closed forms derived here, or from conservation laws; never from the model itself.
@@ -17,11 +18,11 @@ from conftest import failed_initialisation, open_fmu, refused_set, refused_step,
 from fmpy import read_model_description
 
 from harness import cli, registry
-from harness.fmi import CoSimFMU
+from harness.fmu.loader import CoSimFMU
 
 # Paper, Table 1
 M, C, W, A, B0, R_CW, R_WIRE, K, G = 3.0, 0.2, 0.35, 0.1, 0.06, 0.035, 0.01, 981.0, 9.81
-J_LINK = 0.16  # our default (docs/mechanisms.md): m (2 c)^2 / 3
+J_LINK = 0.16  # our default (fmu_src/mechanisms/self_regulating/README.md): m (2 c)^2 / 3
 DEG = math.pi / 180.0
 ENERGY = ("E_t", "E_kin", "E_cw")
 DT = 1e-3
@@ -459,10 +460,10 @@ def test_state_restore_replays_a_regulation_exactly(srb_fmu: Path) -> None:
 def test_bench_writes_the_step_cost_table(tmp_path: Path) -> None:
     """`python -m harness bench` (shortened): the floors (pythonfmu's binary and our runtime)
     and every mechanism timed, each ratio its cost over the floor's, and only the final CSVs
-    left in the folder (written atomically): the table and its checks. Whether each
-    mechanism's step is dearer than the floor's is a timing figure: the bench checks it
-    (bench.fmu_step_checks, tests/test_bench.py) and its exit status says whether it held,
-    which here only has to agree with checks.csv."""
+    left in the folder (written atomically): the table and its checks. Whether each mechanism's
+    step is dearer than the floor's is a timing figure: the bench checks it
+    (harness.bench.targets.fmu_step_checks, tests/test_bench.py) and its exit status says
+    whether it held, which here only has to agree with checks.csv."""
     status = cli.main(["bench", "--steps", "2000", "--repeats", "2", "--only", "fmu_step",
                        "--out", str(tmp_path)])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["checks.csv", "fmu_step.csv"]

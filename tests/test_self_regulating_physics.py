@@ -1,8 +1,8 @@
-"""Pure physics of the self-regulating balancer (fmu_src.self_regulating), no FMI: fast.
+"""Pure physics of the self-regulating balancer (fmu_src.mechanisms.self_regulating.physics), no
+FMI: fast.
 
-Expected values are closed forms of docs/mechanisms.md and the paper's Table 1, derivatives
-taken numerically from the energies, or conservation laws.
-"""
+Expected values are closed forms of fmu_src/mechanisms/self_regulating/README.md and the paper's
+Table 1, derivatives taken numerically from the energies, or conservation laws. """
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import math
 import pytest
 from conftest import controlled_reference
 
-from fmu_src import self_regulating as physics
+from fmu_src.mechanisms.self_regulating import physics
 
 DEG = math.pi / 180.0
 TABLE_1 = physics.Parameters()

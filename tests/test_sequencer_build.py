@@ -14,8 +14,10 @@ from conftest import play_sequencer
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from harness import cli, fmu_build, scenarios
-from harness.fmi import CoSimFMU
+from harness import cli
+from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU
+from harness.run import scenario_files as scenarios
 
 STEP = 1.0 / 64.0  # [s], a binary fraction: every phase boundary of demian2022 is a step time
 
@@ -50,7 +52,7 @@ def test_the_built_fmu_declares_the_scenario(demian: Path) -> None:
     assert ", ".join(scenario.variants) in variant.description
     assert float(md.defaultExperiment.stopTime) == scenario.duration == 8.0
     with zipfile.ZipFile(demian) as archive:
-        embedded = archive.read("resources/fmu_src/sequencer_scenario.py").decode()
+        embedded = archive.read("resources/fmu_src/units/sequencer/sequencer_scenario.py").decode()
         page = archive.read("documentation/index.html").decode()
         assert archive.getinfo("documentation/reference.png").file_size > 0
     assert embedded == scenarios.embedded_source("demian2022")

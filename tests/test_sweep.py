@@ -1,4 +1,4 @@
-"""Parameter sweeps (harness.sweep): configuration paths, plans, equality with runs made one
+"""Parameter sweeps (harness.sweeps): configuration paths, plans, equality with runs made one
 by one, failed runs and defects, a sweep killed half way and restarted, and the plots drawn
 from a result table of known numbers."""
 
@@ -19,11 +19,13 @@ import pandas as pd
 import pytest
 from matplotlib.axes import Axes
 
-from harness import master, scenarios, sweep
-from harness.controller import ControllerDesign
+from harness import sweeps as sweep
 from harness.errors import UserError
-from harness.scenarios import Ramp
-from harness.sweep import definition, execution, plots
+from harness.run import master
+from harness.run import scenario_files as scenarios
+from harness.run.controller import ControllerDesign
+from harness.run.scenario_files import Ramp
+from harness.sweeps import definition, execution, paths, plots
 
 DATA = Path(__file__).resolve().parent / "data"
 SMALL = DATA / "sweep_small.toml"    # 2 payloads x k in (981, -1) x 2 variants
@@ -32,7 +34,7 @@ FRANCHETTI = scenarios.load("franchetti2021")
 
 
 def test_configure_sets_paths_without_touching_the_scenario() -> None:
-    scenario, motor, design = definition.configure(FRANCHETTI, [
+    scenario, motor, design = paths.configure(FRANCHETTI, [
         ('phases["III regulate"].inputs.payload', 3.0),
         ('phases["II move", "III regulate", "IV settle and lock"].target_deg', 150.0),
         ("parameters.L0", 0.02), ("motor.N", 80.0), ("duration_scale", 0.5)])
@@ -55,7 +57,7 @@ def test_a_factor_scales_the_value_and_variant_paths_reach_its_joints() -> None:
     loaded = definition.load("regulation")
     assert len(definition.plan(loaded)) == 84
     assert loaded.outputs == ("E_cw", "W_adjust", "E_e", "balance_error")
-    scenario, _, _ = definition.configure(FRANCHETTI, definition.assignments(
+    scenario, _, _ = paths.configure(FRANCHETTI, definition.assignments(
         loaded, {"payload": 3.0, "regulation_angle": 90.0}))
     variant = scenario.variant("active_relocation")
     assert variant.phase_inputs["III regulate"]["payload"] == Ramp(3.0, "quintic")
@@ -65,17 +67,17 @@ def test_a_factor_scales_the_value_and_variant_paths_reach_its_joints() -> None:
     assert resolved.reference_at(17.0) == pytest.approx((math.pi / 2, 0.175), rel=1e-12)
     assert FRANCHETTI.variant("active_relocation").phase_targets["III regulate"]["q"] == (
         pytest.approx(0.0583333, rel=1e-6))
-    with pytest.raises(definition.PathError, match="'two' is not a number"):
-        definition.configure(FRANCHETTI, [("two * parameters.k", 1.0)])
+    with pytest.raises(paths.PathError, match="'two' is not a number"):
+        paths.configure(FRANCHETTI, [("two * parameters.k", 1.0)])
 
 
 @pytest.mark.parametrize("path", ['phases["III regulte"].target_deg', "parameters.L0.x",
                                   "motor.Nx", 'phases["I hold"].inputs[1]', "phases.target"])
 def test_configure_rejects_bad_paths(path: str) -> None:
-    with pytest.raises(definition.PathError, match="set path"):
-        definition.configure(FRANCHETTI, [(path, 1.0)])
-    with pytest.raises(definition.PathError, match="set path"):  # checked without a value
-        definition.configure(FRANCHETTI, [(path, None)])
+    with pytest.raises(paths.PathError, match="set path"):
+        paths.configure(FRANCHETTI, [(path, 1.0)])
+    with pytest.raises(paths.PathError, match="set path"):  # checked without a value
+        paths.configure(FRANCHETTI, [(path, None)])
 
 
 def test_bad_values_and_bad_paths_stop_the_sweep_refused_runs_fail(tmp_path: Path) -> None:
@@ -98,7 +100,7 @@ def test_bad_values_and_bad_paths_stop_the_sweep_refused_runs_fail(tmp_path: Pat
     assert row["error"].startswith("RefusedValueError: set path 'motor.N': ")
     assert "N = -1.0" in row["error"]
     path.write_text(text.replace('"motor.N"', '"motor.n"'))
-    with pytest.raises(definition.PathError, match="MotorParameters has no 'n'"):
+    with pytest.raises(paths.PathError, match="MotorParameters has no 'n'"):
         definition.load(path)
 
 
@@ -117,7 +119,7 @@ def test_latin_hypercube_plan_is_stratified_and_stable(tmp_path: Path) -> None:
 
 
 def by_hand(payload: float, k: float) -> scenarios.Scenario:
-    """The short scenario with a payload and stiffness, built without harness.sweep."""
+    """The short scenario with a payload and stiffness, built without harness.sweeps."""
     base = scenarios.load(DATA / "short_regulation.toml")
     phases = tuple(replace(p, inputs={**p.inputs, "payload": Ramp(payload),
                                       "counterweight_added": Ramp(payload)})

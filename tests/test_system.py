@@ -1,4 +1,4 @@
-"""The franchetti2021 task as a system of FMUs (harness.system): SSP and OSP descriptions,
+"""The franchetti2021 task as a system of FMUs (harness.systems.system): SSP and OSP descriptions,
 runs in libcosim and in FMPy's SSP runner, against the harness's own FMPy loop.
 
 The system's masters step the four FMUs in parallel (Jacobi), which delays the control loop by
@@ -20,8 +20,12 @@ import pandas as pd
 import pytest
 from fmpy.ssp.ssd import read_ssd
 
-from harness import cli, fmu_build, master, results, scenarios, system
-from harness.drive import motors
+from harness import cli
+from harness.fmu import build as fmu_build
+from harness.run import master, results
+from harness.run import scenario_files as scenarios
+from harness.run.drive import motors
+from harness.systems import description, engines, writers
 
 SCENARIO = scenarios.load("franchetti2021")
 VARIANT = "unbalanced"   # the largest drive energies and a non-zero static load at the start
@@ -41,8 +45,8 @@ def harness_run() -> master.RunResult:
 
 
 @pytest.fixture(scope="module")
-def described() -> system.System:
-    return system.describe(SCENARIO, SCENARIO.variant(VARIANT))
+def described() -> description.System:
+    return description.describe(SCENARIO, SCENARIO.variant(VARIANT))
 
 
 def run_command(engine: str, out: Path, variant: str = VARIANT) -> pd.DataFrame:
@@ -87,12 +91,12 @@ def test_libcosim_runs_the_osp_system_like_the_harness(
 
 
 @pytest.mark.slow   # about 15 s: the whole 35 s task from the SSP archive
-def test_libcosim_runs_the_ssp_archive_as_the_osp_file(described: system.System,
+def test_libcosim_runs_the_ssp_archive_as_the_osp_file(described: description.System,
                                                        tmp_path: Path) -> None:
-    ssp = system.write_ssp(described, tmp_path / f"{VARIANT}.ssp")
-    osp = system.write_osp(described, tmp_path / "osp")
-    from_ssp = system.run_libcosim(described, ssp)
-    from_osp = system.run_libcosim(described, osp)
+    ssp = writers.write_ssp(described, tmp_path / f"{VARIANT}.ssp")
+    osp = writers.write_osp(described, tmp_path / "osp")
+    from_ssp = engines.run_libcosim(described, ssp)
+    from_osp = engines.run_libcosim(described, osp)
     assert from_ssp.metrics == from_osp.metrics
     pd.testing.assert_frame_equal(from_ssp.series, from_osp.series)
 
@@ -118,14 +122,14 @@ def _libcosim_end_values(osp_file: Path, steps: int) -> dict[str, float]:
 
 
 def test_osp_variable_group_connections_give_the_per_variable_numbers(
-        described: system.System, tmp_path: Path) -> None:
+        described: description.System, tmp_path: Path) -> None:
     """OspSystemStructure.xml joins the drive's shaft port to the mechanism's joint port and
     the controller's command to the drive's armature voltage by variable group (libcosim reads
     the groups from the <Model>_OspModelDescription.xml beside each FMU): the same numbers as
     the three per-variable connections; without the shaft connection the link falls."""
-    by_group = system.write_osp(described, tmp_path / "group")
-    by_variable = system.write_osp(described, tmp_path / "variable", by_group=False)
-    ns = {"osp": system.OSP_NS}
+    by_group = writers.write_osp(described, tmp_path / "group")
+    by_variable = writers.write_osp(described, tmp_path / "variable", by_group=False)
+    ns = {"osp": writers.OSP_NS}
     tree = ET.parse(by_group)
     groups = {tuple((v.get("simulator"), v.get("name")) for v in c)
               for c in tree.iterfind(".//osp:VariableGroupConnection", ns)}
@@ -159,10 +163,10 @@ def test_fmpy_ssp_runner_agrees_despite_its_start(
 
 
 def test_ssd_is_valid_ssp_with_the_harness_parameters(
-        described: system.System, harness_run: master.RunResult, tmp_path: Path) -> None:
+        described: description.System, harness_run: master.RunResult, tmp_path: Path) -> None:
     """The archive validates against the SSP 1.0 schemas (FMPy's read_ssd) and binds the
     harness's parameters: the variant, the PID gains, the drive's hold current."""
-    ssp = system.write_ssp(described, tmp_path / "x.ssp")
+    ssp = writers.write_ssp(described, tmp_path / "x.ssp")
     ssd = read_ssd(str(ssp), validate=True)
     components = {c.name: c for c in ssd.system.elements}
     assert set(components) == {"sequencer", "controller", "drive", "mechanism"}
@@ -186,7 +190,7 @@ def test_ssd_is_valid_ssp_with_the_harness_parameters(
 def test_libcosim_runs_active_relocation_with_the_variants_own_drive(tmp_path: Path) -> None:
     """active_relocation's own joint q (the spring anchor's carriage) gets a controller and a
     trapezoidal-screw drive of its own, fed by the sequencer's q_ref."""
-    described = system.describe(SCENARIO, SCENARIO.variant("active_relocation"))
+    described = description.describe(SCENARIO, SCENARIO.variant("active_relocation"))
     assert set(described.models) == {"sequencer", "controller_theta", "drive_theta",
                                      "controller_q", "drive_q", "mechanism"}
     assert ("sequencer", "q_ref", "controller_q", "theta_ref") in described.connections
@@ -215,19 +219,19 @@ def test_libcosim_runs_the_two_drive_demian2022_system_like_the_harness(
     smallest drive energies, where the loop's delay weighs most."""
     demian = scenarios.load("demian2022")
     variant = demian.variant("compensated")
-    described = system.describe(demian, variant)
+    described = description.describe(demian, variant)
     assert set(described.models) == {"sequencer", "controller_q1", "drive_q1",
                                      "controller_q2", "drive_q2", "mechanism"}
     assert described.parameters["drive_q2"]["N"] == pytest.approx(2 * np.pi / 0.04)  # screw
-    ns = {"osp": system.OSP_NS}
-    tree = ET.parse(system.write_osp(described, tmp_path / "osp"))
+    ns = {"osp": writers.OSP_NS}
+    tree = ET.parse(writers.write_osp(described, tmp_path / "osp"))
     groups = {tuple((v.get("simulator"), v.get("name")) for v in c)
               for c in tree.iterfind(".//osp:VariableGroupConnection", ns)}
     # the q1 drive meets the revolute joint port to port; the lead-screw drive's shaft is
     # declared angular, so it meets the prismatic joint variable by variable
     assert (("drive_q1", "shaft"), ("mechanism", "q1")) in groups
     assert not any("drive_q2" in (a[0], b[0]) and "shaft" in (a[1], b[1]) for a, b in groups)
-    run = system.run_libcosim(described, tmp_path / "osp" / "OspSystemStructure.xml")
+    run = engines.run_libcosim(described, tmp_path / "osp" / "OspSystemStructure.xml")
     expected = master.run(demian, variant)
     assert list(run.series.columns) == list(expected.series.columns)
     for name in ("E_drawn", "E_in", "E_copper", "E_mech", "tau_rms_q1", "F_rms_q2",
@@ -239,18 +243,18 @@ def test_libcosim_runs_the_two_drive_demian2022_system_like_the_harness(
     assert np.max(np.abs(run.series.q2 - expected.series.q2)) < 1e-4     # m
 
 
-def test_ssd_carries_what_omsimulator_reads(described: system.System, tmp_path: Path) -> None:
+def test_ssd_carries_what_omsimulator_reads(described: description.System, tmp_path: Path) -> None:
     """OMSimulator 3.0 aborts on a system without its org.openmodelica annotation (fixed-step
     master), matches elements by their prefixed names, and reads no String binding: the SSD
     has the annotation in OMSimulator's documented form, a DefaultExperiment over the task,
     and only Real, Integer and Boolean bindings, each of its variable's type."""
     from fmpy import read_model_description
 
-    ssp = system.write_ssp(described, tmp_path / "x.ssp")
+    ssp = writers.write_ssp(described, tmp_path / "x.ssp")
     with zipfile.ZipFile(ssp) as archive:
         text = archive.read("SystemStructure.ssd").decode()
     root = ET.fromstring(text)
-    ns = system.NS
+    ns = writers.NS
     (master_element,) = root.findall(
         "ssd:System/ssd:Annotations/ssc:Annotation[@type='org.openmodelica']/oms:Annotations/"
         "oms:SimulationInformation/oms:FixedStepMaster", ns)
@@ -280,7 +284,7 @@ OMS_SSD_ROOT_CHILDREN = {"ssd:System", "ssd:Units", "ssd:Enumerations", "ssd:Def
 OMS_DOUBLE = r"((\+|-)?[0-9]+)(\.(([0-9]+)?))?((e|E)((\+|-)?)[0-9]+)?"
 
 
-def test_ssd_carries_the_stop_time_omsimulator_reads(described: system.System,
+def test_ssd_carries_the_stop_time_omsimulator_reads(described: description.System,
                                                      tmp_path: Path) -> None:
     """OMSimulator (OpenModelica/OMSimulator at 2940ef11; the same lines in v3.0.0) takes an
     SSP's stop time from the SSD root's `ssd:DefaultExperiment` alone,
@@ -306,14 +310,14 @@ def test_ssd_carries_the_stop_time_omsimulator_reads(described: system.System,
 
     and Flags.h:160 defaults it to "1", so `OMSimulator x.ssp` stops at 1 s whatever any SSP
     says; the README gives the command with `--stopTime` and the task's duration."""
-    ssp = system.write_ssp(described, tmp_path / "x.ssp")
+    ssp = writers.write_ssp(described, tmp_path / "x.ssp")
     with zipfile.ZipFile(ssp) as archive:
         root = ET.fromstring(archive.read("SystemStructure.ssd"))
-    prefixes = {f"{{{uri}}}": f"{prefix}:" for prefix, uri in system.NS.items()}
+    prefixes = {f"{{{uri}}}": f"{prefix}:" for prefix, uri in writers.NS.items()}
     children = [prefixes[child.tag.split("}")[0] + "}"] + child.tag.split("}")[1]
                 for child in root]
     assert set(children) <= OMS_SSD_ROOT_CHILDREN, children
-    (experiment,) = root.findall("ssd:DefaultExperiment", system.NS)
+    (experiment,) = root.findall("ssd:DefaultExperiment", writers.NS)
     for name, value in (("startTime", 0.0), ("stopTime", SCENARIO.duration)):
         literal = experiment.get(name)
         assert re.fullmatch(OMS_DOUBLE, literal) and float(literal) == value, (name, literal)
@@ -327,7 +331,7 @@ def test_sequencer_variant_number_selects_the_variant_by_position() -> None:
     """variant_number k plays the k-th variant of the scenario file, as `variant` naming it
     does; 0 leaves the choice to `variant`; a number past the last variant fails
     initialisation with a message naming the range."""
-    from harness.fmi import CoSimFMU, FMICallException
+    from harness.fmu.loader import CoSimFMU, FMICallException
 
     def played(parameters: dict[str, object], steps: int = 20, step: float = 1.0) -> np.ndarray:
         with CoSimFMU(fmu_build.fmu_path("ScenarioSequencer")) as fmu:
@@ -368,7 +372,7 @@ def test_every_input_is_connected(variant: str) -> None:
     signal by FMPy's SSP runner: the systems leave none unconnected."""
     from fmpy import read_model_description
 
-    described = system.describe(SCENARIO, SCENARIO.variant(variant))
+    described = description.describe(SCENARIO, SCENARIO.variant(variant))
     connected = {(component, name) for _, _, component, name in described.connections}
     for component, model in described.models.items():
         variables = read_model_description(fmu_build.fmu_path(model)).modelVariables

@@ -46,8 +46,8 @@ CASES_PER_PROCESS = 500
 def run_case(case: Mapping[str, Any]) -> dict[str, Any]:
     """In the child: instantiate, initialise with the case's parameters and inputs, take its
     steps. Reports statuses, messages, outputs before and after each step and call times."""
-    from harness import fmu_build
-    from harness.fmi import CoSimFMU, FMICallException
+    from harness.fmu import build as fmu_build
+    from harness.fmu.loader import CoSimFMU, FMICallException
 
     fmu = CoSimFMU(fmu_build.fmu_path(case["model"]), "fuzz")
     report: dict[str, Any] = {"init": "ok", "steps": [], "slowest": 0.0}

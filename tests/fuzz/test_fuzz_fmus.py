@@ -25,7 +25,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fmu_src.parameters import MAGNITUDE_LIMIT
-from harness import fmu_build
+from harness.fmu import build as fmu_build
 
 # every FMU with numeric parameters (the sequencer's are its scenario and variant names)
 MODELS = tuple(model for model in fmu_build.MODELS if model != fmu_build.SEQUENCER)

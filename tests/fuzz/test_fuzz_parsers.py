@@ -18,10 +18,10 @@ from fuzzing import hostile_floats
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fmu_src import scenario as core
-from harness import scenarios
+from fmu_src.units.sequencer import scenario_format
 from harness.errors import UserError
-from harness.sweep import definition
+from harness.run import scenario_files as scenarios
+from harness.sweeps import definition
 
 BASE = tomllib.loads((scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text())
 
@@ -53,7 +53,7 @@ def test_scenario_parser_names_the_field_or_loads(path: tuple, value: Any) -> No
         node = node[key]
     node[path[-1]] = value
     try:
-        parsed = core.parse(data, "fuzz.toml", scenarios.Scenario)
+        parsed = scenario_format.parse(data, "fuzz.toml", scenarios.Scenario)
     except ValueError as error:
         named = [str(k).removesuffix("s") for k in path if not isinstance(k, int)]
         phase = path[1] if path[0] == "phases" and len(path) > 1 else None

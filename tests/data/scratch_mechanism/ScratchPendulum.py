@@ -1,13 +1,13 @@
-"""FMI 2.0 Co-Simulation slave of the scratch mechanism (`fmu_src.pendulum`)."""
+"""FMI 2.0 Co-Simulation slave of the scratch mechanism (`fmu_src.mechanisms.pendulum.physics`)."""
 
 from __future__ import annotations
 
 from typing import Any
 
+from fmu_src.mechanisms.pendulum import physics
 from pythonfmu.default_experiment import DefaultExperiment
 
-from fmu_src import pendulum as physics
-from fmu_src.fmi_base import MechanismSlave
+from fmu_src.fmi.mechanism_slave import MechanismSlave
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
 
 OUTPUTS = (

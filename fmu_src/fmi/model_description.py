@@ -1,0 +1,115 @@
+"""Units and model-description XML of the FMUs (standard library only).
+
+PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns (its
+issue #33). `complete` adds them, in the way DNV's component-model does, from the slave's one
+table of variable metadata (`VariableInfo`, also used to check inputs at run time), and writes
+each output's `dependencies`, from the inputs `add_output` declares it depends on.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu import Fmi2Causality
+
+# unit -> (quantity used as the declared type name, SI base-unit exponents)
+UNITS: dict[str, tuple[str, dict[str, int]]] = {
+    "1": ("Dimensionless", {}),
+    "s": ("Time", {"s": 1}),
+    "m": ("Length", {"m": 1}),
+    "m/s": ("Velocity", {"m": 1, "s": -1}),
+    "m/s2": ("Acceleration", {"m": 1, "s": -2}),
+    "rad": ("Angle", {"rad": 1}),
+    "rad/s": ("AngularVelocity", {"rad": 1, "s": -1}),
+    "kg": ("Mass", {"kg": 1}),
+    "kg.m2": ("MomentOfInertia", {"kg": 1, "m": 2}),
+    "N": ("Force", {"kg": 1, "m": 1, "s": -2}),
+    "N.m": ("Torque", {"kg": 1, "m": 2, "s": -2}),
+    "J": ("Energy", {"kg": 1, "m": 2, "s": -2}),
+    "W": ("Power", {"kg": 1, "m": 2, "s": -3}),
+    "N/m": ("TranslationalSpringConstant", {"kg": 1, "s": -2}),
+    "N.s/m": ("TranslationalDampingConstant", {"kg": 1, "s": -1}),
+    "N.m.s/rad": ("RotationalDampingConstant", {"kg": 1, "m": 2, "s": -1, "rad": -1}),
+    "V": ("Voltage", {"kg": 1, "m": 2, "s": -3, "A": -1}),
+    "A": ("Current", {"A": 1}),
+    "Ohm": ("Resistance", {"kg": 1, "m": 2, "s": -3, "A": -2}),
+    "H": ("Inductance", {"kg": 1, "m": 2, "s": -2, "A": -2}),
+    "N.m/A": ("TorqueConstant", {"kg": 1, "m": 2, "s": -2, "A": -1}),
+    "V/rad": ("VoltagePerAngle", {"kg": 1, "m": 2, "s": -3, "A": -1, "rad": -1}),
+    "V/(rad.s)": ("VoltagePerAngleTime", {"kg": 1, "m": 2, "s": -4, "A": -1, "rad": -1}),
+    "V.s/rad": ("VoltagePerAngularVelocity", {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1}),
+}
+# display units: unit -> (display unit, factor): display = factor * value
+DISPLAY_UNITS = {"rad": ("deg", 180.0 / math.pi), "rad/s": ("deg/s", 180.0 / math.pi)}
+
+
+
+def indices(indices: Any) -> str:
+    """A ModelStructure dependencies attribute: variable indices in increasing order."""
+    return " ".join(str(i) for i in sorted(indices))
+
+
+def unit_definitions(units: list[str]) -> Element:
+    node = Element("UnitDefinitions")
+    for unit in units:
+        unit_node = SubElement(node, "Unit", attrib={"name": unit})
+        SubElement(unit_node, "BaseUnit", attrib={k: str(v) for k, v in UNITS[unit][1].items()})
+        if unit in DISPLAY_UNITS:
+            name, factor = DISPLAY_UNITS[unit]
+            SubElement(unit_node, "DisplayUnit", attrib={"name": name, "factor": f"{factor:.16g}"})
+    return node
+
+
+def type_definitions(units: list[str]) -> Element:
+    node = Element("TypeDefinitions")
+    for unit in units:
+        quantity = UNITS[unit][0]
+        simple = SubElement(node, "SimpleType", attrib={"name": quantity})
+        SubElement(simple, "Real", attrib={"quantity": quantity, "unit": unit})
+    return node
+
+
+def complete(root: Element, slave: Any) -> Element:
+    """pythonfmu's model description root of the slave with what it leaves out: unit and
+    type definitions, declared types, display units, min/max, each output's
+    dependencies and the InitialUnknowns (from the slave's info and dependencies)."""
+    used_units = sorted({i.unit for i in slave.info.values() if i.unit is not None})
+    position = list(root).index(root.find("CoSimulation")) + 1
+    root.insert(position, unit_definitions(used_units))
+    root.insert(position + 1, type_definitions(used_units))
+
+    initial_unknowns = []
+    index_of: dict[str, int] = {}
+    for index, element in enumerate(root.find("ModelVariables"), start=1):
+        name = element.get("name")
+        index_of[name] = index
+        info = slave.info[name]
+        real = element.find("Real")
+        if real is not None:
+            real.set("declaredType", UNITS[info.unit][0])
+            if info.unit in DISPLAY_UNITS:
+                real.set("displayUnit", DISPLAY_UNITS[info.unit][0])
+            for key in ("min", "max"):
+                if getattr(info, key) is not None:
+                    real.set(key, f"{getattr(info, key):.16g}")
+        if element.get("initial") == "calculated":
+            initial_unknowns.append(index)
+    structure = root.find("ModelStructure")
+    names = list(index_of)
+    for unknown in structure.iterfind("Outputs/Unknown"):
+        inputs = slave.dependencies[names[int(unknown.get("index")) - 1]]
+        unknown.set("dependencies", indices(index_of[n] for n in inputs))
+    # At initialisation the knowns also include the parameters, which the initial state
+    # is computed from: every parameter is listed (a superset), with the inputs declared.
+    parameters = [index_of[v.name] for v in slave.vars.values()
+                  if v.causality == Fmi2Causality.parameter]
+    if initial_unknowns:
+        node = SubElement(structure, "InitialUnknowns")
+        for index in initial_unknowns:
+            inputs = slave.initial_dependencies.get(names[index - 1], ())
+            dependencies = indices([*parameters, *(index_of[n] for n in inputs)])
+            SubElement(node, "Unknown", attrib={"index": str(index),
+                                                "dependencies": dependencies})
+    return root

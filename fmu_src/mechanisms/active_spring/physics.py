@@ -1,0 +1,569 @@
+"""Physics of the spring balancer with an actively relocated frame joint (Ciupitu 2018, Fig. 8).
+
+Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
+`ActiveSpringBalancer`, the harness command `active-design` and the tests. Conventions of
+the project: theta from the upward vertical, counter-clockwise positive, unit vector along
+the link e = (-sin theta, cos theta), gravity along -y, pivot O at the origin.
+
+Geometry. The link carries its centre of mass at c e, the payload (kg) at w e and the
+spring's link joint A at x1A e. The spring's frame joint B = (X_B, Y_B) with Y_B = Y_B0 + q
+rides on a carriage of mass m_q, the moving part of a prismatic joint along the vertical, q
+its travel. The spring force follows the paper's linear law (eqs. 19, 24)
+
+    F_s = F_s0 + k (l_s - l_s0),   l_s = |B - A|                          (eq. 21)
+
+at every length (F_s < 0 pushes); F_s0 = k l_s0 is a zero-free-length spring. Its energy,
+with the free length L_free = l_s0 - F_s0 / k, is E_e = 1/2 k (l_s - L_free)^2.
+
+Paper angle. Ciupitu measures the arm angle phi_1 from the horizontal; as for the
+CiupituBalancer, the paper's figure is the project's mirrored left to right: phi_1 = pi/2 -
+theta and the paper's X_B is -X_B here (Y is common). The payload at A (w = x1A) is the
+paper's case; w is free here.
+
+Lagrangian, with J = J_link + payload w^2 + J_drive and generalised coordinates (theta, q):
+
+    T = 1/2 J omega^2 + 1/2 M_q q_dot^2,   M_q = m_q + m_drive_q
+    V = E_p + E_e,   E_p = (m c + payload w) g cos(theta) + m_q g Y_B
+
+    J omega' = tau_drive + tau_gravity - d_link omega,   tau_gravity = -dV/dtheta
+    M_q q_dot' = F_adjust + L + F_lock - d_q q_dot,      L = F_q - m_q g = -dV/dq
+
+with the spring's pull on the carriage along +q, F_q = -dE_e/dq = -F_s (Y_B - Y_A) / l_s, and
+the torques about O
+
+    tau_gravity = (m c + payload w) g sin(theta) - x1A F_s (Y_B sin(theta) + X_B cos(theta)) / l_s
+
+The screw. The actuator's force F_adjust (its torque times 2 pi / lead, the force a lossless
+screw would give) reaches the carriage through a screw with thread friction: lead angle
+lambda, friction coefficient mu, flank half-angle beta, friction angle
+rho' = atan(mu / cos(beta)) (`screw_efficiencies`):
+
+    eta_f = tan(lambda) / tan(lambda + rho')     the actuator drives the load
+    eta_b = tan(lambda - rho') / tan(lambda)     the load drives the actuator
+
+and the screw self-locks exactly when rho' >= lambda (eta_b <= 0). The thread carries the
+load L (spring and carriage weight; the rotor's inertia, lumped into M_q, and the guide's
+damper d_q act beside it), so the actuator meets the effective load L_eff:
+- moving against the load (L q_dot < 0): L_eff = L / eta_f;
+- moving with the load (L q_dot > 0): L_eff = eta_b L (eta_b < 0: the actuator must push
+  the carriage along, the screw absorbs the load; eta_b > 0: the load drives it);
+- at rest: the carriage starts in the direction s = +-1 in which s (F_adjust + L_eff) > 0
+  (at most one), else the screw holds it with F_lock = -(F_adjust + L): holding costs no power.
+F_lock = L_eff - L is the screw's friction force on the carriage while it moves; its power
+-F_lock q_dot >= 0 goes to E_loss. The regime changes only where q_dot = 0: a carriage whose
+speed would change sign stops (its remaining kinetic energy, a sub-step's worth, goes to
+E_loss) and starts again only if the forces break it loose.
+Lossless limits, mu = 0: `self_locking` true is the ideal self-locking screw (eta_f = 1,
+eta_b = 0: lossless forward, the load's power absorbed), a lower bound of a real screw's
+cost; false a lossless back-drivable screw (eta_f = eta_b = 1). With mu > 0, `self_locking`
+must state what the friction does (rho' >= lambda), `validate` checks it.
+W_adjust = integral of F_adjust q_dot dt is the actuator's mechanical work. No stroke limits:
+q is unbounded.
+
+Balance. With X_B = 0, tau_gravity = balance_error sin(theta) exactly, where
+
+    balance_error = (m c + payload w) g - x1A Y_B F_s / l_s                [N m]
+
+is the paper's eq. 27 divided by cos(phi_1) (sign reversed: gravity minus spring); for a
+zero-free-length spring (F_s / l_s = k) it is (m c + payload w) g - k x1A Y_B, so
+Y_B = (m c + payload w) g / (k x1A) balances at every angle. With X_B != 0 the spring keeps
+a torque at the vertical and balance_error is only the sin(theta) coefficient's part.
+
+Payload changes (ledger). A payload that joins the link does so at rest at w e: angular
+momentum is conserved (omega scales by J_before / J_after), the kinetic energy lost in
+that inelastic catch goes to E_loss, and its potential energy on arrival, dm g w cos(theta),
+to E_added. A payload that leaves takes its potential and kinetic energy with it (E_added
+decreases by them). So E_t + E_kin + E_loss - W_drive - W_adjust - E_added stays constant,
+with E_loss also counting the dampers d_link and d_q and the screw's friction.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import partial
+from typing import TYPE_CHECKING, NamedTuple
+
+from fmu_src import ledger
+from fmu_src.integration import first_substeps, ledger_accuracy, ledger_controlled
+from fmu_src.parameters import check_ranges, parameter
+
+DEG = math.pi / 180.0
+# Tr 10x2 (ISO 2904): lead 2 mm on a pitch diameter of 9 mm
+TR10X2_LEAD_ANGLE = math.atan(0.002 / (math.pi * 0.009))
+# A moving carriage takes sub-steps this much finer than the rate rule of fmu_src.integration:
+# its load (tens of newtons on a light carriage) multiplies its position error in the energy
+# ledger (1e-9 J per millisecond at the rate rule, 1e-12 J with this factor).
+CARRIAGE_ACCURACY = 4.0
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of the mechanism. The paper gives no numbers for Fig. 8; the defaults put
+    Franchetti's Table 1 link and spring on it (ours): the spring's link joint at the slider
+    position b0 = 0.06 m, the frame joint above O at a = 0.1 m, which balances the bare link
+    ((m c) g = k x1A Y_B0); a 0.5 kg carriage, damping 100 N s/m (time constant 5 ms).
+
+    The screw: a Tr 10x2 (lead angle 4.05 deg) with mu = 0.1, steel on lubricated bronze:
+    eta_f = 0.403, self-locking (README.md).
+
+    Derived: carriage_inertia = m_q + m_drive_q, the inertia of the prismatic joint [kg];
+    eta_forward and eta_backward, the screw's efficiencies (`screw_efficiencies`, the
+    lossless limits at mu = 0) [1].
+    """
+
+    m: float = parameter(3.0, "kg", "Link mass (the paper's m1)", min=0.0)
+    c: float = parameter(0.2, "m", "Distance from pivot O to the link centre of mass (OC1)",
+                         min=0.0)
+    J_link: float = parameter(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, "
+                              "L = 0.4 m)", min=0.0)
+    w: float = parameter(0.35, "m", "Distance from O to the payload (x1A for the paper's "
+                         "payload at A)", min=0.0)
+    x1A: float = parameter(0.06, "m", "Distance from O to the spring's link joint A", min=0.0,
+                           min_exclusive=True)
+    k: float = parameter(981.0, "N/m", "Spring stiffness", min=0.0, min_exclusive=True)
+    F_s0: float = parameter(0.0, "N", "Spring force at the length l_s0 (eq. 19)", min=0.0)
+    l_s0: float = parameter(0.0, "m", "Spring length at which the force is F_s0 (F_s0 = k "
+                            "l_s0: zero-free-length spring)", min=0.0)
+    X_B: float = parameter(0.0, "m", "Abscissa of the spring's frame joint B (the paper's "
+                           "X_B is -X_B: its figure is mirrored)")
+    Y_B0: float = parameter(0.1, "m", "Ordinate of the frame joint B at q = 0")
+    m_q: float = parameter(0.5, "kg", "Mass of the carriage carrying B (moving part of the "
+                           "prismatic joint)", min=0.0, min_exclusive=True)
+    m_drive_q: float = parameter(0.0, "kg", "Drive inertia reflected to the prismatic joint "
+                                 "(J_rotor N^2 of a lead screw, N = 2 pi / lead)", min=0.0)
+    d_q: float = parameter(100.0, "N.s/m", "Viscous damping of the prismatic joint", min=0.0)
+    self_locking: bool = parameter(True, None, "The screw holds any load that would drive "
+                                   "it; with mu = 0 the ideal self-locking screw (lossless "
+                                   "forward) or, false, a lossless back-drivable one; with "
+                                   "mu > 0 it must equal friction angle >= lead angle")
+    mu: float = parameter(0.1, "1", "Thread friction coefficient of the screw (steel on "
+                          "bronze, lubricated); 0: lossless (self_locking picks the limit)",
+                          min=0.0, max=0.5)
+    lead_angle: float = parameter(TR10X2_LEAD_ANGLE, "rad", "Lead angle of the screw, "
+                                  "atan(lead / (pi d2)) (Tr 10x2: 4.05 deg)", min=0.0,
+                                  max=math.pi / 4, min_exclusive=True)
+    flank_angle: float = parameter(15.0 * DEG, "rad", "Flank half-angle of the screw's thread "
+                                   "(trapezoidal 15 deg, square 0)", min=0.0, max=math.pi / 6)
+    d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
+    theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
+    omega0: float = parameter(0.0, "rad/s", "Initial link angular velocity")
+    q0: float = parameter(0.0, "m", "Initial travel of the prismatic joint")
+    q_dot0: float = parameter(0.0, "m/s", "Initial speed of the prismatic joint")
+    J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link "
+                               "(J_rotor N^2)", min=0.0)
+    ledger_accuracy: float = ledger_accuracy()
+
+    def __post_init__(self) -> None:
+        # derived constants and what `outputs` keeps for the next step's rate, set here, in
+        # __init__: an attribute added later (a cached_property) slows every read of the fields
+        object.__setattr__(self, "carriage_inertia", self.m_q + self.m_drive_q)
+        if self.mu > 0.0:
+            eta_forward, eta_backward = screw_efficiencies(self.mu, self.lead_angle,
+                                                           self.flank_angle)
+        else:
+            eta_forward, eta_backward = 1.0, 0.0 if self.self_locking else 1.0
+        object.__setattr__(self, "eta_forward", eta_forward)
+        object.__setattr__(self, "eta_backward", eta_backward)
+        object.__setattr__(self, "_kept_spring", [(None, 0.0, 0.0)])
+        object.__setattr__(self, "_kept_payload", [(None, 0.0, 0.0, None)])   # _payload_terms
+        # what `_stage_rates` reads, in one tuple
+        object.__setattr__(self, "_stage_constants", (
+            self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0, self.d_link,
+            self.d_q, self.carriage_inertia, self.m_q * self.g, 1.0 / eta_forward, eta_backward,
+            eta_forward == eta_backward == 1.0))
+
+    @property
+    def free_length(self) -> float:
+        """Length at which the spring force vanishes, l_s0 - F_s0 / k [m] (0: ideal spring)."""
+        return self.l_s0 - self.F_s0 / self.k
+
+
+def friction_angle(mu: float, flank_angle: float) -> float:
+    """The thread's effective friction angle rho' = atan(mu / cos(flank_angle)) [rad]."""
+    return math.atan(mu / math.cos(flank_angle))
+
+
+def screw_efficiencies(mu: float, lead_angle: float, flank_angle: float) -> tuple[float, float]:
+    """The screw's efficiencies [1], forward (the actuator drives the load)
+    tan(lambda) / tan(lambda + rho') and backward (the load drives the actuator)
+    tan(lambda - rho') / tan(lambda), for the friction coefficient mu, the lead angle lambda
+    and the flank half-angle [rad]; backward <= 0: self-locking."""
+    rho = friction_angle(mu, flank_angle)
+    tan_lead = math.tan(lead_angle)
+    return tan_lead / math.tan(lead_angle + rho), math.tan(lead_angle - rho) / tan_lead
+
+
+def validate(params: Parameters) -> None:
+    """Raise ValueError naming the first parameter that is NaN or outside its physical range,
+    or a self_locking that contradicts the screw's friction."""
+    check_ranges(params)
+    if params.mu > 0.0 and params.self_locking != (params.eta_backward <= 0.0):
+        rho = friction_angle(params.mu, params.flank_angle)
+        raise ValueError(
+            f"self_locking = {str(params.self_locking).lower()} contradicts the screw: its "
+            f"friction angle atan(mu / cos(flank_angle)) = {rho / DEG:.4g} deg is "
+            f"{'below' if rho < params.lead_angle else 'at least'} the lead angle "
+            f"{params.lead_angle / DEG:.4g} deg (self-locking exactly when at least)")
+
+
+class Inputs(NamedTuple):
+    """Inputs held constant over a communication step."""
+
+    tau_drive: float = 0.0  # N m, drive torque on the link
+    F_adjust: float = 0.0   # N, actuator's force on the carriage along +q
+    payload: float = 0.0    # kg, payload at distance w
+
+
+# inputs whose change at a communication point is an event (switch_inputs)
+EVENT_INPUTS = ("payload",)
+
+
+class State(NamedTuple):
+    """Positions and speeds, and the cumulative energies of the ledger [J]."""
+
+    theta: float
+    omega: float
+    q: float
+    q_dot: float
+    W_drive: float = 0.0   # work of tau_drive on the link
+    W_adjust: float = 0.0  # work of F_adjust on the screw
+    E_loss: float = 0.0    # dissipated by d_link, d_q, the screw's friction, payload catches
+    E_added: float = 0.0   # brought in (taken out) by payload changes
+
+
+def initial_state(p: Parameters) -> State:
+    """State at t = 0 from theta0, omega0, q0, q_dot0."""
+    return State(p.theta0, p.omega0, p.q0, p.q_dot0)
+
+
+def link_inertia(p: Parameters, payload: float) -> float:
+    """J = J_link + payload w^2 + J_drive [kg m^2]."""
+    return p.J_link + payload * p.w * p.w + p.J_drive
+
+
+def gravity_moment(p: Parameters, payload: float) -> float:
+    """(m c + payload w) g: gravity moment amplitude on the link [N m] (eq. 18 and 28)."""
+    return (p.m * p.c + payload * p.w) * p.g
+
+
+class Spring(NamedTuple):
+    """The spring A-B at a configuration."""
+
+    l_s: float          # length [m]
+    F_s: float          # force, tension positive [N]
+    tau: float          # torque on the link about O [N m]
+    F_q: float          # pull on the carriage along +q [N]
+    moment: float       # x1A Y_B F_s / l_s: the sin(theta) coefficient of -tau with X_B = 0 [N m]
+
+
+def spring(p: Parameters, theta: float, Y_B: float) -> Spring:
+    """Spring length, force, torque on the link and pull on the carriage (eqs. 19-21).
+
+    At l_s = 0 (A on B) the direction is undefined; the force per length is then taken as
+    its zero-free-length value k (exact when F_s0 = k l_s0, the only spring finite there).
+    """
+    return Spring._make(_spring(p, theta, Y_B))
+
+
+def _spring(p: Parameters, theta: float, Y_B: float) -> tuple[float, float, float, float,
+                                                              float]:
+    """`spring` as a plain tuple in Spring's order (the integrator's stages need no names)."""
+    sin_t, cos_t = math.sin(theta), math.cos(theta)
+    dx = p.X_B + p.x1A * sin_t
+    dy = Y_B - p.x1A * cos_t
+    l_s = math.hypot(dx, dy)
+    F_s = p.F_s0 + p.k * (l_s - p.l_s0)
+    per_length = F_s / l_s if l_s > 0.0 else p.k
+    return (l_s, F_s, -p.x1A * per_length * (Y_B * sin_t + p.X_B * cos_t),
+            -per_length * dy, p.x1A * Y_B * per_length)
+
+
+def tau_gravity(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
+    """Gravity plus spring torque on the link about O, -dV/dtheta [N m]."""
+    return _tau_gravity(p, payload, theta, spring(p, theta, Y_B))
+
+
+def _tau_gravity(p: Parameters, payload: float, theta: float, sp: Spring) -> float:
+    """tau_gravity for the spring sp at theta."""
+    return gravity_moment(p, payload) * math.sin(theta) + sp.tau
+
+
+def balance_error(p: Parameters, payload: float, theta: float, Y_B: float) -> float:
+    """(m c + payload w) g - x1A Y_B F_s / l_s [N m]: tau_gravity / sin(theta) when X_B = 0."""
+    return gravity_moment(p, payload) - spring(p, theta, Y_B).moment
+
+
+def carriage(p: Parameters, F_adjust: float, load: float, q_dot: float,
+             direction: float) -> tuple[float, float]:
+    """Acceleration of the carriage [m/s^2] and the screw's reaction F_lock [N], for the
+    actuator's force F_adjust and the load L = F_q - m_q g along +q [N].
+
+    direction: the sign of q_dot at the start of the integration sub-step, fixed over it so
+    that its stages see one smooth law (0: from rest, the forces decide at each stage).
+    """
+    inverse_eta_forward, eta_backward = 1.0 / p.eta_forward, p.eta_backward
+    if p.eta_forward == eta_backward == 1.0:     # lossless and back-drivable
+        return (F_adjust + load - p.d_q * q_dot) / p.carriage_inertia, 0.0
+    if direction == 0.0:
+        direction = q_dot
+    if direction == 0.0:     # at rest: does the net force break the screw loose?
+        push = F_adjust + (load * inverse_eta_forward if load < 0.0 else load * eta_backward)
+        if push <= 0.0:
+            push = F_adjust + (load * inverse_eta_forward if load > 0.0 else
+                               load * eta_backward)
+            if push >= 0.0:
+                return 0.0, -(F_adjust + load)
+    else:
+        push = F_adjust + (load * inverse_eta_forward if load * direction < 0.0 else
+                           load * eta_backward)
+    return (push - p.d_q * q_dot) / p.carriage_inertia, push - F_adjust - load
+
+
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                direction: float | None = None) -> State:
+    """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
+    other mechanisms take it: a payload changes only at events here, so it is not used);
+    direction as for `carriage`, None for that of s's q_dot."""
+    theta, omega, q, q_dot = s[:4]
+    if direction is None:
+        direction = q_dot
+    omega_dot, q_ddot, loss_rate = _payload_terms(p, u.payload)[2](
+        theta, omega, q, q_dot, direction, u.tau_drive, u.F_adjust)
+    return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+                 loss_rate, 0.0)
+
+
+if TYPE_CHECKING:   # annotations only: Python 3.8 cannot subscript tuple and Callable
+    StageRates = Callable[[float, float, float, float, float, float, float],
+                         tuple[float, float, float]]
+
+
+def _payload_terms(p: Parameters, payload: float) -> tuple[float, float, StageRates]:
+    """The link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`) and the stage rates (`_stage_rates`) for the payload [kg], kept with
+    the parameters while the payload stays the same (equal floats give the same terms)."""
+    kept = p._kept_payload[0]
+    if kept[0] != payload:
+        inertia, moment = link_inertia(p, payload), gravity_moment(p, payload)
+        kept = p._kept_payload[0] = (payload, inertia, moment,
+                                     _stage_rates(p, inertia, moment))
+    return kept[1], kept[2], kept[3]
+
+
+def _stage_rates(p: Parameters, inertia: float, moment: float) -> StageRates:
+    """The rates an RK4 stage needs, (omega', q_dot'', E_loss') as a function of theta,
+    omega, q, q_dot, the carriage's direction (as for `carriage`), tau_drive and F_adjust,
+    for the link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`); the other rates follow (theta' = omega, q' = q_dot, W_drive' =
+    tau_drive omega, W_adjust' = F_adjust q_dot, E_added' = 0).
+
+    `_spring`, the torque and `carriage` written out operation for operation, with the terms
+    that only the parameters and the payload set read once: one call per stage.
+    """
+    sin, cos, hypot = math.sin, math.cos, math.hypot
+    (X_B, x1A, neg_x1A, Y_B0, k, F_s0, l_s0, d_link, d_q, M_q, weight_q, inverse_eta_forward,
+     eta_backward, lossless) = p._stage_constants
+
+    def rates(theta: float, omega: float, q: float, q_dot: float, direction: float,
+              tau_drive: float, F_adjust: float) -> tuple[float, float, float]:
+        Y_B = Y_B0 + q
+        sin_t, cos_t = sin(theta), cos(theta)
+        dy = Y_B - x1A * cos_t
+        l_s = hypot(X_B + x1A * sin_t, dy)
+        F_s = F_s0 + k * (l_s - l_s0)
+        per_length = F_s / l_s if l_s > 0.0 else k
+        torque = moment * sin_t + neg_x1A * per_length * (Y_B * sin_t + X_B * cos_t)
+        omega_dot = (tau_drive + torque - d_link * omega) / inertia
+        load = -per_length * dy - weight_q
+        if lossless:
+            q_ddot, lock = (F_adjust + load - d_q * q_dot) / M_q, 0.0
+        else:
+            moving, held = direction if direction != 0.0 else q_dot, False
+            if moving == 0.0:      # at rest: upwards, else downwards, else held
+                push = F_adjust + (load * inverse_eta_forward if load < 0.0 else
+                                   load * eta_backward)
+                if push <= 0.0:
+                    push = F_adjust + (load * inverse_eta_forward if load > 0.0 else
+                                       load * eta_backward)
+                    held = push >= 0.0
+            else:
+                push = F_adjust + (load * inverse_eta_forward if load * moving < 0.0 else
+                                   load * eta_backward)
+            if held:
+                q_ddot, lock = 0.0, -(F_adjust + load)
+            else:
+                q_ddot, lock = (push - d_q * q_dot) / M_q, push - F_adjust - load
+        return omega_dot, q_ddot, d_link * omega * omega + d_q * q_dot * q_dot - lock * q_dot
+
+    return rates
+
+
+def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
+    """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
+    return _rate(p, u, s, link_inertia(p, u.payload), gravity_moment(p, u.payload))
+
+
+def _rate(p: Parameters, u: Inputs, s: State, J: float, moment: float) -> float:
+    """`characteristic_rate` for the link's inertia J [kg m^2] and gravity moment [N m] of
+    the step (`link_inertia`, `gravity_moment`); the larger of two rates by comparison (as
+    `max` takes it) instead of a call."""
+    kept_state, l_s, F_s = p._kept_spring[0]
+    if kept_state is not s:     # `outputs` keeps the spring of the state a step starts from
+        l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
+    reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
+    per_length = abs(F_s) / l_s if l_s > 0.0 else p.k
+    stiffness = abs(moment) + p.x1A * reach * (p.k + per_length)
+    rate = math.sqrt(stiffness / J)
+    damping_rate, speed = p.d_link / J, abs(s.omega)
+    if damping_rate > rate:
+        rate = damping_rate
+    if speed > rate:
+        rate = speed
+    if s.q_dot != 0.0 or u.F_adjust != 0.0 or p.eta_backward > 0.0:   # the carriage moves
+        M_q = p.carriage_inertia
+        # the screw's friction scales the spring's stiffness the carriage meets by 1 / eta_f
+        carriage_rate = max(p.d_q / M_q,
+                            math.sqrt((p.k + per_length) / p.eta_forward / M_q),
+                            abs(s.q_dot) / max(l_s, p.x1A))
+        rate = max(rate, CARRIAGE_ACCURACY * carriage_rate)
+    return rate
+
+
+def _rk4_step(rates: StageRates, tau_drive: float, F_adjust: float, s: Sequence[float],
+              h: float) -> State:
+    """One RK4 step of size h [s] from s for the stage rates of `_stage_rates`, the screw's
+    regime fixed by the motion at its start: the same numbers as `integration.rk4` over the
+    full state (`derivatives`), bit for bit, with the stages in local floats."""
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
+    half, sixth = 0.5 * h, h / 6.0
+    a1, b1, l1 = rates(theta, omega, q, q_dot, q_dot, tau_drive, F_adjust)
+    o2, v2 = omega + half * a1, q_dot + half * b1
+    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, q_dot, tau_drive,
+                       F_adjust)
+    o3, v3 = omega + half * a2, q_dot + half * b2
+    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, q_dot, tau_drive,
+                       F_adjust)
+    o4, v4 = omega + h * a3, q_dot + h * b3
+    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, q_dot, tau_drive, F_adjust)
+    return tuple.__new__(State, (
+        theta + sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4),
+        omega + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        q + sixth * (q_dot + 2.0 * v2 + 2.0 * v3 + v4),
+        q_dot + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
+        W_drive + sixth * (tau_drive * omega + 2.0 * (tau_drive * o2) + 2.0 * (tau_drive * o3)
+                           + tau_drive * o4),
+        W_adjust + sixth * (F_adjust * q_dot + 2.0 * (F_adjust * v2) + 2.0 * (F_adjust * v3)
+                            + F_adjust * v4),
+        E_loss + sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4),
+        E_added + sixth * 0.0))    # E_added' = 0 (-0.0 turns +0.0, as in rk4)
+
+
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
+    from the rate rule, raised until the energy ledger meets p.ledger_accuracy
+    (`integration.ledger_controlled`).
+
+    A carriage whose speed changes sign within a sub-step stops (but on the lossless
+    back-drivable screw, whose law is smooth there): the sub-step is split where the speed,
+    interpolated linearly, reaches zero; there the carriage is at rest (the kinetic energy of
+    the interpolation's residual speed goes to E_loss) and the rest of the sub-step starts
+    from rest, where the screw holds it or the forces break it loose.
+    """
+    inertia, moment, rates = _payload_terms(p, u.payload)
+    return ledger_controlled(lambda n: _integrate(p, u, s, dt, n, rates),
+                             partial(ledger_terms, p, u), (4, 5), s,
+                             first_substeps(dt, _rate(p, u, s, inertia, moment)), dt, p,
+                             (u.payload,))
+
+
+def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: StageRates
+               ) -> State:
+    """`advance` over dt [s] in n RK4 sub-steps, for the stage rates of the payload."""
+    h = dt / n
+    tau_drive, F_adjust = u.tau_drive, u.F_adjust
+    lossless = p._stage_constants[-1]
+    for _ in range(n):
+        new = _rk4_step(rates, tau_drive, F_adjust, s, h)
+        if not lossless and new.q_dot * s.q_dot < 0.0:
+            h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
+            stopped = _rk4_step(rates, tau_drive, F_adjust, s, h_stop)
+            stopped = stopped._replace(
+                q_dot=0.0,
+                E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
+            new = _rk4_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
+        s = new
+    return s
+
+
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_t (E_p, E_e), E_kin, E_loss, -W_drive,
+    -W_adjust and -E_added (as `outputs` reports them): their sum is constant
+    (docs/energy_ledger.md)."""
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
+    inertia, moment = _payload_terms(p, u.payload)[:2]
+    Y_B = p.Y_B0 + q
+    l_s = _spring(p, theta, Y_B)[0]
+    return (moment * math.cos(theta) + p.m_q * p.g * Y_B, elastic_energy(p, l_s),
+            0.5 * (inertia * omega ** 2 + p.carriage_inertia * q_dot ** 2), E_loss, -W_drive,
+            -W_adjust, -E_added)
+
+
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state just after the inputs change at a communication point: a payload caught
+    from rest or released with its speed (`ledger.change_payload`)."""
+    return ledger.change_payload(s, before.payload, after.payload, p.w, p.g,
+                                 lambda payload: link_inertia(p, payload))
+
+
+class Outputs(NamedTuple):
+    """Observable quantities (SI units)."""
+
+    theta: float
+    omega: float
+    q: float
+    q_dot: float
+    Y_B: float
+    l_s: float
+    F_s: float
+    tau_gravity: float
+    F_q: float
+    F_lock: float
+    F_hold: float
+    balance_error: float
+    E_p: float
+    E_e: float
+    E_t: float
+    E_kin: float
+    W_drive: float
+    W_adjust: float
+    E_loss: float
+    E_added: float
+
+
+def elastic_energy(p: Parameters, l_s: float) -> float:
+    """1/2 k (l_s - L_free)^2 [J], zero at the free length."""
+    return 0.5 * p.k * (l_s - p.free_length) ** 2
+
+
+def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
+    """All outputs for the state s and inputs u."""
+    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
+    Y_B = p.Y_B0 + q
+    l_s, F_s, spring_torque, F_q, spring_moment = _spring(p, theta, Y_B)
+    p._kept_spring[0] = (s, l_s, F_s)
+    moment = gravity_moment(p, u.payload)
+    E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
+    E_e = elastic_energy(p, l_s)
+    E_kin = 0.5 * (link_inertia(p, u.payload) * omega ** 2 + p.carriage_inertia * q_dot ** 2)
+    F_adjust = u.F_adjust
+    _, F_lock = carriage(p, F_adjust, F_q - p.m_q * p.g, q_dot, q_dot)
+    # the least actuator force the screw holds the carriage with at rest
+    F_hold = max(p.eta_backward, 0.0) * (p.m_q * p.g - F_q)
+    # built at C level: Outputs(...) is a Python call
+    return tuple.__new__(Outputs, (
+        theta, omega, q, q_dot, Y_B, l_s, F_s, moment * math.sin(theta) + spring_torque, F_q,
+        F_lock, F_hold, moment - spring_moment, E_p, E_e, E_p + E_e, E_kin, W_drive, W_adjust,
+        E_loss, E_added))

@@ -1,0 +1,438 @@
+"""Physics of Ciupitu's passive translational counterweight (Ciupitu 2018, Figure 4a).
+
+Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
+`CiupituBalancer`, the harness command `ciupitu-example` and the tests (README.md).
+
+Geometry. A counterweight of weight G2 = m2 g slides along the arm on the side opposite to
+the payload; a bar of length AB joins it to the ground pivot A, a distance OA above O. The
+paper's arm angle phi is measured from the horizontal, phi = pi/2 - theta, with theta the
+project's angle (docs/conventions.md: from the upward vertical, counter-clockwise; the project's
+figure is the paper's Figure 4a mirrored left to right). The counterweight sits at
+
+    OB(phi) = sqrt(AB^2 - OA^2 cos^2 phi) - OA sin phi                  (eq. 13, AB > OA)
+
+which is >= AB - OA > 0 at every angle, so the arm may turn fully. Eq. 14 is a misprint.
+
+Moments about O in the paper's sign convention (positive in the direction of increasing
+phi, i.e. of decreasing theta), eqs. 8, 12 and 16:
+
+    M_g = -G_pv OP cos phi,   M_b = G2 OB cos phi,   M_u = M_b + M_g
+
+Static example (paper Section 4): the arm rocks uniformly, one stroke from phi = +pi/2 to
+-pi/2 per half period T/2, so s = t/T = (pi/2 - phi)/(2 pi) in [0, 1/2]; payload laws
+G_pv = 4 G_max s (1 - s) (parabolic, eq. 7 without its constant part) and G_pv = 2 G_max s
+(linear). The interpretation that reproduces the paper's numbers: E_u and E_b are the NET
+work over one stroke, the absolute value of the signed integral of M_g and of M_u over phi
+(over t it is the same up to the constant factor dphi/dt, which cancels in eps), and
+eps = 1 - E_b/E_u (eq. 31, E_b printed as E_e). For the paper's data this gives
+eps_parabolic = 0.9734464 and eps_linear = 0.6320306 (paper: 0.973446, 0.632031), and
+max |M_u| = 0.82786 N m at phi = 0.1047 rad (parabolic; paper 0.828 N m at 0.095 rad, where
+|M_u| = 0.82765 N m: the maximum is flat) and 1.3666 N m at phi = -0.479 rad (linear; paper
+"about 1.4 N m at -0.5 rad"). Absolute work (integral of |M|) gives eps_parabolic = 0.895884
+instead, so it is not the paper's reading; for the linear law M_u keeps one sign and both
+readings agree.
+
+Caveat (kept, because the paper defines M_b so): M_b is the moment of the
+counterweight's weight alone. The bar AB also pushes the counterweight, along a line through
+A rather than O, so the torque the arm really receives (virtual work, -dE_p/dtheta) has a
+further term, the static moment of the bar force about O:
+
+    M_bar = G2 (dOB/dphi) sin phi
+
+which vanishes only at phi = 0 and +-pi/2. With it the counterweight's work over a stroke is
+G2 times the rise of B, 2 AB G2, so E_b = |2 AB G2 - E_u|: for the paper's example
+eps = 0.932601 (parabolic) and 0.5 (linear). A dynamic run through a drive sees these, not
+the paper's values.
+
+Dynamics (one degree of freedom, FMU state theta and omega = dtheta/dt). The link has mass m
+at c, inertia J_link about O, a payload (kg) at w = OP, a fixed counterweight m_fixed_cw at
+c_fixed_cw on the side opposite to the payload, and the sliding counterweight m2 at OB on the
+same opposite side. With OB' = dOB/dphi (dphi = -dtheta):
+
+    E_p = g cos(theta) (m c + payload w - m_fixed_cw c_fixed_cw - m2 OB)
+    J(theta) = J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive + m2 (OB^2 + OB'^2)
+    E_kin = 1/2 J omega^2
+    J omega' = tau_drive + tau_gravity - (d_link + d_cw OB'^2) omega - 1/2 (dJ/dtheta) omega^2
+
+from the Lagrangian L = E_kin - E_p, with tau_gravity = -dE_p/dtheta. In terms of the
+paper's moments (all static):
+
+    tau_gravity = -(M_u + M_bar + (m_fixed_cw c_fixed_cw - m c) g cos phi)
+
+with G_pv = payload g, OP = w and G2 = m2 g; the last term is zero when the fixed
+counterweight balances the link (m_fixed_cw c_fixed_cw = m c, the default).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+from typing import NamedTuple
+
+from fmu_src import ledger
+from fmu_src.integration import advance_arm, ledger_accuracy
+from fmu_src.parameters import check_ranges, parameter
+
+DEG = math.pi / 180.0
+HALF_PI = 0.5 * math.pi
+
+
+def _check_bar(OA: float, AB: float) -> None:
+    if not AB > OA:
+        raise ValueError(f"AB = {AB} m must be above OA = {OA} m (eq. 13 needs AB > OA)")
+
+
+# ---- geometry and the paper's moments ---------------------------------------------------
+class Geometry(NamedTuple):
+    """Counterweight distance OB and its derivatives with respect to phi."""
+
+    OB: float         # m, eq. 13
+    dOB: float        # m/rad, dOB/dphi
+    d2OB: float       # m/rad^2, d^2 OB/dphi^2
+
+
+def geometry(OA: float, AB: float, phi: float) -> Geometry:
+    """OB(phi) of eq. 13 and its first two derivatives; phi from the horizontal [rad]."""
+    return Geometry._make(_geometry(OA, AB, phi))
+
+
+def _geometry(OA: float, AB: float, phi: float) -> tuple[float, float, float]:
+    """geometry() as a plain tuple (the dynamics evaluate it four times per RK4 sub-step)."""
+    sin_p, cos_p = math.sin(phi), math.cos(phi)
+    root = math.sqrt(AB * AB - (OA * cos_p) ** 2)
+    d_root = OA * OA * sin_p * cos_p / root
+    d2_root = (OA * OA * math.cos(2.0 * phi) - d_root * d_root) / root
+    return root - OA * sin_p, d_root - OA * cos_p, d2_root + OA * sin_p
+
+
+class Moments(NamedTuple):
+    """Static moments about O in the paper's convention (positive towards increasing phi)."""
+
+    M_g: float        # N m, payload, eq. 8
+    M_b: float        # N m, counterweight weight, eq. 12
+    M_u: float        # N m, unbalance M_b + M_g, eq. 16
+
+
+def moments(G_pv: float, OP: float, G2: float, OA: float, AB: float, phi: float) -> Moments:
+    """M_g, M_b, M_u for payload weight G_pv [N] at OP [m] and counterweight G2 [N]."""
+    return _moments(G_pv, OP, G2, geometry(OA, AB, phi).OB, math.cos(phi))
+
+
+def _moments(G_pv: float, OP: float, G2: float, OB: float, cos_phi: float) -> Moments:
+    """moments() for a known OB [m] and cos(phi)."""
+    M_g = -G_pv * OP * cos_phi
+    M_b = G2 * OB * cos_phi
+    return tuple.__new__(Moments, (M_g, M_b, M_b + M_g))  # Moments(...) is a Python call
+
+
+# ---- dynamics for the FMU ---------------------------------------------------------------
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of the arm; the link is Franchetti's (Table 1, as for SelfRegulatingBalancer).
+
+    Ours, not from a paper: J_link = m L^2/3 with L = 2 c (0.16 kg m^2); fixed counterweight
+    6 kg at 0.1 m (balances m c = 0.6 kg m with half the inertia of a mirror image of the link
+    mass); d_link = 0.01 N m s/rad. PLACEHOLDERS, to be replaced by the harness optimisation:
+    m2 = 0.75 kg, OA = 0.175 m, AB = 0.35 m, the paper's example scaled to a 1 kg payload at
+    w = 0.35 m (lengths by w/OP, weights by 1 kg g / G_max).
+    """
+
+    m: float = parameter(3.0, "kg", "Link mass", min=0.0)
+    c: float = parameter(0.2, "m", "Distance from pivot O to the link centre of mass", min=0.0)
+    J_link: float = parameter(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, L = 0.4 m)",
+                              min=0.0)
+    w: float = parameter(0.35, "m", "Distance from O to the payload (the paper's OP)", min=0.0)
+    m2: float = parameter(0.75, "kg", "Mass of the sliding counterweight (G2/g)", min=0.0)
+    OA: float = parameter(0.175, "m", "Height of the ground pivot A above O", min=0.0)
+    AB: float = parameter(0.35, "m", "Length of the bar joining A to the sliding counterweight B",
+                          min=0.0, min_exclusive=True)
+    m_fixed_cw: float = parameter(6.0, "kg", "Mass of the fixed counterweight opposite the payload",
+                                  min=0.0)
+    c_fixed_cw: float = parameter(0.1, "m", "Distance from O to the fixed counterweight", min=0.0)
+    d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    d_cw: float = parameter(0.0, "N.s/m", "Viscous friction of the counterweight sliding along "
+                            "the arm (it slides at dOB/dt = -OB' omega)", min=0.0)
+    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0)
+    theta0: float = parameter(60.0 * DEG, "rad", "Initial arm angle from the upward vertical")
+    omega0: float = parameter(0.0, "rad/s", "Initial arm angular velocity")
+    J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the arm (J_rotor N^2)",
+                               min=0.0)
+    ledger_accuracy: float = ledger_accuracy()
+
+    @property
+    def J_min(self) -> float:
+        """Lower bound of the arm's inertia without payload (OB >= AB - OA) [kg m^2]."""
+        return (self.J_link + self.J_drive + self.m_fixed_cw * self.c_fixed_cw ** 2
+                + self.m2 * (self.AB - self.OA) ** 2)
+
+    def __post_init__(self) -> None:
+        # What `_held` and `_arm_terms` keep with the parameters (added here, in __init__,
+        # so that reading the fields stays fast: an attribute added later slows every read)
+        object.__setattr__(self, "_last_held", [(None, ())])
+        object.__setattr__(self, "_last_terms", [(None, None, ())])
+        # (state, inputs, outputs): what `ledger_terms` computed last, for `outputs`
+        object.__setattr__(self, "_kept_outputs", [(None, None, None)])
+
+
+def validate(params: Parameters) -> None:
+    """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
+    check_ranges(params)
+    _check_bar(params.OA, params.AB)
+    if not params.J_min > 0.0:
+        raise ValueError("J_link + J_drive + m_fixed_cw c_fixed_cw^2 + m2 (AB - OA)^2 = "
+                         f"{params.J_min} kg.m2 must be positive: the arm needs inertia")
+
+
+class Inputs(NamedTuple):
+    """Inputs held constant over a communication step."""
+
+    tau_drive: float = 0.0    # N m, drive torque on the arm (counter-clockwise, along theta)
+    payload: float = 0.0      # kg, payload at distance w
+
+
+# inputs whose change at a communication point is an event (switch_inputs)
+EVENT_INPUTS = ("payload",)
+
+
+class State(NamedTuple):
+    """Continuous state: arm angle from the upward vertical [rad] and its rate [rad/s], and the
+    energy ledger [J] (E_p + E_kin + E_loss - W_drive - E_added is constant)."""
+
+    theta: float
+    omega: float
+    W_drive: float = 0.0    # work of tau_drive on the arm
+    E_loss: float = 0.0     # dissipated: pivot friction, payload picked up while moving
+    E_added: float = 0.0    # brought in (+) or taken out (-) by payload joining or leaving
+
+
+def initial_state(params: Parameters) -> State:
+    """State at t = 0."""
+    return State(params.theta0, params.omega0)
+
+
+class _Held(NamedTuple):
+    """Terms of the dynamics that the parameters and a held payload set."""
+
+    OA: float               # m
+    OA2: float              # m^2, OA^2
+    AB2: float              # m^2, AB^2
+    m2: float               # kg
+    g: float                # m/s^2
+    d_link: float           # N m s/rad
+    d_cw: float             # N s/m
+    w: float                # m
+    G2: float               # N, m2 g
+    J_held: float           # kg m^2, J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive
+    arm_held: float         # kg m, m c + payload w - m_fixed_cw c_fixed_cw
+    stiffness_held: float   # kg m, m c + payload w + m_fixed_cw c_fixed_cw
+
+
+def _held(p: Parameters, payload: float) -> _Held:
+    """The terms the parameters and the payload [kg] set: the last ones are kept with the
+    parameters, for the very object payload (an input held over many steps)."""
+    last_payload, held = p._last_held[0]
+    if last_payload is payload:
+        return held
+    mc, payload_moment, mc_fixed_cw = p.m * p.c, payload * p.w, p.m_fixed_cw * p.c_fixed_cw
+    held = _Held(p.OA, p.OA * p.OA, p.AB * p.AB, p.m2, p.g, p.d_link, p.d_cw, p.w, p.m2 * p.g,
+                 p.J_link + payload * p.w ** 2 + p.m_fixed_cw * p.c_fixed_cw ** 2 + p.J_drive,
+                 mc + payload_moment - mc_fixed_cw, mc + payload_moment + mc_fixed_cw)
+    p._last_held[0] = (payload, held)   # one assignment: key and terms together
+    return held
+
+
+def _arm_terms(p: Parameters, payload: float, theta: float
+               ) -> tuple[float, float, float, float, float, float, float]:
+    """(OB [m], OB' [m/rad], OB'' [m/rad^2], J [kg m^2], dJ/dtheta [kg m^2/rad], damping
+    d(theta) = d_link + d_cw OB'^2 [N m s/rad], tau_gravity [N m]) at theta with the
+    payload [kg].
+
+    The last ones are kept with the parameters, for the very objects theta and payload: the
+    outputs after a step compute them at the state the next step starts from, where its rate
+    and its first RK4 stage need them again.
+    """
+    last = p._last_terms[0]
+    if last[0] is theta and last[1] is payload:
+        return last[2]
+    _, _, _, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = _held(p, payload)
+    OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - theta)
+    terms = (OB, dOB, d2OB, J_held + m2 * (OB * OB + dOB * dOB), -2.0 * m2 * dOB * (OB + d2OB),
+             d_link + d_cw * dOB * dOB,
+             g * (math.sin(theta) * (arm_held - m2 * OB) - math.cos(theta) * m2 * dOB))
+    p._last_terms[0] = (theta, payload, terms)   # one assignment: key and terms together
+    return terms
+
+
+def kept_start(last_terms: list, payload: float) -> tuple[float | None, tuple]:
+    """(theta, terms) that a one-link arm's _arm_terms kept last in last_terms, for this very
+    payload object, else (None, ()): the terms a step's first RK4 stage may take."""
+    theta, last_payload, terms = last_terms[0]
+    return (theta, terms) if last_payload is payload else (None, ())
+
+
+def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
+    """J(theta) [kg m^2] and dJ/dtheta [kg m^2/rad]."""
+    return _arm_terms(p, payload, theta)[3:5]
+
+
+def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
+    """Gravity torque on the arm about O along theta, -dE_p/dtheta [N m]."""
+    return _arm_terms(p, payload, theta)[6]
+
+
+def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
+                 omega: float) -> float:
+    """Angular acceleration [rad/s^2] from the Lagrange equation
+    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega."""
+    return _arm_rates(p, payload, tau_drive)(theta, omega)[0]
+
+
+def _arm_rates(p: Parameters, payload: float, tau_drive: float
+               ) -> Callable[[float, float], tuple[float, float]]:
+    """(theta, omega) -> (the angular acceleration [rad/s^2] (`acceleration`), the friction
+    loss d(theta) omega^2 [W]) with the payload and the drive torque held.
+
+    It runs four times per RK4 sub-step, so _arm_terms is written out in it, operation for
+    operation (the same numbers; tests/test_ciupitu.py checks it), with the terms the
+    payload sets computed once: a call and a tuple per stage cost more than the arithmetic.
+    At the angle _arm_terms computed last (the step's start) it takes its terms.
+    """
+    held = _held(p, payload)
+    last_theta, last = kept_start(p._last_terms, payload)
+
+    def rates(theta: float, omega: float) -> tuple[float, float]:
+        if theta is last_theta:
+            _, _, _, J, dJ, damping, gravity = last
+        else:
+            OA, OA2, AB2, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = held
+            phi = HALF_PI - theta
+            sin_p, cos_p = math.sin(phi), math.cos(phi)
+            root = math.sqrt(AB2 - (OA * cos_p) ** 2)
+            d_root = OA2 * sin_p * cos_p / root
+            OB = root - OA * sin_p
+            dOB = d_root - OA * cos_p
+            d2OB = (OA2 * math.cos(2.0 * phi) - d_root * d_root) / root + OA * sin_p
+            J = J_held + m2 * (OB * OB + dOB * dOB)
+            dJ = -2.0 * m2 * dOB * (OB + d2OB)
+            damping = d_link + d_cw * dOB * dOB
+            gravity = g * (math.sin(theta) * (arm_held - m2 * OB) - math.cos(theta) * m2 * dOB)
+        return ((tau_drive + gravity - damping * omega - 0.5 * dJ * omega * omega) / J,
+                damping * omega * omega)
+
+    OA = held[0]
+    if OA == 0.0 and math.copysign(1.0, OA) > 0.0:
+        return _pivoted_rates(held, tau_drive, rates)
+    return rates
+
+
+def _pivoted_rates(held: _Held, tau_drive: float,
+                   rates: Callable[[float, float], tuple[float, float]]
+                   ) -> Callable[[float, float], tuple[float, float]]:
+    """`_arm_rates`'s rates for OA = +0, with fewer operations and the same numbers.
+
+    The bar then pivots at O and the counterweight stays at OB = AB: the written-out terms
+    give OB' = OB'' = +-0, so J, d(theta) and the net moment arm do not change with the
+    angle, and dJ/dtheta and the bar's gravity term are +-0, whose subtraction leaves a
+    non-zero finite sum as it is. Where the sum is zero or not finite, rates computes it.
+    """
+    _, _, AB2, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = held
+    OB = math.sqrt(AB2)                       # root - OA sin(phi) with OA = +0
+    J = J_held + m2 * (OB * OB + 0.0)         # J_held + m2 (OB^2 + OB'^2), OB'^2 = +0
+    damping = d_link + d_cw * 0.0 * 0.0       # d_cw OB'^2 has the sign of d_cw
+    net = arm_held - m2 * OB
+
+    def pivoted(theta: float, omega: float) -> tuple[float, float]:
+        moment = math.sin(theta) * net
+        if moment != 0.0:
+            torque = tau_drive + g * moment - damping * omega
+            if torque != 0.0 and -math.inf < torque < math.inf:
+                return torque / J, damping * omega * omega
+        return rates(theta, omega)
+
+    return pivoted
+
+
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state (Lagrange equation) for inputs u that are constant or, for
+    a continuous-time model such as the harness's reference, change at `rates` (d/dt of the
+    inputs): the continuous limit of switch_inputs, a payload joining from rest brakes the
+    arm, J omega' gains -payload_rate w^2 omega and E_loss 1/2 payload_rate w^2 omega^2; a
+    payload leaving takes its kinetic energy (E_added)."""
+    theta, omega = s[0], s[1]
+    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive)(theta, omega)
+    if rates is None:
+        return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
+    flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
+                               inertia(p, u.payload, theta)[0])
+    return State(omega, omega_dot + flow.omega_dot, u.tau_drive * omega, loss + flow.loss,
+                 flow.added)
+
+
+def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
+    """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
+    payload = u.payload
+    OB, dOB, d2OB, J, dJ, damping, _ = _arm_terms(p, payload, s.theta)
+    _, _, _, m2, g, _, _, _, _, _, _, stiffness_held = _held(p, payload)
+    stiffness = g * (stiffness_held + m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
+    return max(math.sqrt(stiffness / J), damping / J, abs(s.omega) * (1.0 + abs(dJ) / J))
+
+
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_p, E_kin, E_loss, -W_drive and -E_added
+    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md). The outputs
+    come with them, from the same energies, kept for `outputs` (the end of a step is
+    evaluated once, for the ledger's control and the slave)."""
+    theta, omega, payload = s.theta, s.omega, u.payload
+    OB, dOB, _, J, _, _, gravity = _arm_terms(p, payload, theta)
+    _, _, _, m2, g, _, _, w, G2, _, arm_held, _ = _held(p, payload)
+    M_g, M_b, M_u = _moments(payload * g, w, G2, OB, math.sin(theta))  # cos(phi)
+    E_p, E_kin = g * math.cos(theta) * (arm_held - m2 * OB), 0.5 * J * omega ** 2
+    W_drive, E_loss, E_added = s.W_drive, s.E_loss, s.E_added
+    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
+    p._kept_outputs[0] = (s, u, tuple.__new__(Outputs, (
+        theta, omega, OB, gravity, E_p, E_kin, M_g, M_b, M_u,
+        G2 * dOB * math.sin(HALF_PI - theta),                               # M_bar
+        W_drive, E_loss, E_added)))
+    return E_p, E_kin, E_loss, -W_drive, -E_added
+
+
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant."""
+    tau = u.tau_drive
+    rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
+    return advance_arm(_arm_rates(p, u.payload, tau), s, tau, dt, rate,
+                       partial(ledger_terms, p, u), p, u.payload)
+
+
+# a payload caught from rest or released at a communication point (docs/energy_ledger.md)
+switch_inputs = ledger.payload_switch(inertia)
+
+
+class Outputs(NamedTuple):
+    """Observable quantities (README.md; SI units)."""
+
+    theta: float
+    omega: float
+    OB: float
+    tau_gravity: float
+    E_p: float
+    E_kin: float
+    M_g: float
+    M_b: float
+    M_u: float
+    M_bar: float
+    W_drive: float
+    E_loss: float
+    E_added: float
+
+
+def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
+    """All outputs for the state s and inputs u (those `ledger_terms` computed with them at the
+    end of the step, if it did)."""
+    kept = p._kept_outputs[0]
+    if kept[0] is not s or kept[1] is not u:
+        ledger_terms(p, u, s)
+        kept = p._kept_outputs[0]
+    return kept[2]

@@ -1,0 +1,52 @@
+"""FMI 2.0 Co-Simulation slave of Ciupitu's rocking counterweight
+(README.md).
+
+A thin layer over `fmu_src.mechanisms.rocking_counterweight.physics`: it maps FMI variables to
+the physics, applies the payload events at communication points and integrates the physics over
+each communication step. """
+
+from __future__ import annotations
+
+from typing import Any
+
+from fmu_src.mechanisms.payload_arm import ARM_OUTPUTS, PayloadArmSlave, payload_arm
+from fmu_src.mechanisms.rocking_counterweight import physics
+
+OUTPUTS = (
+    ARM_OUTPUTS["theta"],
+    ARM_OUTPUTS["omega"],
+    ("tau_gravity", "N.m", "Gravity torque on the arm about O along theta, -dE_p/dtheta "
+                           "= -M_u when the fixed counterweight balances m c"),
+    ARM_OUTPUTS["E_p"],
+    ARM_OUTPUTS["E_kin"],
+    ARM_OUTPUTS["M_g"],
+    ("M_b", "N.m", "Moment of the rocking counterweight and its bars about O, -m2 g dY_cw/dphi "
+                   "(paper's sign)"),
+    ARM_OUTPUTS["M_u"],
+    ("X_cw", "m", "Counterweight position, horizontal towards the payload's side (the paper's "
+                  "X = -x)"),
+    ("Y_cw", "m", "Counterweight height above O"),
+    ("psi", "rad", "Angle of the counterweight bar (A -> B) from the arm, counter-clockwise in "
+                   "the paper's frame"),
+    ARM_OUTPUTS["W_drive"],
+    ARM_OUTPUTS["E_loss"],
+    ARM_OUTPUTS["E_added"],
+)
+
+
+class RockingCounterweightBalancer(PayloadArmSlave):
+    """1-DOF arm balanced by a counterweight on a bar pivoted on the arm and tied to the
+    ground by a second bar (Ciupitu 2018, Figure 4b), plus a fixed counterweight."""
+
+    physics = physics
+    output_table = OUTPUTS
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Passive rocking counterweight balancer (Ciupitu 2018, Figure 4b): "
+                            "1-DOF arm, counterweight on a bar pivoted on the arm, tied to a "
+                            "ground pivot by a second bar")
+
+
+REGISTRATION = payload_arm(
+    physics, ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi"))

@@ -1,0 +1,194 @@
+"""FMI 2.0 Co-Simulation slave of the self-regulating spring balancer (README.md).
+
+A thin layer over `fmu_src.mechanisms.self_regulating.physics`: it maps FMI variables to the
+physics, integrates it over each communication step, and reports misuse through the FMU log. """
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from pythonfmu.default_experiment import DefaultExperiment
+
+from fmu_src.fmi.mechanism_slave import MechanismSlave
+from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
+from fmu_src.mechanisms.self_regulating import design, physics
+from fmu_src.parameters import DomainError
+
+# How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
+REGULATION_ANGLE_TOLERANCE = 0.5 * physics.DEG
+# RMS residual torque over a full turn, as a fraction of the link's gravity moment
+# (m c + payload w) g, above which a finished regulation warns that the design cannot balance.
+BALANCE_TOLERANCE = 0.01
+
+
+class SelfRegulatingBalancer(MechanismSlave):
+    """1-DOF link balanced by a zero-free-length spring on a lockable slider, regulated by
+    a pulley-counterweight (Franchetti et al. 2021)."""
+
+    physics = physics
+    hidden_state = ("state", "previous_inputs", "stop_reported", "off_angle_reported")
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=35.0, step_size=1e-3)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Self-regulating gravity balancer (Franchetti, Boschetti, Lenzo "
+                            "2021): 1-DOF link, zero-free-length spring on a lockable slider, "
+                            "pulley-counterweight regulation")
+        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at "
+                                      "b_design at theta = pi: eq. 10 for an ideal spring, a "
+                                      "massless slider and a balancing b0")
+        self.add_calculated_parameter("b_design", "m", "Slider position M0 holds at theta = "
+                                      "pi: least mean-square residual torque over a full turn "
+                                      "and the payload range once regulated (b0 for Table 1)")
+        self.add_calculated_parameter("payload_max", "kg", "Payload capacity: regulation at "
+                                      "theta = pi keeps the slider within b_max (eq. 16 for "
+                                      "Table 1)")
+        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
+        self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's delta m)",
+                       min=0.0)
+        self.add_input("counterweight_added", 0.0, "kg",
+                       "Mass added to the counterweight M0 (same as the payload when regulating)")
+        self.add_input("slider_locked", True, None, "Slider clamped to the link (db/dt = 0)")
+        self.add_input("pulley_locked", True, None,
+                       "Pulley locked to the frame: counterweight idle, slider wire unloaded")
+        for name, unit, description in OUTPUTS:
+            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
+        self.stop_reported = False
+        self.off_angle_reported = False     # once per regulation (slider and pulley free)
+
+    def initialise(self, params: physics.Parameters) -> None:
+        self.M0 = params.M0
+        self.b_design = params.b_design
+        self.payload_max = params.payload_max
+        self.stop_reported = self.off_angle_reported = False
+        super().initialise(params)
+
+    def step(self, dt: float) -> None:
+        p, u = self.params, self.inputs()
+        if u.counterweight_added < -p.M0:
+            raise DomainError(f"input counterweight_added = {u.counterweight_added} kg is "
+                             f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
+        self.step_with(u, dt)
+        at_stop = self.output_values.slider_at_stop
+        if at_stop and not self.stop_reported:
+            stop = "b_min" if self.state.b <= p.b_min else "b_max"
+            self.warn(f"slider reached its end stop {stop} = {self.state.b:.4f} m: "
+                      f"balance_error = {self.output_values.balance_error:.4g} N m")
+        self.stop_reported = at_stop
+
+    def switch_inputs(self, u: physics.Inputs) -> None:
+        self.report_misuse(self.params, u)
+        super().switch_inputs(u)
+
+    def report_misuse(self, p: physics.Parameters, u: physics.Inputs) -> None:
+        """Warn, at the communication point where inputs change, about misuse the model allows."""
+        before = self.previous_inputs
+        released = before.slider_locked and not u.slider_locked
+        if released and u.pulley_locked:
+            self.warn("slider released with the pulley locked: nothing holds it against the "
+                      f"spring, which pulls it towards b_min = {p.b_min} m")
+        regulating = not u.slider_locked and not u.pulley_locked
+        if not regulating:
+            self.off_angle_reported = False
+        elif not self.off_angle_reported:
+            theta = self.state.theta
+            off = abs(math.remainder(theta - math.pi, 2.0 * math.pi))
+            if off > REGULATION_ANGLE_TOLERANCE:
+                b_end = physics.regulated_slider_position(p, u, theta)
+                self.warn(f"regulating at theta = {math.degrees(theta):.2f} deg instead of 180 "
+                          f"deg: the slider settles away from the balancing position (at "
+                          f"b = {b_end:.4f} m for payload = {u.payload} kg)")
+                self.off_angle_reported = True
+        if regulating and u.payload > p.payload_max >= before.payload:
+            self.warn(f"payload = {u.payload} kg exceeds payload_max = {p.payload_max:.4f} kg: "
+                      "the slider will stop at b_max")
+        if not before.slider_locked and u.slider_locked and not before.pulley_locked:
+            self.check_balance(p, u.payload)
+        if u.counterweight_added != before.counterweight_added and u.pulley_locked:
+            self.warn("counterweight_added changed with the pulley locked: it acts only once "
+                      "the pulley is released")
+
+    def check_balance(self, p: physics.Parameters, payload: float) -> None:
+        """Warn when the slider, just locked after a regulation, leaves the link unbalanced
+        beyond BALANCE_TOLERANCE, naming the best position (and whether even that leaves
+        more) and the counterweight that reaches it."""
+        b = self.state.b
+        residual = design.residual_torque_rms(p, payload, b)
+        moment = (p.m * p.c + payload * p.w) * p.g
+        if residual <= BALANCE_TOLERANCE * moment:
+            return
+        best = design.balancing_slider_position(p, payload)
+        least = design.residual_torque_rms(p, payload, best)
+        where = (f"the design cannot balance it: the least, {least:.3g} N m RMS, is at "
+                 f"b = {best:.4f} m" if least > BALANCE_TOLERANCE * moment
+                 else f"it balances at b = {best:.4f} m")
+        self.warn(f"regulation left the link unbalanced with payload = {payload} kg: the "
+                  f"slider was locked at b = {b:.4f} m, where the residual torque is "
+                  f"{residual:.3g} N m RMS over a full turn ({100 * residual / moment:.1f} % "
+                  f"of the gravity moment); {where} (regulation at 180 deg reaches it with "
+                  f"counterweight_added = {design.counterweight_for(p, best):.4f} kg)")
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        super().restore_hidden_state(hidden)
+        self.stop_reported = bool(hidden["stop_reported"])
+        self.off_angle_reported = bool(hidden["off_angle_reported"])
+
+
+OUTPUTS = (
+    ("theta", "rad", "Link angle from the upward vertical, counter-clockwise positive"),
+    ("omega", "rad/s", "Link angular velocity"),
+    ("b", "m", "Slider position along the link (O to B)"),
+    ("delta_b", "m", "Slider displacement from b0"),
+    ("x", "m", "Spring length A-B (eq. 4)"),
+    ("F_t", "N", "Spring force on the slider along the link, towards O"),
+    ("F_n", "N", "Spring force on the slider normal to the link"),
+    ("tau_gravity", "N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta"),
+    ("balance_error", "N.m", "(m c + payload w + m_slider b) g - k a b; 0 when balanced"),
+    ("E_p", "J", "Gravitational potential energy of link, payload and slider"),
+    ("E_e", "J", "Elastic energy of the spring"),
+    ("E_t", "J", "Total potential energy E_p + E_e"),
+    ("E_cw", "J", "Potential energy of the counterweight relative to its start"),
+    ("E_kin", "J", "Kinetic energy of link, payload, drive rotor, slider and counterweight"),
+    ("slider_at_stop", None, "Free slider resting on an end stop (b_min or b_max)"),
+    ("W_drive", "J", "Cumulative work of tau_drive on the link"),
+    ("E_loss", "J", "Cumulative energy dissipated: dampers, end-stop impacts, lock events, "
+                    "masses picked up while moving"),
+    ("E_added", "J", "Cumulative energy brought in (+) or taken out (-) by payload and "
+                     "counterweight mass joining or leaving; E_t + E_cw + E_kin + E_loss - "
+                     "W_drive - E_added is constant"),
+)
+# The inputs each output depends on directly (`physics.outputs`), its ModelStructure
+# dependencies; an output not listed is a function of the state alone.
+INPUT_DEPENDENCIES = {
+    "tau_gravity": ("payload",),
+    "balance_error": ("payload",),
+    "E_p": ("payload",),
+    "E_t": ("payload",),
+    "E_cw": ("counterweight_added",),
+    # the slider's effective mass includes the counterweight's while slider and pulley are free
+    "E_kin": ("payload", "counterweight_added", "slider_locked", "pulley_locked"),
+    "slider_at_stop": ("slider_locked",),
+}
+
+
+REGISTRATION = Registration(
+    physics=physics,
+    ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
+    ledger={"E_t": 1, "E_cw": 1, "E_kin": 1, "E_loss": 1, "W_drive": -1, "E_added": -1},
+    reference_run=rest_to_rest_move(
+        {"tau_drive": (0.1, "N m")},
+        {"payload": 0.0, "counterweight_added": 0.0, "slider_locked": 1.0, "pulley_locked": 1.0},
+        ("theta", "omega", "b", "tau_gravity", "balance_error", "E_p", "E_e", "E_t", "E_kin",
+         "slider_at_stop"), "; no payload, slider and pulley locked"),
+    moving_run=Run({"k": 0.0}, duration=2.0),  # unbalanced link swinging from 60 deg
+    dependency_probes=(
+        # regulating away from theta = pi with the link driven: link, slider and
+        # counterweight move (E_kin and E_cw feel the counterweight and the locks)
+        Run({}, {"tau_drive": 2.0, "payload": 0.5, "counterweight_added": 0.8,
+                 "slider_locked": False, "pulley_locked": False}, 0.3),
+        # slider released with the pulley locked at theta = pi: the spring pulls it onto b_min
+        Run({"theta0": math.pi}, {"tau_drive": 1.0, "slider_locked": False}, 1.0),
+    ),
+    initial_parameters={"omega0": 0.5},
+)

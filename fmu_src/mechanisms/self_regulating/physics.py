@@ -1,0 +1,787 @@
+"""Physics of the self-regulating spring balancer (Franchetti, Boschetti, Lenzo 2021).
+
+Pure model, standard library only: no FMI and no I/O. It is shared by the FMU slave
+`SelfRegulatingBalancer`, the harness and the tests. Conventions are those of
+docs/conventions.md: theta from the upward vertical, counter-clockwise positive, unit vector along
+the link e = (-sin theta, cos theta), gravity along -y.
+
+Generalised coordinates: the link angle theta and the slider position b along the link.
+The counterweight hangs from the pulley of radius R; while the pulley turns it moves
+(R/r) times the slider travel, so its descent s_cw is a state too (it carries E_cw).
+
+Lagrangian, with J0 = J_link + payload w^2 + J_drive and M_cw = M0 + counterweight_added:
+
+    T = 1/2 (J0 + m_slider b^2) omega^2 + 1/2 (m_slider + M_cw (R/r)^2 [pulley free]) v^2
+    V = (m c + payload w + m_slider b) g cos(theta) + 1/2 k (x - L0)^2 - M_cw g s_cw
+
+    (J0 + m_slider b^2) omega' = tau_drive + tau_gravity - d_link omega - 2 m_slider b v omega
+    m_eff v' = m_slider b omega^2 - m_slider g cos(theta) - F_t + T_wire - d_slider v
+
+with T_wire = M_cw g R / r while the pulley turns (0 when it is locked). A massless slider
+with the pulley locked (m_eff = 0) has first-order dynamics d_slider v = F_net.
+
+Energy ledger (docs/energy_ledger.md): W_drive (work of tau_drive) and E_loss (dampers, end
+stops, lock events, masses picked up while moving) are states, E_added (energy that masses
+bring in or take out as they join or leave) changes at input events only, so that
+E_t + E_cw + E_kin + E_loss - W_drive - E_added is constant. Inputs change only at
+communication points; `switch_inputs` maps the state across such a change (momentum
+conserved where the bodies couple or decouple), `advance` integrates between them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import cached_property, partial
+from typing import NamedTuple
+
+from fmu_src.integration import (
+    first_substeps,
+    integrate_substeps,
+    ledger_accuracy,
+    ledger_controlled,
+    substeps,
+)
+from fmu_src.mechanisms.self_regulating.design import (
+    _free_length_factor,
+    _wire_pull,
+    design_slider_position,
+    gravity_moment,
+    spring_length,
+)
+from fmu_src.parameters import DomainError, check_ranges, parameter
+
+DEG = math.pi / 180.0
+_new = tuple.__new__  # a NamedTuple from a tuple of its fields, without a Python call
+# A free slider starts every lock event with a jump in its acceleration, which RK4 at the
+# shared step-rate product resolves to ~1e-9 J of the energy ledger per event; sub-steps four
+# times finer on the slider's rates keep it near 1e-11 J (the link's own rate is unchanged).
+SLIDER_RATE_FACTOR = 4.0
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of the mechanism; defaults are the paper's Table 1 plus our documented choices.
+
+    Not in the paper (ours): J_link = m L^2 / 3 with L = 2 c = 0.4 m (uniform rod about O),
+    m_slider = 0, L0 = 0 (ideal spring), b_min = 0 (slider at the pivot), b_max = w (eq. 15),
+    d_link = 0.01 N m s/rad (small bearing friction), d_slider = 500 N s/m (near critical:
+    2 sqrt(k M0 (R/r)^2) = 469 N s/m with no payload, 517 N s/m with 1 kg added).
+    """
+
+    m: float = parameter(3.0, "kg", "Link mass", min=0.0)
+    c: float = parameter(0.2, "m", "Distance from pivot O to the link centre of mass C", min=0.0)
+    J_link: float = parameter(0.16, "kg.m2", "Link moment of inertia about O (m L^2/3, L = 0.4 m)",
+                              min=0.0, min_exclusive=True)
+    a: float = parameter(0.1, "m", "Distance from O to the frame spring anchor A", min=0.0,
+                         min_exclusive=True)
+    b0: float = parameter(0.06, "m", "Initial slider position along the link (O to B)", min=0.0)
+    w: float = parameter(0.35, "m", "Distance from O to the payload W", min=0.0, min_exclusive=True)
+    k: float = parameter(981.0, "N/m", "Spring stiffness", min=0.0)
+    L0: float = parameter(0.0, "m", "Spring free length (0: ideal zero-free-length spring)",
+                          min=0.0)
+    R: float = parameter(0.035, "m", "Radius of the pulley carrying the counterweight", min=0.0,
+                         min_exclusive=True)
+    r: float = parameter(0.01, "m", "Radius of the pulley carrying the slider wire", min=0.0,
+                         min_exclusive=True)
+    m_slider: float = parameter(0.0, "kg", "Slider mass", min=0.0)
+    b_min: float = parameter(0.0, "m", "Inner end stop of the slider", min=0.0)
+    b_max: float = parameter(0.35, "m", "Outer end stop of the slider (default w, eq. 15)", min=0.0)
+    d_link: float = parameter(0.01, "N.m.s/rad", "Viscous friction at the pivot", min=0.0)
+    d_slider: float = parameter(500.0, "N.s/m", "Viscous damping of the slider on the link",
+                                min=0.0)
+    mu_slider: float = parameter(0.0, "1", "Coulomb friction coefficient of the slider on the "
+                                 "link (normal force from the spring's F_n and the slider's "
+                                 "weight)", min=0.0)
+    J_pulley: float = parameter(0.0, "kg.m2", "Moment of inertia of the compound pulley",
+                                min=0.0)
+    d_pulley: float = parameter(0.0, "N.m.s/rad", "Viscous friction of the pulley's bearing",
+                                min=0.0)
+    g: float = parameter(9.81, "m/s2", "Gravitational acceleration", min=0.0,
+                         min_exclusive=True)
+    theta0: float = parameter(60.0 * DEG, "rad", "Initial link angle from the upward vertical")
+    omega0: float = parameter(0.0, "rad/s", "Initial link angular velocity")
+    J_drive: float = parameter(0.0, "kg.m2", "Drive inertia reflected to the link (J_rotor N^2)",
+                               min=0.0)
+    paper_design: bool = parameter(
+        False, None, "M0 and payload_max from eqs. 10 and 16 as printed (ideal spring, massless "
+        "slider), whatever L0 and m_slider: the paper's design, for comparison")
+    ledger_accuracy: float = ledger_accuracy()
+
+    @cached_property
+    def b_design(self) -> float:
+        """Slider position M0 holds at theta = pi: design_slider_position (b0 for Table 1,
+        eq. 2), or where eq. 10's M0 holds it with paper_design [m]."""
+        if self.paper_design:
+            return self.M0 * self.g * self.R / (self.r * self.k) - self.a + self.L0 + (
+                self.m_slider * self.g / self.k) if self.k > 0.0 else self.b0
+        return design_slider_position(self)
+
+    @cached_property
+    def M0(self) -> float:
+        """Counterweight mass that holds the slider at b_design with theta = pi [kg]:
+        (k (a + b_design - L0) - m_slider g) r / (g R), eq. 10 when L0 = m_slider = 0 and
+        b0 balances the link (0 if the spring cannot hold the slider's weight there)."""
+        if self.g <= 0:
+            return 0.0
+        if self.paper_design:
+            return self.k * (self.a + self.b0) * self.r / (self.g * self.R)
+        return max(_wire_pull(self, self.b_design), 0.0) * self.r / (self.g * self.R)
+
+    @cached_property
+    def payload_max(self) -> float:
+        """Largest payload whose regulation at theta = pi (the same mass added to the
+        counterweight) keeps the slider within b_max: k r (b_max - b_design) / (g R) [kg].
+        Eq. 16 when R/r = w/a, b_max = w and b_design = b0 (at theta = pi the spring force
+        grows by k per metre of slider travel, whatever L0)."""
+        if self.g <= 0:
+            return math.inf
+        if self.paper_design:
+            return self.k * self.a * (self.w - self.b0) / (self.w * self.g)
+        return self.k * (self.b_max - self.b_design) * self.r / (self.g * self.R)
+
+    @cached_property
+    def pulley_ratio(self) -> float:
+        """Counterweight travel per unit slider travel, R/r (design value w/a, eq. 13)."""
+        return self.R / self.r
+
+    @cached_property
+    def _link_memo(self) -> list:
+        """[((payload, b), _link_terms)] * 2: the last two link terms computed with these
+        parameters, the latest first (a locked slider and a held payload repeat them at every
+        step; a payload event reads them before and after it)."""
+        return [((math.nan, math.nan), ())] * 2
+
+    @cached_property
+    def _kept_outputs(self) -> list:
+        """[(state, inputs, outputs)]: the outputs `ledger_terms` computed last with these
+        parameters, for `outputs` of the very same state and inputs objects (the end of a
+        step: the ledger's control evaluates it, then the slave reads its outputs)."""
+        return [(None, None, None)]
+
+
+def validate(params: Parameters) -> None:
+    """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
+    check_ranges(params)
+    if not params.b_min < params.b_max:
+        raise ValueError(f"b_min = {params.b_min} m must be below b_max = {params.b_max} m")
+    if not params.b_min <= params.b0 <= params.b_max:
+        raise ValueError(f"b0 = {params.b0} m is outside [b_min, b_max] = "
+                         f"[{params.b_min}, {params.b_max}] m")
+
+
+class Inputs(NamedTuple):
+    """Inputs held constant over a communication step."""
+
+    tau_drive: float = 0.0          # N m, drive torque on the link
+    payload: float = 0.0            # kg, payload at distance w
+    counterweight_added: float = 0.0  # kg, mass added to the counterweight M0
+    slider_locked: bool = True
+    pulley_locked: bool = True
+
+
+# inputs whose change at a communication point is an event (switch_inputs)
+EVENT_INPUTS = ("payload", "counterweight_added", "slider_locked", "pulley_locked")
+
+
+class State(NamedTuple):
+    """Continuous state: link angle and speed, slider position and speed, counterweight descent,
+    and the energy ledger [J]."""
+
+    theta: float
+    omega: float
+    b: float
+    v: float
+    s_cw: float = 0.0
+    W_drive: float = 0.0    # work of tau_drive on the link
+    E_loss: float = 0.0     # dissipated: dampers, end-stop impacts, lock events, pick-ups
+    E_added: float = 0.0    # brought in (+) or taken out (-) by masses joining or leaving
+
+
+def initial_state(params: Parameters) -> State:
+    """State at t = 0: link at theta0, omega0, slider at rest at b0, empty ledger."""
+    return State(params.theta0, params.omega0, params.b0, 0.0)
+
+
+
+def wire_tension(p: Parameters, u: Inputs) -> float:
+    """Pull of the counterweight wire on the slider, outward along the link [N]."""
+    if u.pulley_locked:
+        return 0.0
+    return (p.M0 + u.counterweight_added) * p.g * p.pulley_ratio
+
+
+def slider_mass(p: Parameters, u: Inputs) -> float:
+    """Effective mass of the slider, with the counterweight and the pulley reflected through
+    the pulley (it turns at v / r) [kg]."""
+    if u.pulley_locked:
+        return p.m_slider
+    return (p.m_slider + (p.M0 + u.counterweight_added) * p.pulley_ratio ** 2
+            + p.J_pulley / (p.r * p.r))
+
+
+def _free_slider_inertia(p: Parameters, u: Inputs) -> tuple[float, float]:
+    """(slider_mass, slider_damping) of the released slider; DomainError naming m_slider and
+    d_slider when both vanish, since nothing then determines its motion."""
+    m_eff, damping = slider_mass(p, u), slider_damping(p, u)
+    if m_eff == 0.0 and damping == 0.0:
+        raise DomainError(
+            f"the released slider has neither mass nor damping (m_slider = {p.m_slider} "
+            f"kg{' with the pulley locked' if u.pulley_locked else ''}, d_slider = "
+            f"{p.d_slider} N.s/m): its motion is undefined; set m_slider > 0 or d_slider > 0")
+    return m_eff, damping
+
+
+def slider_damping(p: Parameters, u: Inputs) -> float:
+    """Viscous damping of the slider, with the pulley's bearing reflected while it turns
+    [N s/m]."""
+    return p.d_slider if u.pulley_locked else p.d_slider + p.d_pulley / (p.r * p.r)
+
+
+def slider_friction(p: Parameters, theta: float, factor: float) -> float:
+    """Coulomb friction force limit mu_slider |F_n - m_slider g sin(theta)| on the slider [N]
+    (the spring's and the weight's components normal to the link); factor is
+    _free_length_factor(p, theta, b)."""
+    if p.mu_slider == 0.0:
+        return 0.0
+    return p.mu_slider * abs((p.k * p.a * factor - p.m_slider * p.g) * math.sin(theta))
+
+
+def link_inertia(p: Parameters, payload: float, b: float) -> float:
+    """J = J_link + payload w^2 + m_slider b^2 + J_drive [kg m^2]."""
+    return p.J_link + payload * p.w * p.w + p.m_slider * b * b + p.J_drive
+
+
+def _slider_force(p: Parameters, theta: float, omega: float, b: float, v: float,
+                  factor: float, pull: float, damping: float) -> float:
+    """Net force along the link on the slider, outward positive, excluding its inertia [N].
+
+    factor is _free_length_factor(p, theta, b), pull wire_tension(p, u) and damping
+    slider_damping(p, u) (constant while the inputs are held).
+    """
+    spring = p.k * (b - p.a * math.cos(theta)) * factor
+    return p.m_slider * (b * omega * omega - p.g * math.cos(theta)) - spring + pull - damping * v
+
+
+def _at_stop(p: Parameters, b: float, push: float) -> bool:
+    """True when the slider rests exactly on an end stop and the load pushes it into that stop.
+
+    A state beyond a stop (inside an RK4 sub-step) is integrated freely and clamped after the
+    sub-step: holding it there would mix two right-hand sides in one RK4 step and spoil the
+    energy balance."""
+    return (b == p.b_min and push <= 0.0) or (b == p.b_max and push >= 0.0)
+
+
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
+    """Time derivative of the state (see _derivatives) as a State."""
+    return State._make(_derivatives(p, u, s, rates))
+
+
+def _derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                 slip: float | None = None) -> tuple[float, ...]:
+    """Time derivative of the state, in State's field order, for inputs u that are constant
+    or, for a continuous-time model such as the harness's reference, change at `rates`
+    (d/dt of the Real inputs; masses then join and leave continuously, see _mass_flow).
+    `slip` fixes the slider's friction state for a whole RK4 sub-step (0: stuck, +1 or -1:
+    sliding out or in; see advance); None decides it from s."""
+    d = _state_rates(p, u, slip)(s)
+    return d if rates is None else _mass_flow(p, u, rates, s, d)
+
+
+def _state_rates(p: Parameters, u: Inputs, slip: float | None = None
+                 ) -> Callable[[Sequence[float]], tuple[float, ...]]:
+    """The time derivative of the state as a function of the state (read by position; a
+    plain tuple in State's field order) for inputs u held and the friction state slip (see
+    _derivatives), built on _slider_rates."""
+    tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
+    rates = _slider_rates(p, u, slip)
+
+    def state_rates(s: Sequence[float]) -> tuple[float, ...]:
+        theta, omega, b, v = s[:4]
+        omega_dot, b_dot, v_dot, loss = rates(theta, omega, b, v)
+        return (omega, omega_dot, b_dot, v_dot, 0.0 if pulley_locked else cw_ratio * b_dot,
+                tau * omega, loss, 0.0)
+    return state_rates
+
+
+def _slider_rates(p: Parameters, u: Inputs, slip: float | None = None
+                  ) -> Callable[[float, float, float, float], tuple[float, float, float, float]]:
+    """(omega', b', v', E_loss') as a function of theta, omega, b and v for inputs u held and
+    the friction state slip (see _derivatives); the other rates follow from these: theta' =
+    omega, s_cw' = (R/r) b' while the pulley turns, W_drive' = tau_drive omega, E_added' = 0.
+    The terms constant while the inputs are held are computed once, for the RK4 stages of a
+    whole step."""
+    tau, payload, _, slider_locked, _ = u
+    moment_base = p.m * p.c + payload * p.w      # gravity_moment less m_slider b, times g
+    inertia_base = p.J_link + payload * p.w * p.w  # link_inertia less m_slider b^2 + J_drive
+    g, k_a, d_link, m_slider, J_drive = p.g, p.k * p.a, p.d_link, p.m_slider, p.J_drive
+    coriolis_factor = 2.0 * m_slider
+    real_spring = p.L0 > 0.0
+    if not slider_locked:
+        (m_eff, damping), pull = _free_slider_inertia(p, u), wire_tension(p, u)
+        no_friction = p.mu_slider == 0.0
+    fixed_slip = slip
+
+    def slider_rates(theta: float, omega: float, b: float, v: float
+                     ) -> tuple[float, float, float, float]:
+        sin_t = math.sin(theta)
+        factor = _free_length_factor(p, theta, b) if real_spring else 1.0
+        # the link's angular acceleration with the slider at b moving at v along it
+        spring_torque = k_a * b * sin_t * factor
+        coriolis = coriolis_factor * b * v * omega
+        omega_dot = (tau + (moment_base + m_slider * b) * g * sin_t - spring_torque
+                     - d_link * omega - coriolis) / (inertia_base + m_slider * b * b + J_drive)
+        link_loss = d_link * omega * omega
+        if slider_locked:
+            return omega_dot, 0.0, 0.0, link_loss
+        force = _slider_force(p, theta, omega, b, v, factor, pull, damping)
+        friction = 0.0 if no_friction else slider_friction(p, theta, factor)
+        if m_eff > 0.0:
+            if fixed_slip is not None:
+                slip = fixed_slip
+            elif v != 0.0:
+                slip = math.copysign(1.0, v)  # _slip's answer for a moving slider, no call
+            else:
+                slip = _slip(p, b, v, force, friction)
+            if slip == 0.0 or (v == 0.0 and _at_stop(p, b, force)):  # stuck or held by a stop
+                return omega_dot, 0.0, 0.0, link_loss
+            b_dot = v
+            v_dot = (force - slip * friction) / m_eff
+            rubbing = slip * friction * v  # power of the friction force -slip friction
+        else:
+            # Massless slider: damping v = F_spring + T - friction (v eliminated, an output).
+            b_dot = _creep_speed(force + damping * v, friction, damping)
+            if _at_stop(p, b, b_dot):
+                b_dot = 0.0
+            v_dot = 0.0
+            rubbing = friction * abs(b_dot)
+        return omega_dot, b_dot, v_dot, link_loss + damping * b_dot * b_dot + rubbing
+    return slider_rates
+
+
+def _slip(p: Parameters, b: float, v: float, force: float, friction: float) -> float:
+    """Friction state of a slider with mass at speed v under the net force [N]: 0 when it
+    sticks (at rest, the force within the friction limit or into a stop), else the direction
+    it slides in."""
+    if v != 0.0:
+        return math.copysign(1.0, v)
+    if abs(force) <= friction or _at_stop(p, b, force):
+        return 0.0
+    return math.copysign(1.0, force)
+
+
+def _creep_speed(pull: float, friction: float, damping: float) -> float:
+    """Speed of a massless slider under the net pull [N] (damper excluded) against Coulomb
+    friction up to `friction` [N] and viscous damping [N s/m]: 0 while it sticks."""
+    if abs(pull) <= friction:
+        return 0.0
+    return (pull - math.copysign(friction, pull)) / damping
+
+
+def _mass_flow(p: Parameters, u: Inputs, rates: Inputs, s: State, d: tuple[float, ...]
+               ) -> tuple[float, ...]:
+    """d with the continuous-time limit of switch_inputs for masses changing at `rates`:
+    payload joining from rest brakes the link, J omega' gains -payload_rate w^2 omega, and
+    costs 1/2 payload_rate w^2 omega^2 of E_loss; leaving, it takes its kinetic energy
+    (E_added); likewise counterweight mass joining or leaving the moving counterweight."""
+    theta, omega, b, v, s_cw = s[:5]
+    gain, drop = max(rates.payload, 0.0), min(rates.payload, 0.0)
+    omega_dot = d[1] - gain * p.w * p.w * omega / link_inertia(p, u.payload, b)
+    loss = 0.5 * gain * (p.w * omega) ** 2
+    added = rates.payload * p.g * p.w * math.cos(theta) + 0.5 * drop * (p.w * omega) ** 2
+    added -= rates.counterweight_added * p.g * s_cw
+    v_dot = d[3]
+    m_eff = slider_mass(p, u)
+    if not (u.slider_locked or u.pulley_locked) and m_eff > 0.0 and d[2] != 0.0:
+        reflected = p.pulley_ratio ** 2 * v * v
+        gain_cw = max(rates.counterweight_added, 0.0)
+        v_dot -= gain_cw * p.pulley_ratio ** 2 * v / m_eff
+        loss += 0.5 * gain_cw * reflected
+        added += 0.5 * min(rates.counterweight_added, 0.0) * reflected
+    return (d[0], omega_dot, d[2], v_dot, d[4], d[5], d[6] + loss, added)
+
+
+def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, ...]:
+    """(gravity_moment [N m], link_inertia J [kg m^2], the spring's moment amplitude k a b
+    [N m], the fastest rate of the link's own dynamics but for its speed [1/s], and the
+    outputs' terms balance_error = gravity_moment - k a b [N m], delta_b = b - b0 [m],
+    a^2 + b^2 and 2 a b [m^2] of the spring length) with the slider at b: constant while the
+    slider is locked and the payload held, so the last ones are kept with the parameters and
+    reused (the same numbers as computed afresh)."""
+    memo = p._link_memo
+    key, terms = memo[0]
+    if key[0] == payload and key[1] == b:
+        return terms
+    key, terms = memo[1]
+    if key[0] == payload and key[1] == b:
+        return terms
+    moment, J = gravity_moment(p, payload, b), link_inertia(p, payload, b)
+    stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
+    spring = p.k * p.a * b
+    terms = (moment, J, spring, max(math.sqrt(stiffness / J), p.d_link / J),
+             # outputs' terms of the slider position alone
+             moment - spring, b - p.b0, p.a * p.a + b * b, 2.0 * p.a * b)
+    memo[1] = memo[0]
+    memo[0] = ((payload, b), terms)  # one assignment: key and terms change together
+    return terms
+
+
+def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
+    """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
+    # max(a, b) as `b if b > a else a` (the same value; the builtin's call costs more)
+    rate, speed = _link_terms(p, u.payload, s.b)[3], abs(s.omega)
+    rate = speed if speed > rate else rate
+    if not u.slider_locked:
+        m_eff, damping = _free_slider_inertia(p, u)
+        k_b = p.k + p.m_slider * s.omega ** 2
+        if m_eff > 0.0:
+            slider_rate, decay = math.sqrt(k_b / m_eff), damping / m_eff
+            slider_rate = decay if decay > slider_rate else slider_rate
+        else:
+            slider_rate = k_b / damping
+        slider_rate *= SLIDER_RATE_FACTOR
+        rate = slider_rate if slider_rate > rate else rate
+    return rate
+
+
+def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
+    """E_t + E_cw + E_kin [J] (as `outputs` reports them)."""
+    return _mechanical_energy(p, u, s, p.m_slider if u.slider_locked else slider_mass(p, u))
+
+
+def _mechanical_energy(p: Parameters, u: Inputs, s: State, mass: float) -> float:
+    """mechanical_energy with the slider's effective mass [kg] known."""
+    E_p, E_e, E_cw, E_link, E_slider = _mechanical_energies(p, u, s, mass)
+    return E_p + E_e + E_cw + E_link + E_slider
+
+
+def _mechanical_energies(p: Parameters, u: Inputs, s: State, mass: float
+                         ) -> tuple[float, float, float, float, float]:
+    """The link's potential, the spring's, the counterweight's and the kinetic energies of
+    link and slider [J], for the slider's effective mass [kg]."""
+    theta, omega, b, v, s_cw = s[:5]
+    moment, J = _link_terms(p, u.payload, b)[:2]
+    return (moment * math.cos(theta), 0.5 * p.k * (spring_length(p, theta, b) - p.L0) ** 2,
+            -(p.M0 + u.counterweight_added) * p.g * s_cw, 0.5 * J * omega ** 2,
+            0.5 * mass * v * v)
+
+
+def _controlled(p: Parameters, u: Inputs, s: State, dt: float, run: Callable[[int], State],
+                n: int) -> State:
+    """run(n), the step of dt [s] from s with n sub-steps, under the ledger's control (its
+    event inputs u[1:], EVENT_INPUTS in field order)."""
+    return ledger_controlled(run, partial(ledger_terms, p, u), (5,), s, n, dt, p, u[1:])
+
+
+def _damper_speed(p: Parameters, u: Inputs, s: State) -> float:
+    """Speed of a free massless slider with the pulley locked, set by the forces [m/s]."""
+    factor, damping = _free_length_factor(p, s.theta, s.b), _free_slider_inertia(p, u)[1]
+    v = _creep_speed(_slider_force(p, s.theta, s.omega, s.b, 0.0, factor, wire_tension(p, u),
+                                   damping),
+                     slider_friction(p, s.theta, factor), damping)
+    return 0.0 if _at_stop(p, s.b, v) else v
+
+
+def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
+    """Clamp the free slider to its end stops (inelastic: the energy the clamp removes goes to
+    E_loss), moving the counterweight with it while the pulley turns."""
+    b, v = s.b, s.v
+    if p.b_min <= b <= p.b_max:
+        if slider_mass(p, u) == 0.0:
+            return s._replace(v=_damper_speed(p, u, s))
+        return s
+    stop = p.b_min if b < p.b_min else p.b_max
+    v = max(v, 0.0) if b < p.b_min else min(v, 0.0)
+    s_cw = s.s_cw if u.pulley_locked else s.s_cw + p.pulley_ratio * (stop - b)
+    clamped = s._replace(b=stop, v=v, s_cw=s_cw)
+    if slider_mass(p, u) == 0.0:
+        clamped = clamped._replace(v=_damper_speed(p, u, clamped))
+    loss = mechanical_energy(p, u, s) - mechanical_energy(p, u, clamped)
+    return clamped._replace(E_loss=s.E_loss + loss)
+
+
+def _advance_free_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """advance with the slider free."""
+    n = substeps(dt, characteristic_rate(p, u, s))
+    if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
+        return _controlled(p, u, s, dt, lambda m: _integrate_free_slider(p, u, s, dt, m), n)
+    return _controlled(p, u, s, dt, lambda m: _integrate_with_friction(p, u, s, dt, m), n)
+
+
+def _integrate_with_friction(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """A free slider with Coulomb friction over dt [s] in n sub-steps: the friction state is
+    decided at the start of each sub-step and held through it, so that RK4 sees one smooth
+    right-hand side (and the ledger stays exact)."""
+    slip = [_friction_state(p, u, s)]
+
+    def stick(state: State) -> State:
+        """_apply_constraints, then: a slider whose speed changed sign within a sub-step has
+        stopped in it, and sticks (v = 0, its kinetic energy to E_loss) until the pull
+        exceeds the friction limit."""
+        state = _apply_constraints(p, u, state)
+        if state.v * slip[0] < 0.0:
+            stuck = state._replace(v=0.0)
+            state = stuck._replace(E_loss=state.E_loss + mechanical_energy(p, u, state)
+                                   - mechanical_energy(p, u, stuck))
+        slip[0] = _friction_state(p, u, state)
+        return state
+
+    return integrate_substeps(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, n,
+                              stick)
+
+
+def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
+    """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
+    from the rate rule, raised until the energy ledger meets p.ledger_accuracy
+    (`integration.ledger_controlled`).
+
+    A clamped slider (the usual step) leaves a 1-DOF link: b and s_cw stay put and v = 0, so
+    RK4 runs over the link and its ledger alone (`_integrate_locked_slider`, `integrate_arm`'s
+    scheme), its angular acceleration written out in each stage, with the terms constant
+    over the step computed once (a call and a tuple per stage cost more than the link's
+    arithmetic). The same numbers, bit for bit (same operations in the same order), as
+    `integrate_substeps` over the full state with the derivatives of `_state_rates`.
+    """
+    if not u.slider_locked:
+        return _advance_free_slider(p, u, s, dt)
+    rate = _link_terms(p, u.payload, s.b)[3]
+    speed = abs(s.omega)
+    rate = speed if speed > rate else rate  # max(rate, speed), without the builtin's call
+    return _controlled(p, u, s, dt, lambda n: _integrate_locked_slider(p, u, s, dt, n),
+                       first_substeps(dt, rate))
+
+
+def _integrate_locked_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """The link with the slider clamped over dt [s] in n RK4 sub-steps (`advance`)."""
+    theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
+    tau, d = u.tau_drive, p.d_link
+    moment, J, spring = _link_terms(p, u.payload, b)[:3]
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    # the spring's moment is spring sin(theta) (1 - L0/x): the factor is exactly 1.0 for
+    # the ideal spring (and multiplying by 1.0 changes no number)
+    real_spring = p.L0 > 0.0
+    f1 = f2 = f3 = f4 = 1.0
+    for _ in range(n):
+        t2 = theta + half * omega
+        if real_spring:
+            f1, f2 = _free_length_factor(p, theta, b), _free_length_factor(p, t2, b)
+        s1 = math.sin(theta)
+        a1 = (tau + moment * s1 - spring * s1 * f1 - d * omega) / J
+        o2 = omega + half * a1
+        s2 = math.sin(t2)
+        a2 = (tau + moment * s2 - spring * s2 * f2 - d * o2) / J
+        o3 = omega + half * a2
+        t3 = theta + half * o2
+        if real_spring:
+            f3 = _free_length_factor(p, t3, b)
+        s3 = math.sin(t3)
+        a3 = (tau + moment * s3 - spring * s3 * f3 - d * o3) / J
+        o4 = omega + h * a3
+        t4 = theta + h * o3
+        if real_spring:
+            f4 = _free_length_factor(p, t4, b)
+        s4 = math.sin(t4)
+        a4 = (tau + moment * s4 - spring * s4 * f4 - d * o4) / J
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (d * omega * omega + 2.0 * (d * o2 * o2) + 2.0 * (d * o3 * o3)
+                           + d * o4 * o4)
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
+
+
+def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """`integrate_substeps` (n sub-steps over dt [s]) over the state with the derivatives of
+    `_state_rates` and `_apply_constraints` after each sub-step (a free slider with no
+    friction state to hold), bit for bit (same operations in the same order), with the RK4
+    stages kept in local floats: one call of `_slider_rates` per stage and no tuple per
+    stage, where the tuples, calls and the full-state arithmetic cost more than the
+    slider's own."""
+    rates = _slider_rates(p, u)
+    tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
+    b_min, b_max = p.b_min, p.b_max
+    massive = slider_mass(p, u) != 0.0  # _apply_constraints leaves it alone within the stops
+    theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    for _ in range(n):
+        a1, b1, v1, l1 = rates(theta, omega, b, v)
+        o2 = omega + half * a1
+        a2, b2, v2, l2 = rates(theta + half * omega, o2, b + half * b1, v + half * v1)
+        o3 = omega + half * a2
+        a3, b3, v3, l3 = rates(theta + half * o2, o3, b + half * b2, v + half * v2)
+        o4 = omega + h * a3
+        a4, b4, v4, l4 = rates(theta + h * o3, o4, b + h * b3, v + h * v3)
+        # rk4's sums for s_cw, whose rate is 0.0 while the pulley is locked, and E_added
+        # (rate 0.0): adding sixth times the zero sum is adding 0.0
+        if pulley_locked:
+            s_cw += 0.0
+        else:
+            s_cw += sixth * (cw_ratio * b1 + 2.0 * (cw_ratio * b2) + 2.0 * (cw_ratio * b3)
+                             + cw_ratio * b4)
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+        E_added += 0.0
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        b += sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        v += sixth * (v1 + 2.0 * v2 + 2.0 * v3 + v4)
+        if not (massive and b_min <= b <= b_max):
+            theta, omega, b, v, s_cw, W_drive, E_loss, E_added = _apply_constraints(
+                p, u, _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added)))
+    return _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added))
+
+
+def _friction_state(p: Parameters, u: Inputs, s: State) -> float:
+    """_slip of the free slider in state s."""
+    factor = _free_length_factor(p, s.theta, s.b)
+    force = _slider_force(p, s.theta, s.omega, s.b, s.v, factor, wire_tension(p, u),
+                          slider_damping(p, u))
+    return _slip(p, s.b, s.v, force, slider_friction(p, s.theta, factor))
+
+
+def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
+    """The state just after the inputs change from `before` to `after` at a communication point.
+
+    Event physics (docs/energy_ledger.md), in this order:
+    - payload added: picked up from rest, the link's angular momentum J omega is conserved;
+      payload removed: it leaves with its own velocity, omega unchanged, and takes its
+      kinetic energy with it;
+    - counterweight mass, while it moves with the slider (both free): added from rest, the
+      momentum m_eff v of slider and counterweight is conserved; removed, v unchanged;
+    - slider locked: the clamp stops it (v = 0) and the counterweight with it; the clamp acts
+      along the link, so omega does not change;
+    - pulley released with the slider free: the slider's momentum m_slider v is shared with
+      the counterweight at rest (a massless slider carries none: v = 0); pulley locked: the
+      counterweight stops, the slider keeps v.
+    Masses joining or leaving book their potential energy (and the kinetic energy they take
+    away) to E_added; the kinetic energy the events destroy goes to E_loss.
+    """
+    theta, omega, b, v, s_cw = s[:5]
+    # the slider's effective masses (mechanical_energy's), each computed once
+    mass_before = p.m_slider if before.slider_locked else slider_mass(p, before)
+    mass_after = p.m_slider if after.slider_locked else slider_mass(p, after)
+    added = 0.0
+    d_payload = after.payload - before.payload
+    if d_payload != 0.0:
+        added += d_payload * p.g * p.w * math.cos(theta)
+        if d_payload > 0.0:
+            omega *= _link_terms(p, before.payload, b)[1] / _link_terms(p, after.payload, b)[1]
+        else:
+            added += 0.5 * d_payload * (p.w * omega) ** 2
+    moving_cw = not (before.slider_locked or before.pulley_locked)
+    d_cw = after.counterweight_added - before.counterweight_added
+    if d_cw != 0.0:
+        added -= d_cw * p.g * s_cw
+        if moving_cw and d_cw > 0.0:
+            heavier = _new(Inputs, (before.tau_drive, before.payload, after.counterweight_added,
+                                    before.slider_locked, before.pulley_locked))
+            v *= mass_before / slider_mass(p, heavier)
+        elif moving_cw:
+            added += 0.5 * d_cw * (p.pulley_ratio * v) ** 2
+    if after.slider_locked:
+        v = 0.0
+    elif not before.slider_locked and not after.pulley_locked and before.pulley_locked:
+        v = v * p.m_slider / mass_after if mass_after > 0.0 else 0.0
+    if not after.slider_locked and mass_after == 0.0:
+        v = _damper_speed(p, after, State(theta, omega, b, v))
+    new = _new(State, (theta, omega, b, v, s_cw, s.W_drive, s.E_loss, s.E_added + added))
+    loss = (_mechanical_energy(p, before, s, mass_before) + added
+            - _mechanical_energy(p, after, new, mass_after))
+    return _new(State, (*new[:6], s.E_loss + loss, new[7]))
+
+
+def slider_at_stop(p: Parameters, u: Inputs, s: State) -> bool:
+    """True when the free slider rests on b_min or b_max."""
+    return not u.slider_locked and (s.b <= p.b_min or s.b >= p.b_max)
+
+
+def regulated_slider_position(p: Parameters, u: Inputs, theta: float) -> float:
+    """Static equilibrium of a free slider at angle theta with the pulley turning [m].
+
+    Solves F_t(theta, b) = T_wire + m_slider g (-cos theta) for b (bisection on the monotonic
+    spring force), clipped to the end stops. With L0 = 0 and theta = pi this is
+    b0 + payload w g / (k a) (eq. 8) when counterweight_added equals the payload.
+    """
+    def net(b: float) -> float:
+        if spring_length(p, theta, b) == 0.0:
+            return 1.0
+        return _slider_force(p, theta, 0.0, b, 0.0, _free_length_factor(p, theta, b),
+                             wire_tension(p, u), slider_damping(p, u))
+    lo, hi = p.b_min, p.b_max
+    if net(lo) <= 0.0:
+        return lo
+    if net(hi) >= 0.0:
+        return hi
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if net(mid) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+
+class Outputs(NamedTuple):
+    """Observable quantities (README.md; SI units)."""
+
+    theta: float
+    omega: float
+    b: float
+    delta_b: float
+    x: float
+    F_t: float
+    F_n: float
+    tau_gravity: float
+    balance_error: float
+    E_p: float
+    E_e: float
+    E_t: float
+    E_cw: float
+    E_kin: float
+    slider_at_stop: bool
+    W_drive: float
+    E_loss: float
+    E_added: float
+
+
+def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
+    """All outputs for the state s and inputs u (those `ledger_terms` computed with them at the
+    end of the step, if it did)."""
+    kept = p._kept_outputs[0]
+    if kept[0] is not s or kept[1] is not u:
+        ledger_terms(p, u, s)
+        kept = p._kept_outputs[0]
+    return kept[2]
+
+
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_t + E_cw + E_kin (in parts), E_loss,
+    -W_drive and -E_added (as `outputs` reports them): their sum is constant
+    (docs/energy_ledger.md). The outputs come with them, from the same energies, kept for
+    `outputs` (the end of a step is evaluated once, for the ledger's control and the slave)."""
+    theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
+    _, payload, counterweight_added, slider_locked, _ = u
+    sin_t, cos_t = math.sin(theta), math.cos(theta)
+    moment, J, spring, _, balance_error, delta_b, a2_b2, two_a_b = _link_terms(p, payload, b)
+    x2 = a2_b2 - two_a_b * cos_t
+    x = math.sqrt(0.0 if 0.0 > x2 else x2)  # spring_length (max(x2, 0.0) without its call)
+    factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
+    E_p = moment * cos_t
+    E_e = 0.5 * p.k * (x - p.L0) ** 2
+    E_cw = -(p.M0 + counterweight_added) * p.g * s_cw
+    mass = p.m_slider if slider_locked else slider_mass(p, u)
+    E_link = 0.5 * J * omega ** 2
+    E_kin = E_link + 0.5 * mass * v ** 2
+    F_t = p.k * (b - p.a * cos_t) * factor
+    F_n = p.k * p.a * sin_t * factor
+    tau_gravity = (moment - spring * factor) * sin_t
+    at_stop = not slider_locked and (b <= p.b_min or b >= p.b_max)  # slider_at_stop
+    # Built by tuple.__new__ in field order: Outputs(...) would add a Python call per step.
+    out = _new(Outputs, (theta, omega, b, delta_b, x, F_t, F_n, tau_gravity, balance_error,
+                         E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))
+    p._kept_outputs[0] = (s, u, out)
+    return E_p, E_e, E_cw, E_link, 0.5 * mass * v * v, E_loss, -W_drive, -E_added

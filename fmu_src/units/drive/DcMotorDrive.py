@@ -1,0 +1,137 @@
+"""FMI 2.0 Co-Simulation slave of the geared DC motor drive (docs/drive_and_controller.md).
+
+A thin layer over `fmu_src.units.drive.dc_motor`, the model the harness uses: the voltage V,
+limited to +-V_supply, and the joint speed omega are held over each communication step, and the
+armature current advances by the exact zero-order hold of that step (`zoh_coefficients`,
+recomputed when the step size changes), exactly as the harness's `SampledMotor` does.
+
+Outputs after fmi2DoStep(t, h) belong to the step just taken: i is the average armature
+current over [t, t + h], tau_drive = eta N K_t i the effort the drive applies over that step
+and P_elec = V i its average electrical power (so P_elec h is the step's exact electrical
+energy). A master that steps this FMU before the mechanism over the same interval and
+passes tau_drive on (Gauss-Seidel) reproduces the harness's co-simulation.
+
+Energies from the start, summed over the steps as the harness's metrics sum them (both take
+each step's energies from `fmu_src.units.drive.dc_motor.step_energies`): E_in = integral of V i dt
+(regeneration credited); E_drawn, the energy from a supply that cannot take energy back,
+max(P_elec, 0) h per step (exact while the current keeps its sign within a step); E_copper =
+R_a integral of i^2 dt, exact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from pythonfmu.default_experiment import DefaultExperiment
+
+from fmu_src.fmi.slave import ModelSlave
+from fmu_src.mechanism import ANGULAR, ELECTROMAGNETIC, DocumentedRun, Port, Registration, Run
+from fmu_src.parameters import parameter
+from fmu_src.units.drive.dc_motor import (
+    MotorParameters,
+    SampledMotor,
+    step_energies,
+    zoh_coefficients,
+)
+
+STEP_SIZE = 1e-3  # default communication step [s], the harness's
+
+
+@dataclass(frozen=True)
+class DriveParameters(MotorParameters):
+    """The motor's parameters and its armature current at the start."""
+
+    i0: float = parameter(0.0, "A", "Armature current at the start time (e.g. the current "
+                          "holding a static load: -tau_gravity / (eta N K_t))")
+
+
+class DcMotorDrive(ModelSlave):
+    """DC motor with gearbox: armature L_a di/dt = V - R_a i - K_e N omega, joint-side effort
+    tau_drive = eta N K_t i."""
+
+    parameters_type = DriveParameters
+    hidden_state = ("armature",)
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.5, step_size=STEP_SIZE)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.description = ("Geared DC motor drive (armature R-L circuit with back-EMF, "
+                            "gearbox), stepped by the exact zero-order hold of each "
+                            "communication step")
+        self.add_calculated_parameter("J_drive", "kg.m2", "Rotor inertia reflected to the "
+                                      "joint, J_rotor N^2: set it as the mechanism's J_drive")
+        self.add_input("V", 0.0, "V", "Armature voltage command; saturated to [-V_supply, "
+                       "V_supply] before it reaches the armature")
+        self.add_input("omega", 0.0, "rad/s", "Joint speed (back-EMF K_t N omega)")
+        for name, unit, description in OUTPUTS:
+            # outputs of the last step, so of no input now; P_elec = V i0 at the start
+            self.add_output(name, unit, description,
+                            initial_depends_on=("V",) if name == "P_elec" else ())
+        self.motor: SampledMotor | None = None
+        self.step_size = 0.0  # the step size the motor's coefficients are for [s]
+
+    def voltage(self) -> float:
+        """The input voltage limited to +-V_supply [V]."""
+        return min(max(float(self.V), -self.params.V_supply), self.params.V_supply)
+
+    def initialise(self, params: DriveParameters) -> None:
+        self.J_drive = params.J_drive
+        self.step_size = STEP_SIZE
+        self.motor = SampledMotor(params, zoh_coefficients(params, self.step_size), params.i0)
+        self.i = params.i0
+        self.tau_drive = params.torque_per_amp * params.i0
+        self.P_elec = self.voltage() * params.i0
+        self.E_in = self.E_drawn = self.E_copper = 0.0
+
+    def step(self, dt: float) -> None:
+        p, motor = self.params, self.motor
+        if dt != self.step_size:
+            motor.coefficients = zoh_coefficients(p, dt)
+            self.step_size = dt
+        voltage, omega, i_start = self.voltage(), float(self.omega), motor.current
+        self.i, self.tau_drive = motor.step(voltage, omega)
+        self.P_elec = voltage * self.i
+        # the drive does not see the joint's travel: its mechanical work is not an output
+        energies = step_energies(p, dt, voltage, omega, i_start, self.i, self.tau_drive, 0.0)
+        self.E_in += energies.E_in
+        self.E_drawn += energies.E_drawn
+        self.E_copper += energies.E_copper
+
+    @property
+    def armature(self) -> tuple[float, float]:
+        """Hidden state: armature current at the end of the last step [A], its step size [s]."""
+        return self.motor.current, self.step_size
+
+    def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
+        current, self.step_size = hidden["armature"]
+        self.motor = SampledMotor(self.params, zoh_coefficients(self.params, self.step_size),
+                                  current)
+
+
+OUTPUTS = (
+    ("tau_drive", "N.m", "Joint-side drive torque eta N K_t i over the last step (its average)"),
+    ("i", "A", "Armature current, average over the last step"),
+    ("P_elec", "W", "Electrical power V i into the armature, average over the last step"),
+    ("E_in", "J", "Net electrical energy since the start, integral of V i dt (regeneration "
+                  "credited)"),
+    ("E_drawn", "J", "Energy drawn from a supply that cannot take energy back since the "
+                     "start: max(P_elec, 0) times the step size, summed over the steps"),
+    ("E_copper", "J", "Armature copper loss since the start, R_a integral of i^2 dt"),
+)
+
+
+REGISTRATION = Registration(
+    ports=(Port(ANGULAR, "shaft", "tau_drive", "omega"),
+           Port(ELECTROMAGNETIC, "armature", "V", "i")),
+    reference_run=DocumentedRun(
+        "Voltage step 0 -> 3 V at 0.1 s on the standing drive (4.9 A); the joint speed then "
+        "ramps 0 -> 2 rad/s over 0.5-1.0 s (the back-EMF, 5.7 V, exceeds the voltage: the "
+        "drive regenerates); voltage 0 from 1.25 s (braking).",
+        ("V", "omega"),
+        ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 3.0, 0.0), (0.5, 3.0, 0.0),
+         (1.0, 3.0, 2.0), (1.25, 3.0, 2.0), (1.25, 0.0, 2.0), (1.5, 0.0, 2.0))),
+    moving_run=Run({}, {"V": 12.0, "omega": 1.0}, 2.0),
+    dependency_probes=(Run({}, {"V": 5.0, "omega": 1.0}, 0.05),),
+    initial_parameters={"i0": 0.5},
+)

@@ -1,0 +1,277 @@
+"""DC motor with gearbox: the one definition of the drive model (standard library only).
+
+Armature: L_a di/dt = V - R_a i - K_e N omega; joint-side effort tau_drive = eta N K_t i
+(docs/drive_and_controller.md), written once in `armature_voltage` and `armature_rate`, from
+which the state-space matrices, the zero-order-hold step and the steady state derive. The
+drive's energies (E_in, E_drawn, E_copper, E_mech, W_link) are defined once too, as powers in
+`drive_powers` and over a zero-order-hold step in `step_energies`, for the FMU, the harness's
+metrics and CSV columns and the monolithic reference alike; both work elementwise on floats
+and on numpy arrays. Inputs (V, omega), outputs (tau_drive, i), state i. N is the
+transmission ratio, motor radians per joint radian (a gearbox) or per joint metre (a lead
+screw, N = 2 pi / lead): the same equations then give a force and a reflected mass.
+
+Used by the harness (which builds the python-control model from `armature_matrices` and
+discretises it with c2d) and by the `DcMotorDrive` FMU (which uses the closed-form zero-order
+hold of `zoh_coefficients`); the tests check that both discretisations agree.
+
+Default motor: one coherent small geared DC motor, a 60 W class 24 V graphite-brush motor
+with a 3-stage planetary gearhead (the data of the maxon RE 30 / 24 V datasheet, #310007:
+R_a = 0.611 Ohm, L = 0.119 mH, K_t = 25.9 mN m/A, rotor inertia 33.5 g cm^2, nominal
+current 3.44 A; gear ratio 111:1). At the link that gives 2.87 N m/A, 9.9 N m at the motor's
+nominal current (the unbalanced Franchetti link with 1 kg needs up to 9.3 N m), a no-load
+speed of 8.3 rad/s at 24 V (the task peaks at 0.4 rad/s), and J_drive = J_rotor N^2 =
+0.0413 kg m^2.
+
+Gear efficiency: eta multiplies the torque both ways in this linear model, so eta < 1 would
+make a back-driven gearbox return more energy than it receives. The default is eta = 1 and
+the gearbox's losses are left to the joint's viscous friction; set eta < 1 only for studies
+where the drive never regenerates.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any, NamedTuple
+
+from fmu_src.parameters import check_ranges, parameter
+
+
+@dataclass(frozen=True)
+class MotorParameters:
+    """Geared DC motor, SI units."""
+
+    R_a: float = parameter(0.611, "Ohm", "Armature resistance", min=0.0, min_exclusive=True)
+    L_a: float = parameter(0.119e-3, "H", "Armature inductance", min=0.0, min_exclusive=True)
+    K_t: float = parameter(0.0259, "N.m/A", "Torque constant (= back-EMF constant, V s/rad)",
+                           min=0.0, min_exclusive=True)
+    J_rotor: float = parameter(33.5e-7, "kg.m2", "Rotor inertia", min=0.0)
+    N: float = parameter(111.0, "1", "Transmission ratio, motor rad per joint rad (or per m)",
+                         min=0.0, min_exclusive=True)
+    eta: float = parameter(1.0, "1", "Transmission torque efficiency (see module docstring)",
+                           min=0.0, max=1.0, min_exclusive=True)
+    V_supply: float = parameter(24.0, "V", "Supply voltage: |V| <= V_supply", min=0.0,
+                                min_exclusive=True)
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+
+    @property
+    def J_drive(self) -> float:
+        """Rotor inertia reflected to the joint, J_rotor N^2 [kg m^2, or kg for a screw]."""
+        return self.J_rotor * self.N ** 2
+
+    @property
+    def torque_per_amp(self) -> float:
+        """Joint-side effort per armature ampere, eta N K_t [N m/A]."""
+        return self.eta * self.N * self.K_t
+
+    @property
+    def back_emf_per_link_speed(self) -> float:
+        """Armature back-EMF per joint speed, K_e N [V s/rad]."""
+        return self.K_t * self.N
+
+
+def armature_voltage(p: MotorParameters, current: Any, omega: Any) -> Any:
+    """The armature's resistive drop plus its back-EMF, R_a i + K_e N omega [V], at current
+    i [A] and joint speed omega [rad/s or m/s]: the voltage that holds i steady."""
+    return p.R_a * current + p.back_emf_per_link_speed * omega
+
+
+def armature_rate(p: MotorParameters, voltage: Any, current: Any, omega: Any) -> Any:
+    """The armature equation, di/dt = (V - R_a i - K_e N omega) / L_a [A/s]."""
+    return (voltage - armature_voltage(p, current, omega)) / p.L_a
+
+
+def steady_current(p: MotorParameters, voltage: Any, omega: Any) -> Any:
+    """The current [A] the armature settles at with V [V] and omega held: di/dt = 0."""
+    return (voltage - armature_voltage(p, 0.0, omega)) / p.R_a
+
+
+def armature_matrices(p: MotorParameters) -> tuple[list, list, list, list]:
+    """(A, B, C, D) of the motor: state i; inputs (V, omega); outputs (tau_drive, i)."""
+    A = [[armature_rate(p, 0.0, 1.0, 0.0)]]
+    B = [[armature_rate(p, 1.0, 0.0, 0.0), armature_rate(p, 0.0, 0.0, 1.0)]]
+    C = [[p.torque_per_amp], [1.0]]
+    D = [[0.0, 0.0], [0.0, 0.0]]
+    return A, B, C, D
+
+
+class StepCoefficients(NamedTuple):
+    """Zero-order-hold step of the armature, i[k+1] = a i + b_v V + b_w omega, and the
+    step-average current i_avg = avg_a i + avg_b_v V + avg_b_w omega."""
+
+    a: float
+    b_v: float
+    b_w: float
+    avg_a: float
+    avg_b_v: float
+    avg_b_w: float
+
+    def start_current(self, average: Any, voltage: Any, omega: Any) -> Any:
+        """The current [A] at the start of a step from its average [A] and the V [V] and
+        omega held over it (elementwise on numpy arrays): the inverse of the average."""
+        return (average - self.avg_b_v * voltage - self.avg_b_w * omega) / self.avg_a
+
+
+def zoh_coefficients(p: MotorParameters, dt: float) -> StepCoefficients:
+    """Exact zero-order-hold discretisation of the armature over dt [s], in closed form.
+
+    Written with expm1 and the series of `relaxation_integrals`, so that it keeps full
+    precision down to steps far shorter than L_a/R_a (1e-16 s and below).
+    """
+    x = p.R_a / p.L_a * dt
+    rise, _ = relaxation_integrals(x)        # step-average of 1 - exp(-t R_a/L_a)
+    settle = -math.expm1(-x)                  # 1 - exp(-dt R_a/L_a)
+    per_volt, per_speed = steady_current(p, 1.0, 0.0), steady_current(p, 0.0, 1.0)
+    return StepCoefficients(math.exp(-x), settle * per_volt, settle * per_speed, 1.0 - rise,
+                            rise * per_volt, rise * per_speed)
+
+
+@lru_cache(maxsize=8)  # one step size at a time, in practice
+def relaxation_integrals(x: float) -> tuple[float, float]:
+    """Step averages of psi = 1 - exp(-t/tau) and of psi^2 over a step of x = dt/tau.
+
+    g = 1 - (1 - e^-x)/x and q = 1 - 2 (1 - e^-x)/x + (1 - e^-2x)/(2x). Both vanish like x
+    (g ~ x/2, q ~ x^2/3) and their closed forms cancel catastrophically for small x, so
+    below x = 1 they are summed from their Taylor series, g = sum (-1)^(n+1) x^n/(n+1)! and
+    q = sum_(n>=2) (-1)^n (2^n - 2) x^n/(n+1)! (30 terms: below 1e-19 relative at x = 1).
+    """
+    if x >= 1.0:
+        mean, mean_double = -math.expm1(-x) / x, -math.expm1(-2.0 * x) / (2.0 * x)
+        return 1.0 - mean, 1.0 - 2.0 * mean + mean_double
+    g = q = 0.0
+    power, factorial = 1.0, 1.0
+    for n in range(1, 31):
+        power *= -x                    # (-x)^n
+        factorial *= n + 1             # (n+1)!
+        g -= power / factorial
+        q += power * (2.0 ** n - 2.0) / factorial
+    return g, q
+
+
+class SampledMotor:
+    """The motor under zero-order-hold inputs, stepped one communication interval at a time.
+
+    The armature time constant L/R_a (0.19 ms by default) is shorter than a 1 ms step, so
+    the current moves within a step: the effort applied over the step is that of the
+    step-average current, and V i_avg dt is the exact electrical energy of the step.
+    """
+
+    def __init__(self, motor: MotorParameters, coefficients: StepCoefficients,
+                 current: float = 0.0) -> None:
+        self.motor = motor
+        self.coefficients = coefficients
+        self.current = current
+
+    def step(self, voltage: float, omega: float) -> tuple[float, float]:
+        """Advance one step with V [V] and omega held; returns (average current [A], effort)."""
+        a, b_v, b_w, avg_a, avg_b_v, avg_b_w = self.coefficients
+        i0 = self.current
+        average = avg_a * i0 + avg_b_v * voltage + avg_b_w * omega
+        self.current = a * i0 + b_v * voltage + b_w * omega
+        return average, self.motor.torque_per_amp * average
+
+
+def copper_energy(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_start: Any) -> Any:
+    """Armature copper loss R_a * integral of i^2 dt [J] over one zero-order-hold step of dt [s]
+    (elementwise over steps given as numpy arrays).
+
+    Exact for the step's solution i(t) = i_start + (i_end_of_settling - i_start) psi(t), with
+    psi = 1 - exp(-t R_a/L_a), V [V] and omega [rad/s] held: the integral of i^2 is
+    dt (i0^2 + 2 i0 delta g + delta^2 q) with g, q the step averages of psi and psi^2
+    (`relaxation_integrals`), a sum of non-negative terms where the energy balance over the
+    step would cancel catastrophically for steps far below L_a/R_a.
+    """
+    delta = steady_current(p, voltage, omega) - i_start
+    g, q = relaxation_integrals(p.R_a / p.L_a * dt)
+    return p.R_a * dt * positive_part(i_start * i_start + 2.0 * i_start * delta * g
+                                      + delta * delta * q)
+
+
+def inductor_energy(p: MotorParameters, current: Any) -> Any:
+    """Magnetic energy of the armature at current i [A], L_a i^2 / 2 [J]."""
+    return 0.5 * p.L_a * current * current
+
+
+def positive_part(x: Any) -> Any:
+    """max(x, 0), elementwise on floats and numpy arrays alike: (x + |x|) / 2."""
+    return (x + abs(x)) * 0.5
+
+
+class DriveEnergies(NamedTuple):
+    """A drive's energies [J] (as returned by `step_energies`), or their rates [W] (as
+    returned by `drive_powers`); floats or numpy arrays."""
+
+    E_in: Any       # net electrical energy, V i (regeneration credited)
+    E_drawn: Any    # from a supply that cannot take energy back, max(V i, 0)
+    E_copper: Any   # armature copper loss, R_a i^2
+    E_mech: Any     # mechanical work in either direction, |tau omega|
+    W_link: Any     # net mechanical work of the drive on the joint, tau omega
+
+
+def drive_powers(p: MotorParameters, voltage: Any, current: Any, effort: Any,
+                 speed: Any) -> DriveEnergies:
+    """The definition of the drive's energies, as their rates [W]: at voltage V [V], armature
+    current i [A], effort tau [N m or N] and joint speed omega [rad/s or m/s], V i,
+    max(V i, 0), R_a i^2, |tau omega| and tau omega."""
+    electrical, mechanical = voltage * current, effort * speed
+    return DriveEnergies(electrical, positive_part(electrical), p.R_a * current * current,
+                         abs(mechanical), mechanical)
+
+
+def step_energies(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_start: Any,
+                  i_average: Any, effort: Any, travel: Any) -> DriveEnergies:
+    """The energies [J] of zero-order-hold steps of dt [s]: `drive_powers` integrated over
+    each step in which V [V], omega [rad/s or m/s] and the effort [N m or N] are held, the
+    armature current starts at i_start [A] and averages i_average [A], and the joint travels
+    `travel` [rad or m].
+
+    V i and tau omega are linear in the step's averages, so their integrals E_in and W_link
+    are exact; E_copper, quadratic in the current, is the exact `copper_energy`; E_drawn and
+    E_mech are exact while V i and tau omega keep their signs within the step.
+    """
+    powers = drive_powers(p, voltage, i_average, effort, travel / dt)
+    return DriveEnergies(powers.E_in * dt, powers.E_drawn * dt,
+                         copper_energy(p, dt, voltage, omega, i_start), powers.E_mech * dt,
+                         powers.W_link * dt)
+
+
+# The drive of a prismatic joint: the default motor (same RE 30 data, one motor type for both
+# drives of an arm) coupled directly to a ball screw of lead 40 mm (a high-lead screw), so
+# N = 2 pi / lead = 157.08 motor rad per joint metre, K = N K_t = 4.07 N/A, reflected mass
+# J_rotor N^2 = 0.083 kg (a sixth of demian2022's 0.5 kg slider: the joint's dynamics stay
+# the arm's). Capacity: 14.0 N at the nominal current against the 3.16 N of m2 g sin q1 that
+# the uncompensated demian2022 arm needs at q1 = 0.7 rad (3.37 N for the back-drivable
+# variant's worst residual), plus about 0.1 N to accelerate slider and rotor; 5.9 m/s no-load
+# speed at 24 V against the task's 0.19 m/s. Why so long a lead: the armature's back-EMF
+# damping of the joint, alpha = (N K_t)^2 / (R_a (m2 + J_rotor N^2)), grows with N towards
+# K_t^2 / (R_a J_rotor) = 328 1/s; at 40 mm it is 46 1/s, below the 3 omega_c = 75 1/s that
+# the default PID design places (harness.run.controller), where a short lead (e.g. 5 mm: 299 1/s)
+# would need a negative derivative gain. Efficiency: a ball screw is back-drivable at about
+# 0.9 both ways, but this linear model would make eta < 1 return more than it takes when the
+# drive regenerates (see the module docstring): eta = 1, losses left to the joint's friction.
+LEAD_SCREW_MOTOR = MotorParameters(N=2.0 * math.pi / 0.040)
+
+
+# The drive of a joint that must hold a load without power: the default motor (RE 30 data)
+# coupled directly to a self-locking trapezoidal screw Tr 10x2 (lead 2 mm), so N = 2 pi /
+# lead = 3141.6 motor rad per joint metre, K = N K_t = 81.4 N/A, reflected mass J_rotor N^2 =
+# 33.1 kg. Its effort is the force on the screw; the screw's thread friction is the mechanism
+# FMU's (ActiveSpringBalancer: forward efficiency 0.403 on a bronze nut), so eta = 1 here as
+# for the other drives (see the module docstring) and the motor's energies include the
+# screw's loss. Sized for the pull of franchetti2021's spring on its relocated frame joint
+# (k = 981 N/m): with the link hanging (theta = 180 deg) the carriage carries k (Y_B + x1A) +
+# m_q g, 162 N at the start and 219 N after relocating for 1 kg (Y_B = 0.158 m), which the
+# motor meets through the screw with up to 544 N, 6.7 A: twice the 3.44 A nominal current,
+# for the 3 s of regulation; 1110 N (13.7 A) for 5 kg, the end of the regulation sweep.
+# Speed: 0.295 m/s no-load at 24 V against 0.036 m/s at the peak of the 3 s quintic to 58 mm
+# (0.18 m/s for 5 kg). Why a screw of this lead: its lead angle atan(lead / (pi d2)) = 4.05
+# deg (d2 = 9 mm) is below the friction angle of a lubricated steel-on-bronze thread (5.91
+# deg at mu = 0.1 with 15 deg flanks), so the load cannot back-drive it and the carriage
+# stays where it is put without current; the 2 mm lead is also the reduction the force
+# needs, so no gearhead. The reflected mass dominates the joint (33.1 kg against the 0.5 kg
+# carriage), so the armature's back-EMF damps it at K_t^2 / (R_a J_rotor) = 326 1/s, above
+# 3 omega_c: the PID design then drops the derivative term (harness.run.controller).
+TRAPEZOIDAL_SCREW_MOTOR = MotorParameters(N=2.0 * math.pi / 0.002)

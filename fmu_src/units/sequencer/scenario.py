@@ -1,0 +1,444 @@
+"""Task scenarios as data: the one definition of the scenario file format and of its meaning
+(standard library only, so the `ScenarioSequencer` FMU plays a scenario exactly as the
+harness does; `harness.run.scenario_files` finds the files and evaluates them on numpy arrays).
+This module holds the data model; `scenario_format.parse` reads a file's data into it.
+
+A scenario (a TOML file) names the mechanism FMU, its parameters, the joints the drives move
+and a list of phases. Each phase has a duration [s], a target per joint reached by a quintic
+(zero velocity and acceleration at both ends) over the phase, and input changes applied at
+the phase start: a plain value steps there, `{ ramp = value }` ramps to value over the phase,
+linearly or with `shape` one of RAMP_SHAPES (e.g. `{ ramp = 4.0, shape = "ease_out" }`).
+Inputs keep their value until a later phase changes them; a joint a phase gives no target
+holds its previous one.
+
+Joints. Without a `joints` table the scenario has one revolute joint with the names of the
+balancer FMUs (DEFAULT_JOINT; a `[joint]` table may rename them), its initial angle is
+`initial_angle_deg` and a phase's target `target_deg` [deg]. Otherwise each `[joints.<name>]`
+table declares one joint, in file order, with every key of JOINT_KEYS: the FMU names of its
+position, speed, effort input, initial-position parameter (`start_parameter`), inertia
+parameter [kg m2 or kg], friction parameter and drive-inertia parameter (where the harness
+puts J_rotor N^2 of the joint's motor), the output reporting the static effort at t = 0 (either
+`static_effort`, the effort the drive supplies to hold the mechanism, or `static_load`, the
+effort gravity and springs exert on the joint, which the drive holds with the opposite sign),
+`initial` (its position at t = 0), and optionally `kind` (JOINT_KINDS) and `motor` (MOTORS).
+Phases then give `targets = { <joint> = value, ... }` in SI units: rad for a revolute joint,
+m for a prismatic one (`target_deg` remains for scenarios with one revolute joint).
+
+Variants are configurations of the same run (docs/scenarios.md): they may replace the FMU
+(`model`), override its parameters (`parameters`), hold inputs at fixed values for the whole
+run (`inputs`), replace the input changes of named phases (`phase_inputs`, e.g.
+`{ down = { payload = { ramp = 0.4, shape = "quintic" } } }`), drop scenario inputs the model
+does not have (`drop_inputs`), or name their own eps `baseline` (default: the scenario's).
+A variant whose model has more joints than the scenario drives them too: its own
+`[variants.<v>.joints.<name>]` tables (the format of `[joints.<name>]`) come after the
+scenario's joints, and `phase_targets = { <phase> = { <joint> = value } }` gives their
+targets [rad or m] (a phase it does not name holds the previous one);
+`Scenario.for_variant` resolves them into a scenario with every joint the variant drives.
+
+Evaluation: `Scenario.reference_at(t)` and `Scenario.inputs_at(t, segments)` on floats. The
+shape functions and `ramp` are plain arithmetic, so they work on floats and numpy arrays alike.
+Both take a `tolerance` [s]: a time less than that before a phase start counts as that
+start, for hosts that add up their time (STEP_TIME_TOLERANCE).
+
+Limits: at most MAX_PHASES phases, and joint positions (initial and targets) of magnitude
+at most `fmu_src.parameters.MAGNITUDE_LIMIT` [rad or m], the bound of the FMUs' inputs.
+Loading and evaluating take time linear in the number of phases.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from bisect import bisect_right
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+from typing import Any
+
+from fmu_src.parameters import MAGNITUDE_LIMIT
+
+JOINT_KINDS = ("revolute", "prismatic")
+# drives the harness can put on a joint: the default geared DC motor, a DC motor on a lead
+# screw, or on a self-locking trapezoidal screw (harness.run.drive.MOTORS maps these names to motor
+# parameters)
+MOTORS = ("geared", "lead_screw", "trapezoidal_screw")
+# the one joint of a scenario without a `joints` table: the balancer FMUs' names
+DEFAULT_JOINT = {"position": "theta", "speed": "omega", "effort": "tau_drive",
+                 "start_parameter": "theta0", "inertia": "J_link", "friction": "d_link",
+                 "drive_inertia": "J_drive", "static_load": "tau_gravity"}
+JOINT_KEYS = ("position", "speed", "effort", "start_parameter", "inertia", "friction",
+              "drive_inertia", "initial")
+OPTIONAL_JOINT_KEYS = ("kind", "motor", "static_effort", "static_load")
+PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs")
+# Tolerance of phase start times, as a fraction of the communication step: a host that adds up
+# its time (t += h) reaches a phase start a little early or late (13.99999999999768 for 14 s
+# after 14 000 steps of 1 ms; at most 1.6e-8 steps after 35 000 steps of 1 ms and 1e-4 steps
+# after 3.5 million steps of 10 us), so a time less than 1e-3 of a step before a phase start
+# counts as that start: the phase switches at the same step as at the exact time i h.
+STEP_TIME_TOLERANCE = 1e-3
+# phases per scenario: a scenario of this many loads in about 0.1 s; a file of more is a
+# generated mistake rather than a task
+MAX_PHASES = 10_000
+
+
+# scenario and variant names become file and folder names: no path separators, no "..",
+# not empty, not hidden
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_+-]*(\.[A-Za-z0-9_+-]+)*")
+
+
+def check_name(name: Any, what: str) -> str:
+    """name if it is a usable file name (NAME_PATTERN), else ValueError naming `what`."""
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise ValueError(f"{what} = {shown(name)} must be letters, digits, '_', '-', '+' and inner "
+                         "dots, starting with a letter or digit (it names result files)")
+    return name
+
+
+def table(value: Any, what: str) -> dict[str, Any]:
+    """value if it is a table (dict), else ValueError naming `what`."""
+    if not isinstance(value, dict):
+        raise ValueError(f"{what} = {shown(value)} must be a table")
+    return value
+
+
+def table_list(value: Any, what: str) -> list[dict[str, Any]]:
+    """value if it is a non-empty list of tables ([[what]]), else ValueError naming it."""
+    if not isinstance(value, list) or not value or not all(isinstance(v, dict) for v in value):
+        raise ValueError(f"{what} = {shown(value)} must be a list of [[{what}]] tables")
+    return value
+
+
+def shown(value: Any, width: int = 60) -> str:
+    """repr(value) for a message, shortened to about width characters."""
+    text = repr(value) if not isinstance(value, int) or value.bit_length() < 200 else (
+        f"an integer of about {int(value.bit_length() * math.log10(2))} digits")
+    return text if len(text) <= width else f"{text[:width - 5]} ...{text[-1]}"
+
+
+def finite_number(value: Any, what: str, allowed: str = "a finite number") -> float:
+    """value as a float if it is a finite number (not a boolean; an integer beyond the range
+    of a float is not), else ValueError naming it."""
+    if not isinstance(value, bool) and isinstance(value, (int, float)):
+        try:
+            number = float(value)
+        except OverflowError:  # a TOML integer beyond 1.8e308
+            number = math.inf
+        if math.isfinite(number):
+            return number
+    raise ValueError(f"{what} = {shown(value)} is not {allowed}")
+
+
+def position(value: Any, what: str, unit: str = "rad or m") -> float:
+    """A joint position [rad or m]: finite and of magnitude at most MAGNITUDE_LIMIT, else
+    ValueError naming it."""
+    number = finite_number(value, what, f"a finite number [{unit}]")
+    if abs(number) > MAGNITUDE_LIMIT:
+        raise ValueError(f"{what} = {shown(value)} {unit} is outside [-{MAGNITUDE_LIMIT:g}, "
+                         f"{MAGNITUDE_LIMIT:g}]")
+    return number
+
+
+def quintic(s: Any) -> Any:
+    """Quintic 10 s^3 - 15 s^4 + 6 s^5: 0 -> 1 with zero speed and acceleration at both ends."""
+    return s ** 3 * (10.0 + s * (-15.0 + 6.0 * s))
+
+
+def ease_out(s: Any) -> Any:
+    """Parabola s (2 - s): 0 -> 1 with zero slope at the end."""
+    return s * (2.0 - s)
+
+
+def ease_in(s: Any) -> Any:
+    """Parabola s^2: 0 -> 1 with zero slope at the start."""
+    return s * s
+
+
+# ramp shapes f(s), f(0) = 0, f(1) = 1, s the fraction of the phase. The quintic_* shapes
+# are functions of the joint's travel over the phase (the reference is a quintic in time),
+# so an input given as a law of the angle follows the angle: "quintic" is linear in the
+# angle, "quintic_ease_out" is ease_out of the angle's fraction of the move.
+RAMP_SHAPES = {
+    "linear": lambda s: s,
+    "quintic": quintic,
+    "ease_out": ease_out,
+    "ease_in": ease_in,
+    "quintic_ease_out": lambda s: ease_out(quintic(s)),
+    "quintic_ease_in": lambda s: ease_in(quintic(s)),
+}
+
+
+def ramp(start: Any, end: Any, shape: str, s: Any) -> Any:
+    """The value at fraction s (float or array) of a ramp from start to end with a shape."""
+    return end if start == end else start + (end - start) * RAMP_SHAPES[shape](s)
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """Ramp to `target` over the phase with one of RAMP_SHAPES."""
+
+    target: float
+    shape: str = "linear"
+
+
+def _positions(value: Any) -> tuple[float, ...]:
+    """A position per joint; one number stands for a one-joint scenario's position."""
+    return (float(value),) if isinstance(value, (int, float)) else tuple(map(float, value))
+
+
+@dataclass(frozen=True)
+class Phase:
+    """A phase: duration [s], target per joint [rad or m] and input changes from its start.
+
+    A single number for `target` means a one-joint scenario's target (sweep paths such as
+    `phases["II move"].target_deg` set it so).
+    """
+
+    name: str
+    duration: float                 # [s]
+    target: tuple[float, ...]       # per joint, reached at the end of the phase [rad or m]
+    inputs: dict[str, Any] = field(default_factory=dict)  # value or Ramp, from phase start
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "target", _positions(self.target))
+        if not 0.0 < self.duration < math.inf:
+            raise ValueError(f"phase {self.name}: duration = {self.duration} s is outside "
+                             "(0, inf)")
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One driven joint: FMU variable names, kind, motor and how its static effort is read."""
+
+    name: str
+    position: str
+    speed: str
+    effort: str
+    start_parameter: str
+    inertia: str
+    friction: str
+    drive_inertia: str
+    static_output: str              # FMU output giving the static effort at t = 0
+    static_is_load: bool            # True: the output is the load on the joint (drive: -it)
+    kind: str = "revolute"
+    motor: str = "geared"
+
+    def __post_init__(self) -> None:
+        if self.kind not in JOINT_KINDS:
+            raise ValueError(f"joint {self.name}: kind = {self.kind!r} is not one of "
+                             f"{', '.join(JOINT_KINDS)}")
+        if self.motor not in MOTORS:
+            raise ValueError(f"joint {self.name}: motor = {self.motor!r} is not one of "
+                             f"{', '.join(MOTORS)}")
+
+    @property
+    def unit(self) -> str:
+        """Unit of the joint's position: rad or m."""
+        return "rad" if self.kind == "revolute" else "m"
+
+    def hold_effort(self, static_output: float) -> float:
+        """The effort [N m or N] the drive supplies to hold the static output's value."""
+        return -static_output if self.static_is_load else static_output
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A configuration of the scenario's run (see the module docstring)."""
+
+    name: str
+    description: str = ""
+    model: str | None = None
+    parameters: dict[str, float | bool] = field(default_factory=dict)
+    inputs: dict[str, float | bool] = field(default_factory=dict)
+    drop_inputs: tuple[str, ...] = ()
+    phase_inputs: dict[str, dict[str, Any]] = field(default_factory=dict)  # by phase name
+    baseline: str | None = None     # variant against which eps is computed, if not the default
+    # joints driven besides the scenario's, their positions at t = 0 [rad or m] and targets
+    # by phase; left out of repr (which sweep run ids hash), for_variant's scenario shows them
+    joints: tuple[Joint, ...] = field(default=(), repr=False)
+    joint_initial: tuple[float, ...] = field(default=(), repr=False)
+    phase_targets: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A task: model, parameters, joints, phases and variants (see the module docstring).
+
+    `initial_angle` holds the initial position of each joint [rad or m] (the name is that of
+    one-joint scenarios, which sweep paths `initial_angle_deg` set).
+    """
+
+    name: str
+    description: str
+    model: str
+    parameters: dict[str, float | bool]
+    initial_angle: tuple[float, ...]  # per joint [rad or m]
+    phases: tuple[Phase, ...]
+    variants: dict[str, Variant]
+    baseline: str                   # default variant against which eps is computed
+    joints: tuple[Joint, ...]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "initial_angle", _positions(self.initial_angle))
+        names = [j.name for j in self.joints]
+        if not names or len(set(names)) != len(names):
+            raise ValueError(f"scenario {self.name}: joints {names} must be one or more "
+                             "distinct names")
+        for what, positions in [("initial positions", self.initial_angle)] + [
+                (f"phase {p.name} targets", p.target) for p in self.phases]:
+            if len(positions) != len(names):
+                raise ValueError(f"scenario {self.name}: {len(positions)} {what} for "
+                                 f"{len(names)} joint(s) {', '.join(names)}")
+        if not self.phases:
+            raise ValueError(f"scenario {self.name} has no phases")
+        repeated = sorted(n for n, count in Counter(p.name for p in self.phases).items()
+                          if count > 1)
+        if repeated:
+            raise ValueError(f"scenario {self.name}: phase names repeat: {', '.join(repeated)} "
+                             "(each phase needs its own name)")
+        if not self.variants:
+            raise ValueError(f"scenario {self.name} has no variants: [variants] needs at least "
+                             "one table")
+        for name, t0, t1 in self.phase_times():  # a duration lost in rounding, or a sum
+            if not t0 < t1 < math.inf:             # of durations overflowing
+                raise ValueError(f"scenario {self.name}: phase {name} spans [{t0}, {t1}] s: "
+                                 "its duration must be positive against its start time, and "
+                                 "the scenario's duration finite")
+
+    @cached_property
+    def duration(self) -> float:
+        """Sum of the phase durations [s], computed once: `reference_at` reads it every step."""
+        return sum(p.duration for p in self.phases)
+
+    def phase_times(self) -> list[tuple[str, float, float]]:
+        """(name, start, end) of each phase [s]."""
+        out, t = [], 0.0
+        for phase in self.phases:
+            out.append((phase.name, t, t + phase.duration))
+            t += phase.duration
+        return out
+
+    @property
+    def baselines(self) -> dict[str, str]:
+        """The eps baseline of each variant: its own `baseline`, else the scenario's."""
+        return {name: v.baseline or self.baseline for name, v in self.variants.items()}
+
+    def variant(self, name: str) -> Variant:
+        try:
+            return self.variants[name]
+        except KeyError:
+            raise ValueError(f"scenario {self.name} has no variant {name!r}; "
+                             f"choose from {', '.join(self.variants)}") from None
+
+    def for_variant(self, variant: Variant) -> Scenario:
+        """The scenario with every joint the variant drives: the scenario's, then the
+        variant's own, whose targets follow its phase_targets (a phase it does not name
+        holds the previous target). Joints the scenario already has are not added again."""
+        names = {j.name for j in self.joints}
+        extra = [(j, x) for j, x in zip(variant.joints, variant.joint_initial)
+                 if j.name not in names]
+        if not extra:
+            return self
+        phases, targets = [], [x for _, x in extra]
+        for phase in self.phases:
+            changes = variant.phase_targets.get(phase.name, {})
+            targets = [changes.get(j.name, x) for (j, _), x in zip(extra, targets)]
+            phases.append(replace(phase, target=(*phase.target, *targets)))
+        return replace(self, joints=(*self.joints, *(j for j, _ in extra)),
+                       initial_angle=(*self.initial_angle, *(x for _, x in extra)),
+                       phases=tuple(phases))
+
+    def joint_index(self, joint: int | str) -> int:
+        """Index of a joint given by index or name."""
+        names = [j.name for j in self.joints]
+        if isinstance(joint, str):
+            if joint not in names:
+                raise ValueError(f"scenario {self.name} has no joint {joint!r}; "
+                                 f"choose from {', '.join(names)}")
+            return names.index(joint)
+        if not 0 <= joint < len(names):
+            raise ValueError(f"joint index {joint} is outside [0, {len(names) - 1}]")
+        return joint
+
+    def reference_segments(self, joint: int | str = 0) -> list[tuple[float, float, float, float]]:
+        """(start time, end time [s], start, end position [rad or m]) of one joint per phase."""
+        j = self.joint_index(joint)
+        out, position = [], self.initial_angle[j]
+        for (_, t0, t1), phase in zip(self.phase_times(), self.phases):
+            out.append((t0, t1, position, phase.target[j]))
+            position = phase.target[j]
+        return out
+
+    @cached_property
+    def _phase_spans(self) -> tuple[tuple[float, float], ...]:
+        """(start, end) of each phase [s], computed once: the sequencer reads it every step."""
+        return tuple((t0, t1) for _, t0, t1 in self.phase_times())
+
+    @cached_property
+    def _phase_starts(self) -> tuple[float, ...]:
+        return tuple(t0 for t0, _ in self._phase_spans)
+
+    @cached_property
+    def _joint_segments(self) -> tuple[tuple[tuple[float, float, float, float], ...], ...]:
+        """`reference_segments` of every joint, computed once."""
+        return tuple(tuple(self.reference_segments(j)) for j in range(len(self.joints)))
+
+    def _phase_at(self, time: float, tolerance: float = 0.0) -> int:
+        """Index of the phase that holds time (phases hold [start, end)); -1 before 0. A time
+        within tolerance [s] before a phase start counts as that start."""
+        return bisect_right(self._phase_starts, time + tolerance) - 1
+
+    def reference_at(self, time: float, tolerance: float = 0.0) -> tuple[float, ...]:
+        """Reference position of each joint [rad or m] at a time [s] (tolerance: `_phase_at`)."""
+        if time > self.duration:
+            return self.phases[-1].target
+        k = self._phase_at(time, tolerance)
+        if k < 0:
+            return self.initial_angle
+        out = []
+        for segments in self._joint_segments:
+            t0, t1, start, end = segments[k]
+            out.append(ramp(start, end, "quintic", (time - t0) / (t1 - t0)))
+        return tuple(out)
+
+    def input_segments(self, variant: Variant) -> list[dict[str, tuple[Any, Any, str]]]:
+        """Per phase, each input as (value at start, value at end, ramp shape).
+
+        The variant's phase inputs replace those of the phases they name, its fixed inputs
+        replace the scenario's, and its dropped inputs are left out.
+        """
+        changes = [{**phase.inputs, **variant.phase_inputs.get(phase.name, {})}
+                   for phase in self.phases]
+        names = [n for phase_changes in changes for n in phase_changes]
+        names = [n for n in dict.fromkeys(names) if n not in variant.drop_inputs]
+        booleans = {n for phase_changes in changes for n, v in phase_changes.items()
+                    if isinstance(v, bool)}
+        values: dict[str, Any] = {n: False if n in booleans else 0.0 for n in names}
+        segments = []
+        for phase_changes in changes:
+            segment = {}
+            for name in names:
+                change = phase_changes.get(name)
+                if isinstance(change, Ramp):
+                    segment[name] = (values[name], change.target, change.shape)
+                    values[name] = change.target
+                else:
+                    if change is not None:
+                        values[name] = change
+                    segment[name] = (values[name], values[name], "linear")
+            segment.update({n: (v, v, "linear") for n, v in variant.inputs.items()})
+            segments.append(segment)
+        return segments
+
+    def inputs_at(self, time: float, segments: list[dict[str, tuple[Any, Any, str]]],
+                  tolerance: float = 0.0) -> dict[str, float | bool]:
+        """Input values at a time [s] (a phase's changes apply from its start; none before 0).
+
+        segments: `input_segments(variant)`, computed once per variant; tolerance: `_phase_at`.
+        """
+        k = self._phase_at(time, tolerance)
+        if k < 0:
+            return {n: False if isinstance(end, bool) else 0.0
+                    for n, (_, end, _) in segments[0].items()}
+        t0, t1 = self._phase_spans[k]
+        s = min(max((time - t0) / (t1 - t0), 0.0), 1.0)
+        return {n: ramp(start, end, shape, s) for n, (start, end, shape) in segments[k].items()}

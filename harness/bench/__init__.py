@@ -1,0 +1,131 @@
+"""Benchmarks: `python -m harness bench` writes one CSV per benchmark to results/bench/.
+
+Each benchmark is a function (steps, repeats) -> table; BENCHMARKS maps the CSV name to it.
+
+`fmu_step`: the cost of one communication step of SelfRegulatingBalancer stepped by FMPy,
+with the calls the co-simulation master makes per step (harness.run.master: setReal tau_drive,
+doStep, getReal theta and omega), next to the same loop over `BenchFloor`, a pythonfmu
+FMU that only copies its input to its output, with pythonfmu's own binary: the floor that
+pythonfmu imposes on any FMU made with it. `BenchFloorRuntime` is the same slave on our
+runtime (harness/fmu/runtime), as every FMU of the product is.
+
+`native_step`: the same step loop (setReal, doStep, one getReal) of the floors and of each
+mechanism FMU run by the C host of tests/native_host, as a tool that is not a Python process
+runs it, against FMPy: CPU time per step of each and their ratio, and the C host's cost
+against the stock floor's in the C host. Our FMUs run with an empty environment (the runtime
+brings Python in); the stock floor as pythonfmu requires, libpython preloaded and PYTHONHOME
+set.
+
+`cosim`: wall time of every variant of every shipped scenario at 1 ms, as a real-time
+factor (simulated / wall time), next to the cost of the FMU's own steps in it (steps times
+the fmu_step cost): what the master, drive and controller add. `us_per_step` is the CPU time
+of one closed-loop step in the thread that runs it (controller, motor, setReal, doStep,
+getReal; the run's set-up and result assembly spread over its steps; not the spinning of
+numerical libraries' helper threads) and `ratio_to_floor` its ratio to the BenchFloor step
+measured in the same benchmark run, a figure that the machine's load moves much less than the
+real-time factor. The last row is the sum, what `make cosim` spends in simulation on one
+core.
+
+`master_share`: per franchetti2021 variant, the CPU time of one closed-loop step (as `cosim`)
+and that of its FMU calls alone (the run's efforts and input changes replayed through the
+master's prepared calls, the recording read included), best of repeats each, and their
+difference, the master's share: its set-up and result assembly spread over the steps, the
+controller and motor, the loop.
+
+`convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
+reference (harness.run.reference): the relative error of each drive energy, which must shrink
+with the step.
+
+`ecco`: the coupling's own energy error (docs/results.md#power-bonds) against the steps
+taken, for franchetti2021's self_regulating and demian2022's compensated variants run as
+systems of FMUs in libcosim: at the fixed steps of `convergence` and under ECCO at
+ECCO_TOLERANCES. Per run the steps, E_drawn and its relative error against the monolithic
+reference (and E_in's, relative to E_drawn), the bonds' summed |W_bond_error| and the
+largest event lag (a phase start to the
+first communication point at or after it); `ecco.png` plots both errors against the steps
+(log-log).
+
+`sweep`: runs per second of a parameter sweep with 1 and 2 Dask worker processes.
+
+`cli_help`: wall time of `python -m harness --help` in a fresh interpreter, best of repeats.
+
+Checks (CHECKS): after the tables, the figures that must hold on any machine, each with its
+bound and whether it holds, printed and written to checks.csv (the rows of benchmarks not run
+this time re-evaluated from their CSVs in the folder): every mechanism's step dearer than the
+stock floor's (its physics on top of the same FMI calls), a run's FMU calls alone cheaper than
+its whole closed-loop step, and the top-level help under a second. `bench` exits 1 when a
+check of the benchmarks it ran fails, after writing every table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+
+from harness.bench.steps import BENCH_DIR, cosim, fmu_step, master_share, native_step
+from harness.bench.studies import cli_help, convergence, ecco, ecco_plot, sweep_benchmark
+from harness.bench.targets import checks, earlier_tables
+from harness.errors import UserError
+from harness.io import write_csv
+
+BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
+    "fmu_step": fmu_step,
+    "native_step": native_step,
+    # steps and repeats apply to the FMU-only step cost
+    "cosim": cosim,
+    # steps do not apply
+    "master_share": master_share,
+    # steps and repeats do not apply
+    "convergence": lambda steps, repeats: convergence(),
+    "ecco": ecco,
+    # runs/s of a parameter sweep with 1 and 2 worker processes; steps and repeats do not apply
+    "sweep": lambda steps, repeats: sweep_benchmark(),
+    # steps do not apply
+    "cli_help": cli_help,
+}
+
+
+PLOTS: dict[str, Callable[[pd.DataFrame, Path], Path]] = {"ecco": ecco_plot}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--step-count", dest="steps", type=int, default=20_000, metavar="N",
+                        help="FMU steps per repeat")
+    parser.add_argument("--steps", dest="steps", type=int, default=argparse.SUPPRESS,
+                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
+    parser.add_argument("--repeats", type=int, default=3, help="repeats; the best counts")
+    parser.add_argument("--out", type=Path, default=BENCH_DIR, help="output folder")
+    parser.add_argument("--only", default="all",
+                        help=f"comma-separated benchmarks from {', '.join(BENCHMARKS)} "
+                             "(default all)")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.steps < 1 or args.repeats < 1:
+        raise UserError("--step-count and --repeats must be at least 1")
+    names = list(BENCHMARKS) if args.only == "all" else [n.strip() for n in args.only.split(",")]
+    unknown = [n for n in names if n not in BENCHMARKS]
+    if unknown:
+        raise UserError(f"--only: unknown benchmark(s) {unknown}; choose from {list(BENCHMARKS)}")
+    tables = {}
+    for name in names:
+        tables[name] = BENCHMARKS[name](steps=args.steps, repeats=args.repeats)
+        print(write_csv(tables[name], args.out / f"{name}.csv"))
+        if name in PLOTS:
+            print(PLOTS[name](tables[name], args.out / f"{name}.png"))
+        print(tables[name].to_string(index=False))
+    checked = checks(tables)
+    if checked.empty:
+        return 0
+    earlier = earlier_tables(args.out, names)
+    print(write_csv(checks({**earlier, **tables}), args.out / "checks.csv"))
+    print(checked.to_string(index=False))
+    for check in checked[~checked.passed].itertuples():
+        figure = f"{check.figure} = {check.value:.4g} {check.unit}".rstrip()
+        print(f"bench check failed: {check.benchmark}: {figure}, must be {check.relation} "
+              f"{check.bound:.4g}", file=sys.stderr)
+    return 0 if checked.passed.all() else 1

@@ -1,0 +1,178 @@
+"""The benchmark studies: step convergence against the monolithic reference, libcosim's
+fixed step against ECCO, a sweep's scaling over workers and the CLI's help time."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from harness.fmu import build as fmu_build
+from harness.run import master, reference
+from harness.run import scenario_files as scenarios
+from harness.sweeps import definition as sweep_definition
+from harness.sweeps import execution as sweep_execution
+
+CONVERGENCE_STEPS = (4e-3, 2e-3, 1e-3, 0.5e-3)  # communication steps [s]
+
+
+def convergence(steps: int = 0, repeats: int = 0,
+                scenario_name: str = "franchetti2021") -> pd.DataFrame:
+    """Relative error of each drive energy against the monolithic reference, per step size,
+    for the variants whose model has one.
+
+    The error is |E - E_ref| / max(|E_ref|, E_drawn_ref): relative to the metric, or to the
+    run's drawn energy when the metric is a small difference (as in the tests).
+    """
+    scenario = scenarios.load(scenario_name)
+    rows = []
+    for variant in scenario.variants.values():
+        if (variant.model or scenario.model) not in reference.PHYSICS:
+            continue  # no monolithic reference (active_relocation's self-locking screw)
+        ref = reference.simulate(scenario, variant).metrics
+        scale = {name: max(abs(value), ref["E_drawn"]) for name, value in ref.items()}
+        for step in CONVERGENCE_STEPS:
+            run = master.run(scenario, variant, step)
+            errors = {f"err_{name}": abs(run.metrics[name] - ref[name]) / scale[name]
+                      for name in reference.ENERGIES}
+            rows.append({"scenario": scenario_name, "variant": variant.name, "step_size": step,
+                         **errors, "max_rel_err": max(errors.values())})
+    return pd.DataFrame(rows)
+
+
+ECCO_CASES = (("franchetti2021", "self_regulating"), ("demian2022", "compensated"))
+# ECCO's absolute tolerances on a bond's energy residual per step [J], loose to tight
+ECCO_TOLERANCES = (1e-5, 1e-6, 1e-7)
+
+
+def ecco(steps: int = 0, repeats: int = 0,
+         cases: Sequence[tuple[str, str]] = ECCO_CASES,
+         step_sizes: Sequence[float] = CONVERGENCE_STEPS,
+         tolerances: Sequence[float] = ECCO_TOLERANCES) -> pd.DataFrame:
+    """E_drawn's relative error against the monolithic reference and the coupling's energy
+    error against the number of steps, per case: libcosim at each fixed step, then ECCO at
+    each tolerance (its first step 1 ms, the other settings their defaults)."""
+    from harness.systems import description, engines, writers
+
+    rows = []
+    for scenario_name, variant_name in cases:
+        scenario = scenarios.load(scenario_name)
+        variant = scenario.variant(variant_name)
+        ref = reference.simulate(scenario, variant).metrics
+        drawn = ref["E_drawn"]
+        runs = [("fixed", h, None, description.describe(scenario, variant, h))
+                for h in step_sizes]
+        runs += [("ecco", master.DEFAULT_STEP, tolerance, description.describe(
+            scenario, variant, master.DEFAULT_STEP,
+            ecco=description.EccoSettings(abs_tolerance=tolerance))) for tolerance in tolerances]
+        with tempfile.TemporaryDirectory() as folder:
+            for algorithm, h, tolerance, described in runs:
+                run = engines.run_libcosim(described, None if tolerance is not None
+                                          else writers.write_osp(described, Path(folder)))
+                bond_errors = [value for name, value in run.metrics.items()
+                               if name.startswith("W_bond_error")]
+                rows.append({
+                    "scenario": scenario_name, "variant": variant_name,
+                    "algorithm": algorithm, "step_size": run.step_size,
+                    "abs_tolerance": tolerance,
+                    "steps": run.metrics.get("steps", round(scenario.duration / h)),
+                    "E_drawn": run.metrics["E_drawn"], "E_drawn_ref": drawn,
+                    "err_E_drawn": abs(run.metrics["E_drawn"] - drawn) / drawn,
+                    # E_in has no rectification: relative to E_drawn, as in convergence
+                    "err_E_in": abs(run.metrics["E_in"] - ref["E_in"]) / drawn,
+                    "bond_error": sum(abs(e) for e in bond_errors),
+                    "rel_bond_error": sum(abs(e) for e in bond_errors) / drawn,
+                    "event_lag_max": run.metrics.get("event_lag_max", 0.0)})
+    return pd.DataFrame(rows)
+
+
+def ecco_plot(table: pd.DataFrame, path: Path) -> Path:
+    """ecco.png: per case, E_drawn's relative error and the coupling's relative energy error
+    (|W_bond_error| / E_drawn_ref) against the steps taken, fixed step and ECCO (log-log)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    from harness.io import save_figure
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for (case, rows), colour in zip(table.groupby(["scenario", "variant"], sort=False),
+                                    ("C0", "C1", "C2", "C3"), strict=False):
+        for algorithm, marker in (("fixed", "o-"), ("ecco", "s--")):
+            chosen = rows[rows.algorithm == algorithm]
+            for ax, column in zip(axes, ("err_E_drawn", "rel_bond_error"), strict=True):
+                ax.loglog(chosen.steps, chosen[column], marker, color=colour,
+                          label=f"{'/'.join(case)} {algorithm}")
+    for ax, title in zip(axes, ("E_drawn: relative error against the monolithic reference",
+                                "coupling: |W_bond_error| / E_drawn"), strict=True):
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("communication steps")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # decades only: minor labels overlap
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+BENCH_SWEEP = """
+name = "bench"
+scenario = "franchetti2021"
+variants = ["self_regulating"]
+[[axes]]
+name = "payload"
+set = ['phases["III regulate"].inputs.payload',
+       'phases["III regulate"].inputs.counterweight_added']
+range = {{ start = 0.0, stop = 8.0, num = {runs} }}
+"""
+
+
+def sweep_benchmark(runs: int = 12, workers: Sequence[int] = (1, 2)) -> pd.DataFrame:
+    """Runs per second of a franchetti2021 payload sweep (35 s task at 1 ms) with each number
+    of worker processes, one run per task, results stored as in a sweep. Start-up (cluster,
+    imports, one FMU instance per worker) is not timed. speed_up is against the first row."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="sweep_bench_") as tmp:
+        path = Path(tmp) / "bench.toml"
+        path.write_text(BENCH_SWEEP.format(runs=runs))
+        sweep = sweep_definition.load(path)
+        fmu_build.locate(sweep.scenario.model)
+        for n in workers:
+            out = Path(tmp) / f"workers_{n}"
+            client = sweep_execution.local_client(n)
+            try:
+                client.run(sweep_execution.warm_up, sweep.scenario.model)
+                start = time.perf_counter()
+                done, failed = sweep_execution.execute(sweep, sweep_definition.plan(sweep), out,
+                                                       client, 1, quiet=True)
+                seconds = time.perf_counter() - start
+            finally:
+                sweep_execution.close_client(client)
+            if failed:
+                raise RuntimeError(f"{failed} of {done} benchmark runs failed")
+            rows.append({"workers": n, "runs": done, "seconds": seconds,
+                        "runs_per_s": done / seconds})
+    table = pd.DataFrame(rows)
+    table["speed_up"] = table.runs_per_s / table.runs_per_s.iloc[0]
+    return table
+
+
+HELP_COMMAND = ("-m", "harness", "--help")
+HELP_SECONDS_BOUND = 1.0  # wall time of the top-level help [s]
+CHECKOUT = Path(__file__).resolve().parents[2]  # where `-m harness` finds this harness
+
+
+def cli_help(steps: int = 0, repeats: int = 3) -> pd.DataFrame:
+    """Wall time [s] of `python -m harness --help` in a fresh interpreter (start-up and the
+    CLI's imports), best and worst of repeats."""
+    seconds = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, *HELP_COMMAND], cwd=CHECKOUT, capture_output=True,
+                       check=True)
+        seconds.append(time.perf_counter() - start)
+    return pd.DataFrame({"command": ["python " + " ".join(HELP_COMMAND)], "repeats": repeats,
+                         "best_s": min(seconds), "worst_s": max(seconds)})

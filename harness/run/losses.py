@@ -1,0 +1,126 @@
+"""Loss sets: the shipped scenarios run again with the losses of real parts (docs/losses.md).
+
+A scenario's variants as written are the `ideal` set. A scenario with a loss file,
+harness/losses/<scenario>.toml, also has a `realistic` set: the same variants with the loss
+file's parameters. Its tables:
+
+- `[models.<Model>]`: parameters set in every variant that runs that model (joint, slider
+  and pulley friction, pulley inertia, spring free length, slider mass);
+- `[variants.<variant>]`: `parameters` and `phase_targets` (the format of the scenario's
+  variants) over those, for one variant: what a design rule makes of its geometry with the
+  real parts (where the slider sits, where the carriage goes) and what it does not have (the
+  unbalanced link has no slider).
+
+A variant's parameters are then the scenario's, its own, its model's losses and its own
+losses, each over the one before. The realistic set is a result set of its own,
+results/<scenario>/realistic/, in the format of docs/results.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from fmu_src.units.sequencer import scenario as core
+from fmu_src.units.sequencer import scenario_format
+from harness.errors import UserError
+from harness.run.scenario_files import Scenario, read_toml
+
+LOSSES_DIR = Path(__file__).resolve().parents[1] / "losses"
+LOSS_SETS = ("ideal", "realistic")
+REALISTIC_FOLDER = "realistic"   # the realistic set's folder inside results/<scenario>/
+VARIANT_KEYS = ("parameters", "phase_targets")
+
+
+def loss_file(scenario: Scenario) -> Path:
+    """The loss file of a scenario (whether it exists or not)."""
+    return LOSSES_DIR / f"{scenario.name}.toml"
+
+
+def has_realistic(scenario: Scenario) -> bool:
+    """Whether the scenario has a realistic set (a loss file of its name)."""
+    return loss_file(scenario).exists()
+
+
+def realistic(scenario: Scenario) -> Scenario:
+    """The scenario with every variant's parameters (and the phase targets the loss file
+    gives) those of real parts; UserError naming the file and the key that is wrong."""
+    path = loss_file(scenario)
+    data = read_toml(path)
+    where = path.name
+    try:
+        scenario_format._unknown_keys(data, ("models", "variants"), where)
+        models = {model: scenario_format._parameter_values(values, f"{where} models.{model}")
+                  for model, values in core.table(data.get("models", {}), "models").items()}
+        used = {variant.model or scenario.model for variant in scenario.variants.values()}
+        unused = sorted(set(models) - used)
+        if unused:
+            raise ValueError(f"models.{unused[0]} is no model of scenario {scenario.name}'s "
+                             f"variants ({', '.join(sorted(used))})")
+        overrides = core.table(data.get("variants", {}), "variants")
+        unknown = sorted(set(overrides) - set(scenario.variants))
+        if unknown:
+            raise ValueError(f"variants.{unknown[0]} names no variant of scenario "
+                             f"{scenario.name}; choose from {', '.join(scenario.variants)}")
+        variants = {}
+        for name, variant in scenario.variants.items():
+            raw = core.table(overrides.get(name, {}), f"variants.{name}")
+            scenario_format._unknown_keys(raw, VARIANT_KEYS, f"variants.{name}")
+            own = scenario_format._parameter_values(raw.get("parameters", {}),
+                                                    f"variants.{name} parameters")
+            targets = _phase_targets(scenario, variant, raw.get("phase_targets", {}),
+                                     f"variants.{name} phase_targets")
+            variants[name] = replace(
+                variant, parameters={**variant.parameters,
+                                     **models.get(variant.model or scenario.model, {}), **own},
+                phase_targets={**variant.phase_targets, **targets})
+    except ValueError as error:
+        raise UserError(f"{where}: {error}") from None
+    return replace(scenario, variants=variants)
+
+
+def _phase_targets(scenario: Scenario, variant: core.Variant, raw: object, where: str
+                   ) -> dict[str, dict[str, float]]:
+    """Targets of the variant's own joints by phase [rad or m], checked as the scenario's."""
+    phases = {phase.name for phase in scenario.phases}
+    own = {joint.name for joint in variant.joints}
+    targets = {}
+    for phase, changes in core.table(raw, where).items():
+        if phase not in phases:
+            raise ValueError(f"{where} names no phase {phase!r}")
+        changes = core.table(changes, f"{where} {phase}")
+        unknown = sorted(set(changes) - own)
+        if unknown:
+            raise ValueError(f"{where} {phase}: {unknown[0]} is no joint of the variant's own "
+                             f"({', '.join(sorted(own)) or 'none'})")
+        targets[phase] = {joint: core.position(value, f"{where} {phase} {joint}")
+                          for joint, value in changes.items()}
+    return targets
+
+
+def loss_sets(scenario: Scenario, selected: str) -> list[tuple[str, Scenario]]:
+    """(loss set, scenario) for `--losses` ('all', or a comma-separated list of LOSS_SETS):
+    with 'all' the realistic set where the scenario has a loss file; named, it must have
+    one (UserError otherwise)."""
+    names = list(LOSS_SETS) if selected == "all" else [s.strip() for s in selected.split(",")]
+    wrong = [name for name in names if name not in LOSS_SETS]
+    if wrong or not names:
+        raise UserError(f"--losses = {selected!r} must be 'all' or a comma-separated list of "
+                        f"{', '.join(LOSS_SETS)}")
+    sets = []
+    for name in dict.fromkeys(names):
+        if name == "ideal":
+            sets.append((name, scenario))
+        elif has_realistic(scenario):
+            sets.append((name, realistic(scenario)))
+        elif selected != "all":
+            raise UserError(f"--losses {name}: scenario {scenario.name} has no loss file "
+                            f"{loss_file(scenario)}")
+    return sets
+
+
+def result_folder(out: Path, scenario: Scenario, loss_set: str) -> Path:
+    """Where a loss set's result set goes: OUT/<scenario>/, the realistic set in its
+    REALISTIC_FOLDER."""
+    folder = out / scenario.name
+    return folder if loss_set == "ideal" else folder / REALISTIC_FOLDER

@@ -1,0 +1,414 @@
+"""Result files (docs/results.md): per-variant CSV series, a summary table, plots.
+
+CSVs follow the FMI cross-check conventions (as fmpy.util.write_csv): quoted header,
+`time` first, one column per quantity named after the FMU variable or drive signal, SI units,
+booleans as 0/1. Every file is written atomically (harness.io), so a crash never leaves a
+half-written result.
+
+A scenario's folder is one result set: `write_run` merges the variants just run into it
+(their CSVs replaced, every other row of the summary kept, whatever its columns: the table
+gets the union of both layouts), makes every file in a staging folder first and then renames
+them into place in one burst, summary last, and holds an exclusive lock on the folder
+meanwhile, so concurrent runs into one folder are serialised instead of overwriting each
+other's rows. A staging folder is locked too while it is in use; one that nobody holds (its
+writer was killed) is removed by the next write.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+
+from harness import registry  # noqa: E402
+from harness.errors import UserError  # noqa: E402
+from harness.io import check_target, save_figure, write_csv  # noqa: E402
+from harness.run.master import RunResult, suffix
+from harness.run.metrics import METRICS, efficaciousness
+from harness.run.scenario_files import Scenario
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: no locks, so no serialisation and no stale-staging cleanup
+    fcntl = None
+
+RESULTS_DIR = Path(__file__).resolve().parents[2] / "results"
+STAGING_PREFIX = ".staging."  # write_run's staging folders inside a result set
+SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size")
+
+
+def summary_outputs() -> tuple[str, ...]:
+    """The mechanism outputs a summary reports at the end of the run, where a variant's model
+    has them (NaN, an empty cell, for the others): every registration's summary_outputs."""
+    return tuple(dict.fromkeys(name for r in registry.mechanisms().values()
+                               for name in r.summary_outputs))
+
+
+def summary_columns(results: list[RunResult]) -> list[str]:
+    """Columns of a summary: SUMMARY_COLUMNS for one-joint runs; with several joints the
+    totals, then each drive's metrics (see harness.run.metrics), then eps and the rest. Where the
+    runs differ in their joints, every metric any of them has, in order of appearance; the
+    summary_outputs any of them has go before model."""
+    metrics = dict.fromkeys(name for r in results for name in r.metrics)
+    outputs = [name for name in summary_outputs() if any(name in r.series for r in results)]
+    return ["variant", *metrics, "eps", "W_phases", "eps_W", *outputs, "model", "step_size"]
+
+
+def _summary_row(run: RunResult) -> dict[str, object]:
+    """A run's metrics, its summary_outputs at the end and, for a one-joint run, its drive
+    metrics also under the joint-suffixed names of several-joint runs (kept where the table
+    has those columns)."""
+    (joint, *others) = run.joint_phase_work or [None]
+    suffixed = ({f"{name}_{joint}": value for name, value in run.metrics.items()}
+                if joint is not None and not others else {})
+    return {**run.metrics, **suffixed,
+            **{name: float(run.series[name].iloc[-1]) for name in summary_outputs()
+               if name in run.series}}
+
+
+def merged_columns(layout: Sequence[str], columns: Sequence[str]) -> list[str]:
+    """The union of two summary layouts: layout's columns in its order, each other column
+    inserted after the one it follows in columns."""
+    merged = list(layout)
+    for previous, column in zip([None, *columns], columns, strict=False):
+        if column not in merged:
+            merged.insert(0 if previous is None else merged.index(previous) + 1, column)
+    return merged
+
+
+def summary(results: Iterable[RunResult], baseline: str | Mapping[str, str],
+            layout: Sequence[str] = ()) -> pd.DataFrame:
+    """One row per variant with the metrics of docs/results.md and the per-phase work.
+
+    Where some variants drive several joints and others one (franchetti2021's
+    active_relocation), a one-joint variant's drive metrics also fill the columns of its
+    joint (`E_drawn_theta`), and the drive metrics of a several-joint variant under plain
+    names stay empty (NaN) unless they are totals.
+
+    W_phases [J] is the sum over the task's phases (and drives) of |net mechanical work of the
+    drive on its joint in the phase|: the paper's stroke energy |integral of M dphi| summed
+    over strokes. eps (on E_drawn, docs/results.md) and eps_W (on W_phases) are computed
+    against the baseline: one variant name, or a baseline per variant (Scenario.baselines);
+    NaN where the baseline was not run.
+
+    layout: the columns of the result set these rows join (write_run); the table then has
+    the union of layout and its own columns (merged_columns), NaN where a run has no value.
+    """
+    results = list(results)
+    rows = [{"variant": r.variant, **_summary_row(r),
+             "W_phases": sum(abs(w) for works in r.joint_phase_work.values()
+                             for w in works.values()),
+             "model": r.model, "step_size": r.step_size} for r in results]
+    columns = merged_columns(layout, summary_columns(results))
+    return with_eps(pd.DataFrame(rows), baseline).reindex(columns=columns)
+
+
+def with_eps(table: pd.DataFrame, baseline: str | Mapping[str, str]) -> pd.DataFrame:
+    """The summary table with eps and eps_W computed against each row's baseline row."""
+    baselines = table.variant.map(
+        (lambda _: baseline) if isinstance(baseline, str) else baseline.get)
+    indexed = table.set_index("variant")
+    for metric, column in (("E_drawn", "eps"), ("W_phases", "eps_W")):
+        table[column] = efficaciousness(table[metric], baselines.map(indexed[metric]))
+    return table
+
+
+@dataclass(frozen=True)
+class StoredRun:
+    """A variant of the result set written by an earlier run: what its plot needs."""
+
+    variant: str
+    model: str
+    series: pd.DataFrame
+
+
+def check_writable(out_dir: Path) -> None:
+    """UserError unless files can be created in out_dir (made if missing): checked before a
+    simulation, so a long run does not end in a write error."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as error:
+        raise UserError(f"output folder {out_dir} is not writable "
+                        f"({error.strerror or error})") from None
+
+
+def read_summary(path: Path) -> pd.DataFrame | None:
+    """The summary table of a result set, None if there is none yet; UserError naming the
+    file when it is empty, not a CSV, or lacks a variant or model in a row or repeats one."""
+    if not path.exists():
+        return None
+    start_anew = "move it away to start a new result set"
+    table = _read_csv(path, dtype={"variant": str, "model": str})
+    for column in ("variant", "model"):
+        if column not in table or table[column].isna().any():
+            raise UserError(f"{path} has no {column} column or an empty {column} cell: "
+                            f"{start_anew}")
+    repeated = sorted(set(table.variant[table.variant.duplicated()]))
+    if repeated:
+        raise UserError(f"{path} lists variant(s) {', '.join(repeated)} twice: {start_anew}")
+    return table
+
+
+def check_result_set(out_dir: Path) -> None:
+    """UserError unless out_dir is writable and a summary.csv there is readable
+    (read_summary): checked before a simulation."""
+    check_writable(out_dir)
+    read_summary(out_dir / "summary.csv")
+
+
+@contextlib.contextmanager
+def _flocked(path: Path) -> Iterator[None]:
+    """Hold an exclusive flock on a file or folder (released when its holder dies)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+@contextlib.contextmanager
+def locked(out_dir: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the folder (flock on the folder itself, so no lock file is
+    left behind and a killed writer releases it): concurrent writers wait their turn."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with contextlib.nullcontext() if fcntl is None else _flocked(out_dir):
+        yield
+
+
+@contextlib.contextmanager
+def staging(out_dir: Path) -> Iterator[Path]:
+    """A new staging folder in out_dir, locked while in use (so that remove_stale_staging
+    tells it from one left by a killed writer) and removed after."""
+    with tempfile.TemporaryDirectory(dir=out_dir, prefix=STAGING_PREFIX) as tmp:
+        with contextlib.nullcontext() if fcntl is None else _flocked(Path(tmp)):
+            yield Path(tmp)
+
+
+def remove_stale_staging(out_dir: Path) -> list[Path]:
+    """Remove the staging folders in out_dir that no live process holds (a writer killed
+    while staging, e.g. by SIGKILL, leaves its folder, but its lock died with it); return
+    those removed. Called with the folder lock held, so no writer is between making and
+    locking one; a folder that cannot be removed stays (hidden, it holds no result)."""
+    if fcntl is None:
+        return []
+    removed = []
+    for folder in sorted(out_dir.glob(f"{STAGING_PREFIX}*")):
+        if folder.is_symlink() or not folder.is_dir():
+            continue
+        try:
+            fd = os.open(folder, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            shutil.rmtree(folder, ignore_errors=True)  # holding its lock meanwhile
+            if not folder.exists():
+                removed.append(folder)
+        except BlockingIOError:
+            pass  # held by a live writer
+        finally:
+            os.close(fd)
+    return removed
+
+
+def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path) -> list[Path]:
+    """Write <variant>.csv for each run, then the plot and summary.csv of the whole result set
+    in out_dir: every row of an earlier summary is kept (with the union of the columns) but
+    the variants run now, eps is recomputed over all rows. A failure before the renames
+    (a full disk) is a UserError naming the file and leaves the old set untouched; the
+    summary is renamed last: it lists what the set holds."""
+    with locked(out_dir):
+        remove_stale_staging(out_dir)
+        old = read_summary(out_dir / "summary.csv")
+        try:
+            with staging(out_dir) as folder:  # every file made here, then renamed in a burst
+                staged = _stage(results, scenario, out_dir, old, folder)
+                for path in staged:
+                    check_target(out_dir / path.name)
+                return [path.replace(out_dir / path.name) for path in staged]
+        except OSError as error:
+            raise UserError(f"cannot write the result set in {out_dir}: "
+                            f"{error.strerror or error}") from None
+        except UserError as error:
+            raise UserError(f"{error} (the result set in {out_dir} is as it was)") from None
+
+
+def _stage(results: list[RunResult], scenario: Scenario, out_dir: Path,
+           old: pd.DataFrame | None, folder: Path) -> list[Path]:
+    """Write into folder the new variants' CSVs, then the plot and the summary of the set:
+    the new rows and every old row of another variant (old, the existing summary), in the
+    scenario's variant order (variants it no longer has last, as they were)."""
+    staged = [write_csv(r.series, folder / f"{r.variant}.csv") for r in results]
+    table = summary(results, scenario.baselines, () if old is None else old.columns)
+    kept = table.iloc[:0] if old is None else old[~old.variant.isin(table.variant)]
+    rank = {name: index for index, name in enumerate(scenario.variants)}
+    table = pd.concat([table, kept.reindex(columns=table.columns)], ignore_index=True)
+    table = table.sort_values("variant", key=lambda v: v.map(lambda n: rank.get(n, len(rank))),
+                              kind="stable")
+    table = with_eps(table.reset_index(drop=True), scenario.baselines)
+    stored = [StoredRun(variant, model, _read_csv(out_dir / f"{variant}.csv"))
+              for variant, model in zip(kept.variant, kept.model, strict=True)
+              if (out_dir / f"{variant}.csv").exists()]  # a row without its CSV: not plotted
+    runs = sorted([*results, *stored], key=lambda r: rank.get(r.variant, len(rank)))
+    staged.append(plot(runs, scenario, folder / f"{scenario.name}.png"))
+    staged.append(write_csv(table, folder / "summary.csv"))
+    return staged
+
+
+def _read_csv(path: Path, **options: object) -> pd.DataFrame:
+    """A CSV file of a result set (pandas.read_csv options); UserError naming the file when
+    it is empty, not UTF-8 or not a CSV table."""
+    try:
+        return pd.read_csv(path, **options)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError,
+            pd.errors.EmptyDataError) as error:
+        reason = error.strerror if isinstance(error, OSError) else str(error).splitlines()[0]
+        raise UserError(f"{path} cannot be read as a CSV table ({reason}): move it away to "
+                        "start a new result set") from None
+
+
+# ---- plots -------------------------------------------------------------------------------
+def _to_mm(values: np.ndarray) -> np.ndarray:
+    return 1e3 * values
+
+
+# panels: (title, unit, [(column, conversion or None), ...]); a column ending in _ref is the
+# reference, drawn once in black
+MECHANISM_PANELS = (
+    ("(a) link angle", "deg", [("theta", np.degrees), ("theta_ref", np.degrees)]),
+    ("(b) energies", "J", [("E_p", None), ("E_e", None), ("E_t", None)]),
+    ("(c) slider travel, carriage travel and payload", "mm | kg",
+     [("delta_b", _to_mm), ("payload", None), ("q", _to_mm)]),
+    ("(d) spring length x (l_s), counterweight distance OB or height Y_cw", "mm",
+     [("x", _to_mm), ("OB", _to_mm), ("Y_cw", _to_mm), ("l_s", _to_mm)]),
+)
+DRIVE_PANELS = (
+    ("drive torque", "N m", "tau_drive"),
+    ("motor current", "A", "i"),
+    ("electrical power", "W", "P_elec"),
+    ("energy drawn", "J", "E_drawn"),
+)
+STYLES = ("-", "--", ":", "-.")
+
+
+def panels(scenario: Scenario, model: str) -> tuple[tuple, tuple]:
+    """(mechanism panels, drive panels) of a scenario's plot: Franchetti Figure 5's four
+    panels for one-joint scenarios; per joint tracking, the model's own panels (its
+    registration's plot_panels) and per drive efforts, total power and energy drawn for
+    several joints."""
+    if len(scenario.joints) == 1:
+        return MECHANISM_PANELS, DRIVE_PANELS
+    tracking, efforts = [], []
+    for joint in scenario.joints:
+        revolute = joint.kind == "revolute"
+        convert, unit = (np.degrees, "deg") if revolute else (_to_mm, "mm")
+        tracking.append((f"joint {joint.name}", unit, [(joint.position, convert),
+                                                       (f"{joint.position}_ref", convert)]))
+        efforts.append((f"drive effort {joint.effort} ({joint.motor} motor)",
+                        "N m" if revolute else "N", joint.effort))
+    found = registry.registration(model)
+    own = () if found is None else tuple((title, unit, [(name, None) for name in names])
+                                         for title, unit, names in found.plot_panels)
+    return ((*tracking, *own),
+            (*efforts, ("electrical power, all drives", "W", "P_elec"),
+             ("energy drawn, all drives", "J", "E_drawn")))
+
+
+def plot(results: Sequence[RunResult | StoredRun], scenario: Scenario, path: Path) -> Path:
+    """The mechanism per variant (left; a model's other quantities share a panel, e.g.
+    Ciupitu's OB in Franchetti's (d)) and the drives per variant (right), see `panels`."""
+    mechanism, drives = panels(scenario, results[0].model)
+    rows = max(len(mechanism), len(drives))
+    fig, axes = plt.subplots(rows, 2, figsize=(13, 3 * rows), sharex=True, squeeze=False)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for row, (title, unit, signals) in enumerate(mechanism):
+        ax = axes[row, 0]
+        for colour, r in zip(colours, results, strict=False):
+            for style, (name, convert) in zip(STYLES, signals, strict=False):
+                reference = name.endswith("_ref")
+                if name not in r.series or (reference and r is not results[0]):
+                    continue
+                values = r.series[name].to_numpy()
+                ax.plot(r.series.time, convert(values) if convert else values, style,
+                        color="k" if reference else colour, lw=1.2)
+        # one legend entry per signal shown (line style) and per variant (colour)
+        shown = [(style, name) for style, (name, _) in zip(STYLES, signals, strict=False)
+                 if any(name in r.series for r in results)]
+        handles = [Line2D([], [], ls=style, color="0.4", label=name)
+                   for style, name in shown if not name.endswith("_ref")]
+        handles += [Line2D([], [], color=colour, label=r.variant)
+                    for colour, r in zip(colours, results, strict=False)
+                    if any(name in r.series for _, name in shown)]
+        handles += [Line2D([], [], ls=style, color="k", label="reference")
+                    for style, name in shown if name.endswith("_ref")]
+        ax.legend(handles=handles, fontsize=7, ncol=2)
+        _decorate(ax, title, unit)
+    for row, (title, unit, name) in enumerate(drives):
+        ax = axes[row, 1]
+        for colour, r in zip(colours, results, strict=False):
+            # a several-joint run shows its first joint's signal (<name>_<joint>); a stored
+            # run of another layout may have neither
+            column = name if name in r.series else next(
+                (c for c in r.series.columns if c.startswith(f"{name}_")), None)
+            if column is None:
+                continue
+            ax.plot(r.series.time, r.series[column], color=colour, lw=1.2, label=r.variant)
+        ax.legend(fontsize=7)
+        _decorate(ax, title, unit)
+    for ax in axes[rows - 1:, :].ravel():
+        ax.set_xlabel("time [s]")
+    for row in range(len(mechanism), rows):
+        axes[row, 0].set_visible(False)
+    for row in range(len(drives), rows):
+        axes[row, 1].set_visible(False)
+    fig.suptitle(f"{scenario.name}: mechanism (panels of Franchetti et al. 2021, Fig. 5) "
+                 "and drive" if len(scenario.joints) == 1 else
+                 f"{scenario.name}: joints, mechanism and drives")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def _decorate(ax: plt.Axes, title: str, unit: str) -> None:
+    ax.set_title(title, loc="left", fontsize=10)
+    ax.set_ylabel(unit)
+    ax.grid(alpha=0.3)
+
+
+def summary_text(path: Path, scenario: Scenario) -> str:
+    """A summary CSV as a readable table: energies in J, efforts in N m or N, tracking errors
+    in deg (revolute joints) or mm (prismatic joints)."""
+    table = pd.read_csv(path)
+    shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech"]
+    per_drive = ["tau_peak", "tau_rms", "F_peak", "F_rms", "i_rms", "V_peak", "track_err_max",
+                 "track_err_rms"]
+    suffixes = {}
+    for variant in scenario.variants.values():  # the joints of every variant
+        resolved = scenario.for_variant(variant)
+        suffixes |= {suffix(resolved, joint): joint for joint in resolved.joints}
+    shown += [f"{metric}{s}" for s in suffixes for metric in per_drive
+              if f"{metric}{s}" in table]
+    for s, joint in suffixes.items():
+        for column in (f"track_err_max{s}", f"track_err_rms{s}"):
+            if column in table:
+                table[column] = np.degrees(table[column]) if joint.kind == "revolute" else (
+                    1e3 * table[column])
+    shown += ["eps", "W_phases", "eps_W", *(c for c in summary_outputs() if c in table)]
+    folder = path.parent.name  # the scenario's, or its loss set's inside it (realistic)
+    title = folder if folder == scenario.name else f"{scenario.name} {folder}"
+    return (f"{title} (tracking errors in deg, or mm for prismatic joints)\n"
+            + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
