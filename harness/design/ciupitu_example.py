@@ -19,7 +19,7 @@ import sys
 from dataclasses import fields
 
 from fmu_src.mechanisms.ciupitu import example as paper_example
-from fmu_src.mechanisms.rocking_counterweight import physics as rocking
+from fmu_src.mechanisms.rocking_counterweight import statics
 from harness.design import rocking_counterweight as rocking_design
 from harness.errors import UserError
 
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     strokes = {law: paper_example.stroke(data, law) for law in paper_example.PAYLOAD_LAWS}
     strokes |= {f"{law}_with_bar": paper_example.stroke(data, law, with_bar=True)
                 for law in paper_example.PAYLOAD_LAWS}
-    strokes |= {f"{law}_rocking": rocking.stroke(data, rocking_design.stored_linkage(law), law)
+    strokes |= {f"{law}_rocking": statics.stroke(data, rocking_design.stored_linkage(law), law)
                 for law in paper_example.PAYLOAD_LAWS}
     if args.json:
         values = results(strokes)
