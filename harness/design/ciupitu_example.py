@@ -2,7 +2,7 @@
 
 One stroke of the arm (phi = +pi/2 -> -pi/2) for the parabolic and the linear payload law:
 efficaciousness eps (eq. 31) and the largest unbalanced moment |M_u|. The calculation is
-`fmu_src.mechanisms.ciupitu.physics.stroke`; see that module for the interpretation of the
+`fmu_src.mechanisms.ciupitu.example.stroke`; see that module for the interpretation of the
 paper's numbers. Rows and keys `<law>` are the paper's reading (M_b the weight's moment alone),
 `<law>_with_bar` count the bar's moment M_bar too, as the FMU's torque does and as the rocking
 counterweight's M_u does: those are the translational figures to compare the rocking ones with.
