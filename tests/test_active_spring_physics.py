@@ -12,7 +12,7 @@ from functools import partial
 import pytest
 
 from fmu_src import integration
-from fmu_src.mechanisms.active_spring import physics
+from fmu_src.mechanisms.active_spring import model, physics
 from harness import cli
 from harness.design import active_spring as active_design
 
@@ -68,10 +68,10 @@ def test_zero_free_length_spring_balances_at_every_angle(payload: float) -> None
     p = physics.Parameters(F_s0=K * 0.04, l_s0=0.04)
     balanced = (M1 * OC1 + payload * W) * G / (K * X1A)
     for theta in ANGLES:
-        assert physics.tau_gravity(p, payload, theta, balanced) == pytest.approx(0.0, abs=1e-12)
-        assert physics.balance_error(p, payload, theta, balanced) == pytest.approx(0.0, abs=1e-12)
+        assert model.tau_gravity(p, payload, theta, balanced) == pytest.approx(0.0, abs=1e-12)
+        assert model.balance_error(p, payload, theta, balanced) == pytest.approx(0.0, abs=1e-12)
         off = balanced + 0.01
-        assert physics.tau_gravity(p, payload, theta, off) == pytest.approx(
+        assert model.tau_gravity(p, payload, theta, off) == pytest.approx(
             -K * X1A * 0.01 * math.sin(theta), abs=1e-12)
 
 
@@ -102,7 +102,7 @@ def test_ledger_closes_with_drives_dampers_and_payload_changes(spring: dict[str,
     E_loss - W_drive - W_adjust - E_added is constant to 1e-9 J (measured 1e-11 to 9e-11 J)."""
     p = physics.Parameters(**spring, **IDEAL, omega0=0.5, q_dot0=0.02,
                            self_locking=self_locking, J_drive=0.05, m_drive_q=0.3)
-    load = physics.spring(p, 1.0, p.Y_B0).F_q - p.m_q * G   # -71 N (real spring: -53 N)
+    load = model.spring(p, 1.0, p.Y_B0).F_q - p.m_q * G   # -71 N (real spring: -53 N)
     schedule = [(0.05, 2.0 - load, 0.0), (0.05, 0.5 - load, 0.3), (-0.05, -3.0 - load, 0.1),
                 (0.0, -1.0 - load, 0.1)]
     s, drift = run(p, schedule, 3000)
@@ -155,8 +155,8 @@ def test_self_locking_carriage_lowered_by_the_actuator_dissipates_the_load(
     s, drift = run(p, [(0.0, force, 0.0)], 50)
     tau = (0.5 + m_drive_q) / p.d_q
     assert s.q == pytest.approx(force / p.d_q * (t - tau * (1 - math.exp(-t / tau))), rel=1e-9)
-    spring_work = physics.elastic_energy(p, physics.spring(p, s.theta, p.Y_B0).l_s) - (
-        physics.elastic_energy(p, physics.spring(p, s.theta, p.Y_B0 + s.q).l_s))
+    spring_work = model.elastic_energy(p, model.spring(p, s.theta, p.Y_B0).l_s) - (
+        model.elastic_energy(p, model.spring(p, s.theta, p.Y_B0 + s.q).l_s))
     damper = s.E_loss - (spring_work - p.m_q * G * s.q)
     assert 0.0 < damper < s.W_adjust and drift < 1e-9
 
@@ -166,7 +166,7 @@ def test_self_locking_carriage_rises_only_when_the_actuator_beats_the_load() -> 
     rest, 5 N over it raises it; the actuator's work then pays the spring's and the weight's
     energy (W_adjust = E_t gained + E_kin + E_loss) and the screw loses nothing."""
     p = physics.Parameters(**IDEAL, theta0=math.pi)
-    load = physics.spring(p, math.pi, p.Y_B0).F_q - p.m_q * G
+    load = model.spring(p, math.pi, p.Y_B0).F_q - p.m_q * G
     short, _ = run(p, [(0.0, -load - 1.0, 0.0)], 100)
     assert short.q == 0.0 and short.W_adjust == 0.0
     s, _ = run(p, [(0.0, -load + 5.0, 0.0)], 100)
@@ -201,7 +201,7 @@ def test_screw_efficiencies_are_the_power_screw_torques(mu: float, lead: float, 
                                                         flank: float) -> None:
     lead_angle = math.atan(lead / (math.pi * d2))
     expected = thread_efficiencies(mu, lead, d2, math.radians(flank))
-    assert physics.screw_efficiencies(mu, lead_angle, math.radians(flank)) == pytest.approx(
+    assert model.screw_efficiencies(mu, lead_angle, math.radians(flank)) == pytest.approx(
         expected, rel=1e-12)
 
 
@@ -210,7 +210,7 @@ def test_the_default_screw_is_a_self_locking_tr10x2_at_40_percent() -> None:
     (mu = 0.1, 15 deg flanks: rho' = 5.91 deg): eta_f = 0.403, eta_b = -0.46 (self-locking)."""
     p = physics.Parameters()
     assert math.degrees(p.lead_angle) == pytest.approx(4.046, abs=1e-3)
-    assert math.degrees(physics.friction_angle(p.mu, p.flank_angle)) == pytest.approx(
+    assert math.degrees(model.friction_angle(p.mu, p.flank_angle)) == pytest.approx(
         5.911, abs=1e-3)
     assert (p.eta_forward, p.eta_backward) == pytest.approx(
         thread_efficiencies(0.1, 0.002, 0.009, math.radians(15.0)), rel=1e-12)
@@ -229,7 +229,7 @@ def test_the_screw_self_locks_exactly_when_the_friction_angle_reaches_the_lead_a
     and the hanging link's spring (160 N) pulls the carriage down with no actuator force;
     above, eta_b < 0 and the screw holds it (F_lock = -L). A self_locking that contradicts
     the friction is refused, naming it."""
-    lead_angle = physics.TR10X2_LEAD_ANGLE
+    lead_angle = model.TR10X2_LEAD_ANGLE
     mu = math.tan(lead_angle) * math.cos(math.radians(15.0)) * (1.0 + 1e-3 * side)
     locking = side > 0.0
     p = physics.Parameters(mu=mu, self_locking=locking, theta0=math.pi)
@@ -238,7 +238,7 @@ def test_the_screw_self_locks_exactly_when_the_friction_angle_reaches_the_lead_a
     with pytest.raises(ValueError, match="^self_locking = "):
         physics.validate(physics.Parameters(mu=mu, self_locking=not locking))
     s, drift = run(p, [(0.0, 0.0, 0.0)], 100)
-    load = physics.spring(p, math.pi, p.Y_B0 + s.q).F_q - p.m_q * G
+    load = model.spring(p, math.pi, p.Y_B0 + s.q).F_q - p.m_q * G
     assert load < -150.0 and drift < 1e-9
     if locking:
         assert s.q == 0.0 and s.q_dot == 0.0 and s.W_adjust == 0.0
@@ -279,7 +279,7 @@ def test_ledger_closes_on_a_screw_with_friction(spring: dict[str, float], screw:
     at 1e-10 it stays within 1e-9 J (measured 1.3e-10 to 3.8e-10 J)."""
     p = physics.Parameters(**spring, **screw, omega0=0.5, q_dot0=0.02, J_drive=0.05,
                            m_drive_q=0.3, ledger_accuracy=1e-10)
-    load = physics.spring(p, math.pi, p.Y_B0).F_q - p.m_q * G   # the hanging link's, the most
+    load = model.spring(p, math.pi, p.Y_B0).F_q - p.m_q * G   # the hanging link's, the most
     lift, lower = -load / p.eta_forward, -load * p.eta_backward
     schedule = [(0.05, 30.0 + lift, 0.0), (0.05, 10.0 + lift, 0.3), (-0.05, lower - 30.0, 0.1),
                 (0.0, lower - 10.0, 0.1)]
@@ -317,17 +317,17 @@ def test_stage_rates_are_the_spring_and_carriage_laws(params: dict, inputs: tupl
     for bit, and `advance`'s RK4 sub-step equals `integration.rk4` over `derivatives`, at
     the case's state and at 40 angles and speeds around it (rounding shows in some)."""
     p, u = physics.Parameters(**params), physics.Inputs(*inputs)
-    rates = physics._stage_rates(p, physics.link_inertia(p, u.payload),
-                                 physics.gravity_moment(p, u.payload))
+    rates = physics._stage_rates(p, model.link_inertia(p, u.payload),
+                                 model.gravity_moment(p, u.payload))
     theta0, omega0, q, q_dot = start
     direction = q_dot
     for theta, omega in [(theta0 + 0.37 * i, omega0 * (1.0 + 0.11 * i)) for i in range(40)]:
         s = physics.State(theta, omega, q, q_dot, 0.1, 0.2, 0.3, -0.0)
         Y_B = p.Y_B0 + q
-        q_ddot, lock = physics.carriage(
-            p, u.F_adjust, physics.spring(p, theta, Y_B).F_q - p.m_q * G, q_dot, direction)
-        omega_dot = ((u.tau_drive + physics.tau_gravity(p, u.payload, theta, Y_B)
-                      - p.d_link * omega) / physics.link_inertia(p, u.payload))
+        q_ddot, lock = model.carriage(
+            p, u.F_adjust, model.spring(p, theta, Y_B).F_q - p.m_q * G, q_dot, direction)
+        omega_dot = ((u.tau_drive + model.tau_gravity(p, u.payload, theta, Y_B)
+                      - p.d_link * omega) / model.link_inertia(p, u.payload))
         loss_rate = p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot
         assert tuple(physics.derivatives(p, u, s)) == (omega, omega_dot, q_dot, q_ddot,
                                                        u.tau_drive * omega,

@@ -22,6 +22,7 @@ from scipy.integrate import quad
 
 from fmu_src.mechanisms.ciupitu import example as paper_example
 from fmu_src.mechanisms.rocking_counterweight import physics as rocking
+from fmu_src.mechanisms.rocking_counterweight import statics
 from harness.design import rocking_counterweight as rocking_design
 from harness.fmu import build as fmu_build
 from harness.run import master
@@ -30,12 +31,12 @@ from harness.run import scenario_files as scenarios
 CYCLE = scenarios.load("ciupitu2018")
 LAWS = rocking_design.VARIANTS
 # a linkage that moves through every angle (|AB - BC| < |OA - OC|, OA + OC < AB + BC)
-LINKAGE = rocking.Linkage(x1A=-0.5, y1A=0.2, XC=-0.3, YC=1.6, AB=1.8, BC=0.9, AC2=2.1,
+LINKAGE = statics.Linkage(x1A=-0.5, y1A=0.2, XC=-0.3, YC=1.6, AB=1.8, BC=0.9, AC2=2.1,
                           B_left=True)
 PHIS = np.linspace(-math.pi, math.pi, 13)[:-1] + 0.1
 
 
-def counterweight_position(k: rocking.Linkage, phi: float) -> np.ndarray:
+def counterweight_position(k: statics.Linkage, phi: float) -> np.ndarray:
     """P in the paper's frame: B where the circles about A (radius AB) and C (radius BC)
     meet, on the side of A -> C that B_left names; P on A -> B at AC2 from A."""
     arm = np.array([math.cos(phi), math.sin(phi)])
@@ -54,7 +55,7 @@ def counterweight_position(k: rocking.Linkage, phi: float) -> np.ndarray:
 @pytest.mark.parametrize("phi", PHIS.tolist())
 def test_geometry_matches_independent_solution(phi: float, B_left: bool) -> None:
     k = LINKAGE._replace(B_left=B_left)
-    q = rocking.geometry(k, phi)
+    q = statics.geometry(k, phi)
     h = 1e-4
     before, at, after = (counterweight_position(k, phi + s) for s in (-h, 0.0, h))
     assert (q.X, q.Y) == pytest.approx(tuple(at), abs=1e-12)
@@ -68,7 +69,7 @@ def test_moment_is_minus_the_potential_gradient(phi: float) -> None:
     """M_b = -G2 dY_P/dphi against finite differences of the independent position; M_g and
     M_u by their definitions."""
     G_pv, OP, G2, h = 3.0, 2.0, 3.0, 1e-5
-    M = rocking.moments(G_pv, OP, G2, LINKAGE, phi)
+    M = statics.moments(G_pv, OP, G2, LINKAGE, phi)
     rise = (counterweight_position(LINKAGE, phi + h)[1]
             - counterweight_position(LINKAGE, phi - h)[1]) / (2 * h)
     assert M.M_b == pytest.approx(-G2 * rise, abs=1e-8)
@@ -82,7 +83,7 @@ def test_counterweight_on_the_arm_pivot() -> None:
     k = LINKAGE._replace(AC2=0.0)
     for phi in PHIS.tolist():
         expected = -3.0 * (k.x1A * math.cos(phi) - k.y1A * math.sin(phi))
-        assert rocking.moments(0.0, 1.0, 3.0, k, phi).M_b == pytest.approx(expected, abs=1e-12)
+        assert statics.moments(0.0, 1.0, 3.0, k, phi).M_b == pytest.approx(expected, abs=1e-12)
 
 
 def test_configuration_solved_by_hand() -> None:
@@ -90,12 +91,12 @@ def test_configuration_solved_by_hand() -> None:
     B = (-2, 1). A moves with velocity (0, -1) per rad; B moves at right angles to CB, i.e.
     along (1, -1): (0, -1) + beta' sqrt2 perp(u(135 deg)) = (-beta', -1 - beta') is along
     (1, -1) for beta' = -1/2, so B moves (1/2, -1/2) per rad and M_b = -G2 (-1/2) = G2/2."""
-    k = rocking.Linkage(x1A=-1.0, y1A=0.0, XC=-1.0, YC=2.0, AB=math.sqrt(2.0),
+    k = statics.Linkage(x1A=-1.0, y1A=0.0, XC=-1.0, YC=2.0, AB=math.sqrt(2.0),
                         BC=math.sqrt(2.0), AC2=math.sqrt(2.0), B_left=True)
-    q = rocking.geometry(k, 0.0)
+    q = statics.geometry(k, 0.0)
     assert (q.X, q.Y, q.dX, q.dY) == pytest.approx((-2.0, 1.0, 0.5, -0.5), abs=1e-12)
     assert q.psi == pytest.approx(0.75 * math.pi, abs=1e-12)  # bar 2 at 135 deg to the arm
-    assert rocking.moments(0.0, 1.0, 3.0, k, 0.0).M_b == pytest.approx(1.5, abs=1e-12)
+    assert statics.moments(0.0, 1.0, 3.0, k, 0.0).M_b == pytest.approx(1.5, abs=1e-12)
 
 
 @pytest.mark.parametrize("change, message", [
@@ -209,7 +210,7 @@ def test_static_eps_of_the_designs(law: str, eps: float) -> None:
     designs balance better than the bar of Figure 4a, with either reading of its moment
     (like for like: the rocking M_u counts its bars, the translational with_bar its bar)."""
     data = paper_example.ExampleData()
-    rocking_stroke = rocking.stroke(data, rocking_design.stored_linkage(law), law)
+    rocking_stroke = statics.stroke(data, rocking_design.stored_linkage(law), law)
     for translational in (paper_example.stroke(data, law),
                           paper_example.stroke(data, law, with_bar=True)):
         assert rocking_stroke.eps > translational.eps
@@ -217,7 +218,7 @@ def test_static_eps_of_the_designs(law: str, eps: float) -> None:
     assert rocking_stroke.eps == pytest.approx(eps, abs=5e-7)
     # the net stroke work of M_b is G2 times the counterweight's rise between the stroke ends
     k = rocking_design.stored_linkage(law)
-    rise = rocking.geometry(k, -0.5 * math.pi).Y - rocking.geometry(k, 0.5 * math.pi).Y
+    rise = statics.geometry(k, -0.5 * math.pi).Y - statics.geometry(k, 0.5 * math.pi).Y
     assert rocking_stroke.E_b == pytest.approx(abs(translational.E_u - data.G2 * rise),
                                                abs=1e-9)
 
@@ -277,7 +278,7 @@ def test_scenario_holds_the_design(law: str) -> None:
 
 def test_rocking_design_report_gives_the_translational_eps_like_for_like() -> None:
     designs = [rocking_design.Design(law, rocking_design.stored_linkage(law), 0.0,
-                                     rocking.stroke(paper_example.ExampleData(),
+                                     statics.stroke(paper_example.ExampleData(),
                                                     rocking_design.stored_linkage(law), law),
                                      [rocking_design.LocalOptimum(1.0, (), True, 2)])
                for law in LAWS]
@@ -304,7 +305,7 @@ def stroke_work(law: str, direction: float) -> float:
     G, G_max, OP = 9.81, 4.0, 2.0
     T = next(phase.duration for phase in CYCLE.phases if phase.name == "down")
     k = rocking_design.stored_linkage(law)
-    rise = rocking.geometry(k, -0.5 * math.pi).Y - rocking.geometry(k, 0.5 * math.pi).Y
+    rise = statics.geometry(k, -0.5 * math.pi).Y - statics.geometry(k, 0.5 * math.pi).Y
     E_u = G_max * OP * ((1.0 + 4.0 / math.pi ** 2) if law == "parabolic" else 1.0)
     gravity = direction * (CYCLE.parameters["m2"] * G * rise - E_u)
     friction = CYCLE.parameters["d_link"] * math.pi ** 2 * (10.0 / 7.0) / T

@@ -12,7 +12,7 @@ import math
 import pytest
 from conftest import controlled_reference
 
-from fmu_src.mechanisms.self_regulating import physics
+from fmu_src.mechanisms.self_regulating import model, physics
 
 DEG = math.pi / 180.0
 TABLE_1 = physics.Parameters()
@@ -27,7 +27,7 @@ def test_table_1_design_numbers() -> None:
     assert p.pulley_ratio == pytest.approx(p.w / p.a, rel=1e-12)
     u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
                        pulley_locked=False)
-    assert physics.regulated_slider_position(p, u, math.pi) == pytest.approx(0.095, abs=1e-12)
+    assert model.regulated_slider_position(p, u, math.pi) == pytest.approx(0.095, abs=1e-12)
     balanced = physics.outputs(p, physics.Inputs(), physics.initial_state(p))
     assert balanced.balance_error == pytest.approx(0.0, abs=1e-12)  # m c g = k a b0
 
@@ -65,7 +65,7 @@ def test_regulation_away_from_pi_has_the_closed_form_position() -> None:
                        pulley_locked=False)
     for theta in (120 * DEG, 150 * DEG, 210 * DEG):
         expected = p.a * math.cos(theta) + (p.M0 + 1.0) * p.g * p.R / (p.r * p.k)
-        assert physics.regulated_slider_position(p, u, theta) == pytest.approx(expected,
+        assert model.regulated_slider_position(p, u, theta) == pytest.approx(expected,
                                                                                abs=1e-12)
 
 
@@ -88,7 +88,7 @@ def test_real_spring_free_slider_conserves_energy() -> None:
         s = physics.advance(p, u, s, 1e-3)
         drift = max(drift, abs(energy(s) - e0))
         travel = max(travel, abs(s.b - p.b0))
-        assert not physics.slider_at_stop(p, u, s)
+        assert not model.slider_at_stop(p, u, s)
     assert travel > 1e-3 and drift < 1e-8
 
 
@@ -145,7 +145,7 @@ def test_link_terms_kept_with_the_parameters_give_the_numbers_computed_afresh() 
     fresh copy of the parameters."""
     p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, J_drive=0.05)
     for payload, b in ((0.0, 0.06), (0.7, 0.08), (0.7, 0.08), (0.7, 0.05), (0.0, 0.05)):
-        moment, J, spring, _, balance, delta_b, a2_b2, two_a_b = physics._link_terms(
+        moment, J, spring, _, balance, delta_b, a2_b2, two_a_b = model._link_terms(
             p, payload, b)
         assert (balance, delta_b) == (moment - spring, b - p.b0)
         assert (a2_b2, two_a_b) == pytest.approx((p.a ** 2 + b ** 2, 2 * p.a * b), rel=1e-15)
@@ -244,9 +244,9 @@ def test_pulley_inertia_joins_the_counterweight() -> None:
     is shared with when the pulley is released, and its bearing's d_p / r^2 to the damping."""
     p = dataclasses.replace(P_EVENTS, J_pulley=2e-4, d_pulley=0.01)
     m_eff = p.m_slider + cw_mass(FREE) + 2e-4 / p.r ** 2
-    assert physics.slider_mass(p, FREE) == pytest.approx(m_eff, rel=1e-12)
-    assert physics.slider_damping(p, FREE) == pytest.approx(p.d_slider + 0.01 / p.r ** 2)
-    assert physics.slider_damping(p, FREE._replace(pulley_locked=True)) == p.d_slider
+    assert model.slider_mass(p, FREE) == pytest.approx(m_eff, rel=1e-12)
+    assert model.slider_damping(p, FREE) == pytest.approx(p.d_slider + 0.01 / p.r ** 2)
+    assert model.slider_damping(p, FREE._replace(pulley_locked=True)) == p.d_slider
     shared = physics.switch_inputs(p, FREE._replace(pulley_locked=True), FREE, MOVING)
     assert shared.v == pytest.approx(p.m_slider * MOVING.v / m_eff, rel=1e-12)
 
@@ -262,7 +262,7 @@ def test_paper_design_keeps_eqs_10_and_16() -> None:
     assert p.b_design == pytest.approx(p.b0 + p.L0 + p.m_slider * p.g / p.k, rel=1e-12)
     u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
                        pulley_locked=False)
-    assert physics.regulated_slider_position(p, u, math.pi) == pytest.approx(0.139, abs=1e-12)
+    assert model.regulated_slider_position(p, u, math.pi) == pytest.approx(0.139, abs=1e-12)
 
 
 def test_regulation_sweep_slider_settles_at_its_static_equilibrium() -> None:
@@ -282,7 +282,7 @@ def test_regulation_sweep_slider_settles_at_its_static_equilibrium() -> None:
     def settled(payload: float, deg: float) -> float:
         u = physics.Inputs(payload=payload, counterweight_added=payload, slider_locked=False,
                            pulley_locked=False)
-        return physics.regulated_slider_position(p, u, deg * DEG)
+        return model.regulated_slider_position(p, u, deg * DEG)
 
     quoted = {150: 0.1084, 120: 0.145, 90: 0.195, 60: 0.245, 30: 0.2816, 0: 0.295, 180: 0.095}
     for r in rows:

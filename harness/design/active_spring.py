@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 from scipy.optimize import brentq
 
-from fmu_src.mechanisms.active_spring import physics as active_spring
+from fmu_src.mechanisms.active_spring import model as active_spring
 from harness.errors import UserError
 
 # option -> (field of active_spring.Parameters, sign from the paper's frame to the project's,

@@ -2,7 +2,7 @@
 
 One stroke of the arm (phi = +pi/2 -> -pi/2) for the parabolic and the linear payload law:
 efficaciousness eps (eq. 31) and the largest unbalanced moment |M_u|. The calculation is
-`fmu_src.mechanisms.ciupitu.physics.stroke`; see that module for the interpretation of the
+`fmu_src.mechanisms.ciupitu.example.stroke`; see that module for the interpretation of the
 paper's numbers. Rows and keys `<law>` are the paper's reading (M_b the weight's moment alone),
 `<law>_with_bar` count the bar's moment M_bar too, as the FMU's torque does and as the rocking
 counterweight's M_u does: those are the translational figures to compare the rocking ones with.
@@ -19,7 +19,7 @@ import sys
 from dataclasses import fields
 
 from fmu_src.mechanisms.ciupitu import example as paper_example
-from fmu_src.mechanisms.rocking_counterweight import physics as rocking
+from fmu_src.mechanisms.rocking_counterweight import statics
 from harness.design import rocking_counterweight as rocking_design
 from harness.errors import UserError
 
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     strokes = {law: paper_example.stroke(data, law) for law in paper_example.PAYLOAD_LAWS}
     strokes |= {f"{law}_with_bar": paper_example.stroke(data, law, with_bar=True)
                 for law in paper_example.PAYLOAD_LAWS}
-    strokes |= {f"{law}_rocking": rocking.stroke(data, rocking_design.stored_linkage(law), law)
+    strokes |= {f"{law}_rocking": statics.stroke(data, rocking_design.stored_linkage(law), law)
                 for law in paper_example.PAYLOAD_LAWS}
     if args.json:
         values = results(strokes)

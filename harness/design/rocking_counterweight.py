@@ -41,7 +41,7 @@ from scipy.optimize import least_squares, minimize
 from scipy.stats import qmc
 
 from fmu_src.mechanisms.ciupitu import example as paper_example
-from fmu_src.mechanisms.rocking_counterweight import physics as rocking
+from fmu_src.mechanisms.rocking_counterweight import statics
 from harness.run import scenario_files as scenarios
 
 SAMPLES = 61                  # arm angles in the least-squares objective
@@ -66,28 +66,28 @@ class Design:
     """A linkage for one payload law and what it achieves over the paper's stroke."""
 
     law: str
-    linkage: rocking.Linkage
+    linkage: statics.Linkage
     rms_Mu: float                   # N m, RMS of M_u over the workspace samples
     stroke: paper_example.StrokeResult    # eps (eq. 31) and max |M_u| of one stroke
     optima: list[LocalOptimum]      # what the multistart found, best first
 
 
-def transmission_margins(k: rocking.Linkage, mu_min: float = MU_MIN) -> tuple[float, float]:
+def transmission_margins(k: statics.Linkage, mu_min: float = MU_MIN) -> tuple[float, float]:
     """cos(mu_min) - |cos(mu)| at the two extremes of the distance AC over a full turn:
     both are >= 0 when the transmission angle mu stays within [mu_min, pi - mu_min]."""
-    low, high = rocking.distance_range(k)
+    low, high = statics.distance_range(k)
     cos_mu = [(k.AB ** 2 + k.BC ** 2 - d ** 2) / (2.0 * k.AB * k.BC) for d in (low, high)]
     return math.cos(mu_min) - cos_mu[0], math.cos(mu_min) + cos_mu[1]
 
 
-def unbalance(data: paper_example.ExampleData, law: str, k: rocking.Linkage) -> np.ndarray:
+def unbalance(data: paper_example.ExampleData, law: str, k: statics.Linkage) -> np.ndarray:
     """M_u [N m] at SAMPLES arm angles over the workspace (large where it cannot assemble)."""
     shape = paper_example.PAYLOAD_LAWS[law]
     values = []
     for phi in np.linspace(-0.5 * math.pi, 0.5 * math.pi, SAMPLES).tolist():
         G_pv = data.Gmax * shape(paper_example.stroke_fraction(phi))
         try:
-            values.append(rocking.moments(G_pv, data.OP, data.G2, k, phi).M_u)
+            values.append(statics.moments(G_pv, data.OP, data.G2, k, phi).M_u)
         except (ValueError, ZeroDivisionError):  # only at trial points outside the constraints
             values.append(10.0 * data.Gmax * data.OP)
     return np.array(values)
@@ -102,7 +102,7 @@ class LocalOptimum(NamedTuple):
     hits: int
 
 
-def objective(data: paper_example.ExampleData, law: str, k: rocking.Linkage) -> float:
+def objective(data: paper_example.ExampleData, law: str, k: statics.Linkage) -> float:
     """Mean M_u^2 [N^2 m^2] over the workspace samples."""
     return float(np.mean(unbalance(data, law, k) ** 2))
 
@@ -115,8 +115,8 @@ def _bounds(data: paper_example.ExampleData) -> list[tuple[float, float]]:
 def _local_search(data: paper_example.ExampleData, law: str, B_left: bool, x0: np.ndarray,
                   ftol: float) -> tuple[float, np.ndarray] | None:
     """SLSQP from x0 within the bounds and the transmission constraint; None if it fails."""
-    def linkage(x: np.ndarray) -> rocking.Linkage:
-        return rocking.Linkage(*x.tolist(), B_left)
+    def linkage(x: np.ndarray) -> statics.Linkage:
+        return statics.Linkage(*x.tolist(), B_left)
 
     result = minimize(lambda x: objective(data, law, linkage(x)), x0, method="SLSQP",
                       bounds=_bounds(data), options={"maxiter": MAXITER, "ftol": ftol},
@@ -134,10 +134,10 @@ def _polish(data: paper_example.ExampleData, law: str, best: LocalOptimum) -> tu
     with POLISH_FTOL converges."""
     bounds = np.array(_bounds(data))
     fit = least_squares(
-        lambda x: unbalance(data, law, rocking.Linkage(*x.tolist(), best.B_left)),
+        lambda x: unbalance(data, law, statics.Linkage(*x.tolist(), best.B_left)),
         np.array(best.x), bounds=(bounds[:, 0], bounds[:, 1]), jac="3-point", x_scale="jac",
         xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    k = rocking.Linkage(*fit.x.tolist(), best.B_left)
+    k = statics.Linkage(*fit.x.tolist(), best.B_left)
     if min(transmission_margins(k)) >= 0.0 and objective(data, law, k) <= best.objective:
         return tuple(fit.x.tolist())
     polished = _local_search(data, law, best.B_left, np.array(best.x), POLISH_FTOL)
@@ -157,7 +157,7 @@ def local_optima(law: str, data: paper_example.ExampleData = PAPER, starts: int 
     for B_left in (True, False):
         screened = []
         for index, x in enumerate(points):
-            k = rocking.Linkage(*x.tolist(), B_left)
+            k = statics.Linkage(*x.tolist(), B_left)
             if min(transmission_margins(k)) >= 0.0:
                 screened.append((objective(data, law, k), index))
         for _, index in sorted(screened)[:starts]:
@@ -187,14 +187,14 @@ def design(law: str, data: paper_example.ExampleData = PAPER, starts: int = STAR
     # smallest variables in VARIABLES order
     equal = [o for o in optima if o.objective <= (1.0 + TIE) * optima[0].objective]
     best = min(equal, key=lambda o: (not o.B_left, o.x))
-    k = rocking.Linkage(*(round(float(v), 6) for v in _polish(data, law, best)), best.B_left)
-    return Design(law, k, math.sqrt(objective(data, law, k)), rocking.stroke(data, k, law),
+    k = statics.Linkage(*(round(float(v), 6) for v in _polish(data, law, best)), best.B_left)
+    return Design(law, k, math.sqrt(objective(data, law, k)), statics.stroke(data, k, law),
                   optima)
 
 
-def stored_linkage(law: str) -> rocking.Linkage:
+def stored_linkage(law: str) -> statics.Linkage:
     """The linkage the ciupitu2018 scenario's rocking variant of a payload law holds."""
-    return rocking.Linkage(**scenarios.load(SCENARIO).variant(VARIANTS[law]).parameters)
+    return statics.Linkage(**scenarios.load(SCENARIO).variant(VARIANTS[law]).parameters)
 
 
 def report(designs: list[Design], data: paper_example.ExampleData = PAPER) -> str:

@@ -1,6 +1,6 @@
 """Statics and design rule of the self-regulating balancer (standard library only).
 
-The spring's geometry and the gravity moment, which the dynamics of `physics` use too, and the
+The spring's geometry and the gravity moment, which `model` and `physics` use too, and the
 design for a real spring and slider (docs/energy_ledger.md, "Design rule"): the residual
 torque over a full turn, the slider position that balances a payload, the position the
 counterweight M0 holds (Parameters.b_design) and the counterweight that reaches a position.
@@ -13,7 +13,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from fmu_src.mechanisms.self_regulating.physics import Parameters
+    from fmu_src.mechanisms.self_regulating.model import Parameters
 
 def spring_length(p: Parameters, theta: float, b: float) -> float:
     """Distance A-B, eq. 4 [m]."""
