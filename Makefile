@@ -19,17 +19,18 @@ venv: $(STAMP)
 fmu: $(STAMP)
 	$(PY) -m harness build-fmus
 
-# the suite less the tests marked slow (under 3 min on 2 cores); test-all runs every test
+# the suite less the tests marked slow (about 100 s on 2 cores, one pytest worker per core);
+# test-all runs every test
 test: fmu
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -n auto -m "not slow"
 
 test-all: fmu
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto
 
-# property tests with random seeds and many examples (about 13 min on two cores); `make test` runs the
+# property tests with random seeds and many examples (the ledger's alone 25 min on one core); `make test` runs the
 # same suite with a fixed seed and a small budget
 fuzz: fmu
-	HYPOTHESIS_PROFILE=deep $(PY) -m pytest -q tests/fuzz
+	HYPOTHESIS_PROFILE=deep $(PY) -m pytest -q -n auto tests/fuzz
 
 # the FMUs' runtime under valgrind in a C host: 50 load/instantiate/200 steps/state round
 # trip/free/unload cycles of two FMUs, no error and no definite leak (about a minute)
