@@ -12,7 +12,7 @@ Everything in it is plain data, so the FMU carries it with the standard library 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Protocol, Union
 
 
@@ -21,13 +21,17 @@ class Physics(Protocol):
 
     Parameters is a frozen dataclass with a default per field; Inputs and State are
     NamedTuples (Inputs with a default per field, State's cumulative energies last); Outputs
-    a NamedTuple named like the FMU's output variables.
+    a NamedTuple named like the FMU's output variables. INPUT_VARIABLES and OUTPUT_VARIABLES
+    declare the FMU's variable of each Inputs and Outputs field (`input_variables`,
+    `output_variables`).
     """
 
     Parameters: type
     Inputs: type
     State: type
     Outputs: type
+    INPUT_VARIABLES: tuple[Variable, ...]
+    OUTPUT_VARIABLES: tuple[Variable, ...]
     # inputs whose change at a communication point changes the state (a payload caught or
     # released, a lock engaged): switch_inputs books it; () when there are none
     EVENT_INPUTS: tuple[str, ...]
@@ -55,6 +59,68 @@ class Physics(Protocol):
 
     def outputs(self, p: Any, u: Any, s: Any) -> Any:
         """The Outputs at the state s with the inputs u."""
+
+
+@dataclass(frozen=True)
+class Variable:
+    """The FMI variable of one Inputs or Outputs field: unit (None: a Boolean), description,
+    for an input its start (the field's default) and range, for an output the inputs it
+    depends on at a communication point (its ModelStructure dependencies; () for a function
+    of the state alone)."""
+
+    unit: str | None
+    description: str
+    depends_on: tuple[str, ...] = ()
+    min: float | None = None
+    max: float | None = None
+    name: str = ""
+    start: float | bool = 0.0
+
+
+def variable(unit: str | None, description: str, *, depends_on: tuple[str, ...] = (),
+             min: float | None = None, max: float | None = None) -> Variable:
+    """The declaration of one input or output variable, named after its field by
+    `input_variables`/`output_variables` (as `fmu_src.parameters.parameter` declares a
+    parameter)."""
+    return Variable(unit, description, tuple(depends_on), min, max)
+
+
+def _named(fields_of: type, declared: Mapping[str, Variable]) -> tuple[Variable, ...]:
+    """The declared variables named after the fields of the NamedTuple fields_of; TypeError
+    unless they declare exactly its fields, in its order."""
+    names = fields_of._fields
+    if tuple(declared) != names:
+        missing = [n for n in names if n not in declared]
+        extra = [n for n in declared if n not in names]
+        raise TypeError(f"the variables of {fields_of.__qualname__} must declare its fields "
+                        f"{', '.join(names)} in this order (missing: {', '.join(missing) or '-'};"
+                        f" not fields: {', '.join(extra) or '-'})")
+    return tuple(replace(v, name=n) for n, v in declared.items())
+
+
+def input_variables(inputs: type, **declared: Variable) -> tuple[Variable, ...]:
+    """The input variables of a physics module's Inputs, one `variable` per field in its
+    order, each starting at the field's default; TypeError naming the fields undeclared or
+    declared without a field, or an input declared with dependencies."""
+    named = _named(inputs, declared)
+    dependent = [v.name for v in named if v.depends_on]
+    if dependent:
+        raise TypeError(f"inputs {', '.join(dependent)} of {inputs.__qualname__} declare "
+                        "depends_on, which only an output has")
+    return tuple(replace(v, start=inputs._field_defaults[v.name]) for v in named)
+
+
+def output_variables(outputs: type, inputs: type, **declared: Variable) -> tuple[Variable, ...]:
+    """The output variables of a physics module's Outputs, one `variable` per field in its
+    order; TypeError naming the fields undeclared or declared without a field, or a
+    dependency on a name that is no field of inputs."""
+    named = _named(outputs, declared)
+    unknown = [f"{v.name} on {n}" for v in named for n in v.depends_on
+               if n not in inputs._fields]
+    if unknown:
+        raise TypeError(f"outputs of {outputs.__qualname__} depend on no field of "
+                        f"{inputs.__qualname__}: {', '.join(unknown)}")
+    return named
 
 
 def no_input_events(p: Any, before: Any, after: Any, s: Any) -> Any:

@@ -16,12 +16,16 @@ class MechanismSlave(ModelSlave):
     `physics` is the module, a `fmu_src.mechanism.Physics`: validate, initial_state, advance
     (one communication step with the inputs held), outputs, and switch_inputs, called only
     when one of its EVENT_INPUTS changes (the drive effort changes at every step and is no
-    event). Subclasses register the variables: one input per field of physics.Inputs, of the
-    same name, and one output per field of the Outputs, in their order.
+    event). The slave registers its variables from the physics module: the parameters from
+    its Parameters, then the subclass's `calculated_parameters` (set from the Parameters'
+    attributes of their names at initialisation), the inputs from its INPUT_VARIABLES and
+    the outputs from its OUTPUT_VARIABLES (`fmu_src.mechanism.input_variables`).
     """
 
     physics: Any
     hidden_state = ("state", "previous_inputs")
+    # (name, unit, description) of each parameter the Parameters derive from the others
+    calculated_parameters: tuple[tuple[str, str, str], ...] = ()
 
     @property
     def parameters_type(self) -> type:
@@ -30,6 +34,12 @@ class MechanismSlave(ModelSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        for name, unit, description in self.calculated_parameters:
+            self.add_calculated_parameter(name, unit, description)
+        for v in self.physics.INPUT_VARIABLES:
+            self.add_input(v.name, v.start, v.unit, v.description, min=v.min, max=v.max)
+        for v in self.physics.OUTPUT_VARIABLES:
+            self.add_output(v.name, v.unit, v.description, v.depends_on)
         self.state = None
         self.previous_inputs = None
         names = self.physics.EVENT_INPUTS
@@ -49,17 +59,11 @@ class MechanismSlave(ModelSlave):
         return self.new_inputs(self.input_values(self.__dict__))
 
     def initialise(self, params: Any) -> None:
-        missing = [n for n in self.physics.Inputs._fields if n not in self.info]
-        if missing:
-            raise TypeError(f"{type(self).__name__} has no input variable for "
-                            f"{self.physics.__name__}.Inputs field(s) {', '.join(missing)}")
+        for name, _, _ in self.calculated_parameters:
+            setattr(self, name, getattr(params, name))
         self.state = self.physics.initial_state(params)
         self.previous_inputs = self.inputs()
-        outputs = self.physics.outputs(params, self.previous_inputs, self.state)
-        if outputs._fields != tuple(self.output_names):
-            raise TypeError(f"{type(self).__name__} registers its outputs in another order "
-                            f"than {self.physics.__name__}.Outputs")
-        self.set_outputs(outputs)
+        self.set_outputs(self.physics.outputs(params, self.previous_inputs, self.state))
 
     def step(self, dt: float) -> None:
         self.step_with(self.inputs(), dt)

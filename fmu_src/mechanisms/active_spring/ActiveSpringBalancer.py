@@ -29,12 +29,6 @@ class ActiveSpringBalancer(MechanismSlave):
         self.description = ("Spring gravity balancer with active relocation of the spring's "
                             "frame joint by one prismatic joint on a screw with thread "
                             "friction, self-locking by default (Ciupitu 2018, Fig. 8)")
-        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
-        self.add_input("F_adjust", 0.0, "N", "Actuator's force on the screw along +q (upward): "
-                       "its torque times 2 pi / lead")
-        self.add_input("payload", 0.0, "kg", "Payload mass at distance w", min=0.0)
-        for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.compression_reported = False   # once per spell of F_s < 0
 
     def initialise(self, params: physics.Parameters) -> None:
@@ -53,45 +47,6 @@ class ActiveSpringBalancer(MechanismSlave):
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         super().restore_hidden_state(hidden)
         self.compression_reported = bool(hidden["compression_reported"])
-
-
-OUTPUTS = (
-    ("theta", "rad", "Link angle from the upward vertical, counter-clockwise positive"),
-    ("omega", "rad/s", "Link angular velocity"),
-    ("q", "m", "Travel of the prismatic joint along +y"),
-    ("q_dot", "m/s", "Speed of the prismatic joint"),
-    ("Y_B", "m", "Ordinate of the spring's frame joint B, Y_B0 + q"),
-    ("l_s", "m", "Spring length A-B (eq. 21)"),
-    ("F_s", "N", "Spring force F_s0 + k (l_s - l_s0), tension positive (eq. 19)"),
-    ("tau_gravity", "N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta"),
-    ("F_q", "N", "Spring's force on the carriage along +q"),
-    ("F_lock", "N", "Screw's reaction on the carriage along +q beyond F_adjust: holding it at "
-     "rest, its thread friction while it moves"),
-    ("F_hold", "N", "Least actuator force that holds the carriage at rest: 0 on a self-locking "
-     "screw, eta_b (m_q g - F_q) on a back-drivable one"),
-    ("balance_error", "N.m", "(m c + payload w) g - x1A Y_B F_s / l_s; 0 when balanced "
-     "(with X_B = 0, tau_gravity = balance_error sin(theta))"),
-    ("E_p", "J", "Gravitational potential energy of link, payload and carriage"),
-    ("E_e", "J", "Elastic energy of the spring, 1/2 k (l_s - l_s0 + F_s0/k)^2"),
-    ("E_t", "J", "Total potential energy E_p + E_e"),
-    ("E_kin", "J", "Kinetic energy of link, payload, carriage and both drive rotors"),
-    ("W_drive", "J", "Cumulative work of tau_drive on the link"),
-    ("W_adjust", "J", "Cumulative work of F_adjust on the screw (the actuator's mechanical "
-     "work)"),
-    ("E_loss", "J", "Energy dissipated so far (d_link, d_q, the screw's friction, payload "
-     "catches)"),
-    ("E_added", "J", "Energy brought in (taken out) by payload changes"),
-)
-# The inputs each output depends on directly (`physics.outputs`), its ModelStructure
-# dependencies; an output not listed is a function of the state alone.
-INPUT_DEPENDENCIES = {
-    "tau_gravity": ("payload",),
-    "balance_error": ("payload",),
-    "E_p": ("payload",),
-    "E_t": ("payload",),
-    "E_kin": ("payload",),
-    "F_lock": ("F_adjust",),
-}
 
 
 REGISTRATION = Registration(

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src.integration import ledger_accuracy
+from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -136,6 +137,16 @@ class Inputs(NamedTuple):
     tau_drive: float = 0.0  # N m, drive torque on the link
     F_adjust: float = 0.0   # N, actuator's force on the carriage along +q
     payload: float = 0.0    # kg, payload at distance w
+
+
+# the FMU's input variables, one per Inputs field
+INPUT_VARIABLES = input_variables(
+    Inputs,
+    tau_drive=variable("N.m", "Drive torque on the link about O"),
+    F_adjust=variable("N", "Actuator's force on the screw along +q (upward): its torque times "
+                           "2 pi / lead"),
+    payload=variable("kg", "Payload mass at distance w", min=0.0),
+)
 
 
 # inputs whose change at a communication point is an event (switch_inputs)
@@ -266,6 +277,42 @@ class Outputs(NamedTuple):
     W_adjust: float
     E_loss: float
     E_added: float
+
+
+# the FMU's output variables, one per Outputs field, with the inputs each reads directly in
+# `outputs` (its ModelStructure dependencies; none: a function of the state alone)
+OUTPUT_VARIABLES = output_variables(
+    Outputs, Inputs,
+    theta=variable("rad", "Link angle from the upward vertical, counter-clockwise positive"),
+    omega=variable("rad/s", "Link angular velocity"),
+    q=variable("m", "Travel of the prismatic joint along +y"),
+    q_dot=variable("m/s", "Speed of the prismatic joint"),
+    Y_B=variable("m", "Ordinate of the spring's frame joint B, Y_B0 + q"),
+    l_s=variable("m", "Spring length A-B (eq. 21)"),
+    F_s=variable("N", "Spring force F_s0 + k (l_s - l_s0), tension positive (eq. 19)"),
+    tau_gravity=variable("N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta",
+                         depends_on=("payload",)),
+    F_q=variable("N", "Spring's force on the carriage along +q"),
+    F_lock=variable("N", "Screw's reaction on the carriage along +q beyond F_adjust: holding it "
+                         "at rest, its thread friction while it moves", depends_on=("F_adjust",)),
+    F_hold=variable("N", "Least actuator force that holds the carriage at rest: 0 on a "
+                         "self-locking screw, eta_b (m_q g - F_q) on a back-drivable one"),
+    balance_error=variable("N.m", "(m c + payload w) g - x1A Y_B F_s / l_s; 0 when balanced "
+                                  "(with X_B = 0, tau_gravity = balance_error sin(theta))",
+                           depends_on=("payload",)),
+    E_p=variable("J", "Gravitational potential energy of link, payload and carriage",
+                 depends_on=("payload",)),
+    E_e=variable("J", "Elastic energy of the spring, 1/2 k (l_s - l_s0 + F_s0/k)^2"),
+    E_t=variable("J", "Total potential energy E_p + E_e", depends_on=("payload",)),
+    E_kin=variable("J", "Kinetic energy of link, payload, carriage and both drive rotors",
+                   depends_on=("payload",)),
+    W_drive=variable("J", "Cumulative work of tau_drive on the link"),
+    W_adjust=variable("J", "Cumulative work of F_adjust on the screw (the actuator's mechanical "
+                           "work)"),
+    E_loss=variable("J", "Energy dissipated so far (d_link, d_q, the screw's friction, payload "
+                         "catches)"),
+    E_added=variable("J", "Energy brought in (taken out) by payload changes"),
+)
 
 
 def elastic_energy(p: Parameters, l_s: float) -> float:

@@ -93,6 +93,8 @@ from fmu_src.integration import first_substeps, ledger_controlled
 # imported here because the harness and the slave call them as physics.<name>
 from fmu_src.mechanisms.active_spring.model import (  # noqa: F401
     EVENT_INPUTS,
+    INPUT_VARIABLES,
+    OUTPUT_VARIABLES,
     Inputs,
     Outputs,
     Parameters,

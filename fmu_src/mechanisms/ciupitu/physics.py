@@ -73,6 +73,7 @@ from typing import NamedTuple
 
 from fmu_src import ledger
 from fmu_src.integration import advance_arm, ledger_accuracy
+from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -190,6 +191,14 @@ class Inputs(NamedTuple):
 
     tau_drive: float = 0.0    # N m, drive torque on the arm (counter-clockwise, along theta)
     payload: float = 0.0      # kg, payload at distance w
+
+
+# the FMU's input variables, one per Inputs field (every payload arm's)
+INPUT_VARIABLES = input_variables(
+    Inputs,
+    tau_drive=variable("N.m", "Drive torque on the arm about O, along theta"),
+    payload=variable("kg", "Payload mass at distance w (the paper's G_pv/g)", min=0.0),
+)
 
 
 # inputs whose change at a communication point is an event (switch_inputs)
@@ -426,6 +435,48 @@ class Outputs(NamedTuple):
     W_drive: float
     E_loss: float
     E_added: float
+
+
+# The output variables every payload arm has (the rocking counterweight's too), by name:
+# the payload's moment, inertia and weight act at once on those that depend on it.
+ARM_OUTPUTS = dict(
+    theta=variable("rad", "Arm angle from the upward vertical, counter-clockwise positive "
+                          "(the paper's phi = pi/2 - theta)"),
+    omega=variable("rad/s", "Arm angular velocity"),
+    E_p=variable("J", "Gravitational potential energy of link, payload and both "
+                      "counterweights", depends_on=("payload",)),
+    E_kin=variable("J", "Kinetic energy of link, payload, counterweights and drive rotor",
+                   depends_on=("payload",)),
+    M_g=variable("N.m", "Payload moment about O, -payload g w cos(phi) (eq. 8, paper's sign)",
+                 depends_on=("payload",)),
+    M_u=variable("N.m", "Unbalanced moment M_b + M_g (eq. 16)", depends_on=("payload",)),
+    W_drive=variable("J", "Cumulative work of tau_drive on the arm"),
+    E_loss=variable("J", "Cumulative energy dissipated: pivot friction, payload picked up "
+                         "while moving"),
+    E_added=variable("J", "Cumulative energy brought in (+) or taken out (-) by payload joining "
+                          "or leaving; E_p + E_kin + E_loss - W_drive - E_added is constant"),
+)
+# the FMU's output variables, one per Outputs field
+OUTPUT_VARIABLES = output_variables(
+    Outputs, Inputs,
+    theta=ARM_OUTPUTS["theta"],
+    omega=ARM_OUTPUTS["omega"],
+    OB=variable("m", "Distance from O to the sliding counterweight B (eq. 13)"),
+    tau_gravity=variable("N.m", "Gravity torque on the arm about O along theta, -dE_p/dtheta "
+                                "= -(M_u + M_bar) when the fixed counterweight balances m c",
+                         depends_on=("payload",)),
+    E_p=ARM_OUTPUTS["E_p"],
+    E_kin=ARM_OUTPUTS["E_kin"],
+    M_g=ARM_OUTPUTS["M_g"],
+    M_b=variable("N.m", "Moment of the counterweight's weight about O, m2 g OB cos(phi) "
+                        "(eq. 12)"),
+    M_u=ARM_OUTPUTS["M_u"],
+    M_bar=variable("N.m", "Static moment about O of the bar AB's force on the counterweight, "
+                          "m2 g (dOB/dphi) sin(phi) (omitted by the paper)"),
+    W_drive=ARM_OUTPUTS["W_drive"],
+    E_loss=ARM_OUTPUTS["E_loss"],
+    E_added=ARM_OUTPUTS["E_added"],
+)
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:

@@ -19,63 +19,23 @@ class PrismaticCompensator(MechanismSlave):
 
     physics = physics
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=8.0, step_size=1e-3)
+    calculated_parameters = (
+        ("J1", "kg.m2", "Inertia of link 1 about O, I1 + m1 lc1^2"),
+        ("k1_used", "N/m", "Pin-slot spring stiffness in use: m2 g / (2 r) (eq. 3.6) with "
+         "design_springs, else k1"),
+        ("k2_used", "N/m", "Stiffness of spring CD in use: lc1 m1 g / (c d) (eq. 3.13) with "
+         "design_springs, else k2"),
+        ("k3_used", "N/m", "Stiffness of spring AB in use: m2 g ls0 / (a b) (eq. 3.15) with "
+         "design_springs, else k3"),
+        ("rho_used", "1", "Belt ratio q*/q2 in use: b / ls0 (eq. 3.17) with design_springs, "
+         "else rho"),
+    )
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.description = ("Gravity compensator for a 2-DoF RP arm (Demian and Klimchik "
                             "2022): pin-slot spring with constant-tension wire on the prismatic "
                             "joint, two springs on the revolute joint, self-locking worms")
-        for name, unit, description in CALCULATED_PARAMETERS:
-            self.add_calculated_parameter(name, unit, description)
-        self.add_input("tau1", 0.0, "N.m", "Drive torque on the revolute joint")
-        self.add_input("f2", 0.0, "N", "Drive force on the prismatic joint, outward positive")
-        for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description)
-
-    def initialise(self, params: physics.Parameters) -> None:
-        for name, _, _ in CALCULATED_PARAMETERS:
-            setattr(self, name, getattr(params, name))
-        super().initialise(params)
-
-
-CALCULATED_PARAMETERS = (
-    ("J1", "kg.m2", "Inertia of link 1 about O, I1 + m1 lc1^2"),
-    ("k1_used", "N/m", "Pin-slot spring stiffness in use: m2 g / (2 r) (eq. 3.6) with "
-     "design_springs, else k1"),
-    ("k2_used", "N/m", "Stiffness of spring CD in use: lc1 m1 g / (c d) (eq. 3.13) with "
-     "design_springs, else k2"),
-    ("k3_used", "N/m", "Stiffness of spring AB in use: m2 g ls0 / (a b) (eq. 3.15) with "
-     "design_springs, else k3"),
-    ("rho_used", "1", "Belt ratio q*/q2 in use: b / ls0 (eq. 3.17) with design_springs, else rho"),
-)
-
-OUTPUTS = (
-    ("q1", "rad", "Angle of link 1 from the horizontal, counter-clockwise positive"),
-    ("q1_dot", "rad/s", "Revolute joint speed"),
-    ("q2", "m", "Prismatic joint travel along the link (m2 at ls0 + q2 from O)"),
-    ("q2_dot", "m/s", "Prismatic joint speed"),
-    ("tau1_gravity", "N.m", "Gravity torque effort of the revolute joint, uncompensated "
-     "(eq. 3.1)"),
-    ("f2_gravity", "N", "Gravity force effort of the prismatic joint, uncompensated (eq. 3.3)"),
-    ("tau1_gravity_residual", "N.m", "Torque a drive must supply to hold the arm at rest: "
-     "gravity effort minus spring compensation"),
-    ("f2_gravity_residual", "N", "Force a drive must supply to hold the arm at rest: gravity "
-     "effort minus spring and wire compensation"),
-    ("T_wire", "N", "Tension of the pin-slot spring wire, k1 r sin(q1) (0 when slack); 2 T_wire "
-     "acts on the slider"),
-    ("f2_worm", "N", "Force of the self-locking worms on the prismatic joint beyond the spring "
-     "energies (2 T_wire, plus dE_k3/dq2 when self_locking)"),
-    ("E_grav", "J", "Gravitational potential energy of m1 and m2 (0 at q1 = 0)"),
-    ("E_springs", "J", "Elastic energy of springs k1, k2, k3"),
-    ("E_kin", "J", "Kinetic energy of the arm and of the drive rotors (J_drive1, m_drive2)"),
-    ("W_drive", "J", "Cumulative work of tau1 and f2 on the arm"),
-    ("W_worm", "J", "Cumulative work of the worms on the arm (integral of f2_worm q2_dot)"),
-    ("E_friction", "J", "Cumulative energy dissipated by d1 and d2"),
-    ("E_loss", "J", "Cumulative energy dissipated: E_friction plus the end-stop impacts of q2"),
-    ("E_added", "J", "Energy brought in by masses joining or leaving: always 0 here (the "
-                     "mechanisms' common ledger E_grav + E_springs + E_kin + E_loss - W_drive - "
-                     "W_worm - E_added is constant)"),
-)
 
 
 REGISTRATION = Registration(

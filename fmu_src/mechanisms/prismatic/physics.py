@@ -73,7 +73,7 @@ from fmu_src.integration import (
     ledger_accuracy,
     ledger_controlled,
 )
-from fmu_src.mechanism import no_input_events
+from fmu_src.mechanism import input_variables, no_input_events, output_variables, variable
 from fmu_src.parameters import check_ranges, parameter
 
 
@@ -194,6 +194,14 @@ class Inputs(NamedTuple):
 
     tau1: float = 0.0   # N m, drive torque on the revolute joint
     f2: float = 0.0     # N, drive force on the prismatic joint, outward positive
+
+
+# the FMU's input variables, one per Inputs field
+INPUT_VARIABLES = input_variables(
+    Inputs,
+    tau1=variable("N.m", "Drive torque on the revolute joint"),
+    f2=variable("N", "Drive force on the prismatic joint, outward positive"),
+)
 
 
 # no input changes the state at a communication point: the efforts are no events
@@ -371,6 +379,41 @@ class Outputs(NamedTuple):
     E_friction: float
     E_loss: float
     E_added: float
+
+
+# the FMU's output variables, one per Outputs field; each a function of the state alone
+OUTPUT_VARIABLES = output_variables(
+    Outputs, Inputs,
+    q1=variable("rad", "Angle of link 1 from the horizontal, counter-clockwise positive"),
+    q1_dot=variable("rad/s", "Revolute joint speed"),
+    q2=variable("m", "Prismatic joint travel along the link (m2 at ls0 + q2 from O)"),
+    q2_dot=variable("m/s", "Prismatic joint speed"),
+    tau1_gravity=variable("N.m", "Gravity torque effort of the revolute joint, uncompensated "
+                                 "(eq. 3.1)"),
+    f2_gravity=variable("N", "Gravity force effort of the prismatic joint, uncompensated "
+                             "(eq. 3.3)"),
+    tau1_gravity_residual=variable("N.m", "Torque a drive must supply to hold the arm at rest: "
+                                          "gravity effort minus spring compensation"),
+    f2_gravity_residual=variable("N", "Force a drive must supply to hold the arm at rest: "
+                                      "gravity effort minus spring and wire compensation"),
+    T_wire=variable("N", "Tension of the pin-slot spring wire, k1 r sin(q1) (0 when slack); "
+                         "2 T_wire acts on the slider"),
+    f2_worm=variable("N", "Force of the self-locking worms on the prismatic joint beyond the "
+                          "spring energies (2 T_wire, plus dE_k3/dq2 when self_locking)"),
+    E_grav=variable("J", "Gravitational potential energy of m1 and m2 (0 at q1 = 0)"),
+    E_springs=variable("J", "Elastic energy of springs k1, k2, k3"),
+    E_kin=variable("J", "Kinetic energy of the arm and of the drive rotors (J_drive1, "
+                        "m_drive2)"),
+    W_drive=variable("J", "Cumulative work of tau1 and f2 on the arm"),
+    W_worm=variable("J", "Cumulative work of the worms on the arm (integral of f2_worm "
+                         "q2_dot)"),
+    E_friction=variable("J", "Cumulative energy dissipated by d1 and d2"),
+    E_loss=variable("J", "Cumulative energy dissipated: E_friction plus the end-stop impacts of "
+                         "q2"),
+    E_added=variable("J", "Energy brought in by masses joining or leaving: always 0 here (the "
+                          "mechanisms' common ledger E_grav + E_springs + E_kin + E_loss - "
+                          "W_drive - W_worm - E_added is constant)"),
+)
 
 
 def spring_energy(p: Parameters, q1: float, q2: float) -> float:

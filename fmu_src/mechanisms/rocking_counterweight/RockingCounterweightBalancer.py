@@ -9,29 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from fmu_src.mechanisms.payload_arm import ARM_OUTPUTS, PayloadArmSlave, payload_arm
+from fmu_src.mechanisms.payload_arm import PayloadArmSlave, payload_arm
 from fmu_src.mechanisms.rocking_counterweight import physics
-
-OUTPUTS = (
-    ARM_OUTPUTS["theta"],
-    ARM_OUTPUTS["omega"],
-    ("tau_gravity", "N.m", "Gravity torque on the arm about O along theta, -dE_p/dtheta "
-                           "= -M_u when the fixed counterweight balances m c"),
-    ARM_OUTPUTS["E_p"],
-    ARM_OUTPUTS["E_kin"],
-    ARM_OUTPUTS["M_g"],
-    ("M_b", "N.m", "Moment of the rocking counterweight and its bars about O, -m2 g dY_cw/dphi "
-                   "(paper's sign)"),
-    ARM_OUTPUTS["M_u"],
-    ("X_cw", "m", "Counterweight position, horizontal towards the payload's side (the paper's "
-                  "X = -x)"),
-    ("Y_cw", "m", "Counterweight height above O"),
-    ("psi", "rad", "Angle of the counterweight bar (A -> B) from the arm, counter-clockwise in "
-                   "the paper's frame"),
-    ARM_OUTPUTS["W_drive"],
-    ARM_OUTPUTS["E_loss"],
-    ARM_OUTPUTS["E_added"],
-)
 
 
 class RockingCounterweightBalancer(PayloadArmSlave):
@@ -39,7 +18,6 @@ class RockingCounterweightBalancer(PayloadArmSlave):
     ground by a second bar (Ciupitu 2018, Figure 4b), plus a fixed counterweight."""
 
     physics = physics
-    output_table = OUTPUTS
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

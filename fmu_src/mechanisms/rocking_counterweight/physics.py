@@ -60,6 +60,7 @@ from typing import Any, NamedTuple
 
 from fmu_src import ledger
 from fmu_src.integration import advance_arm, ledger_accuracy
+from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from fmu_src.mechanisms.rocking_counterweight.statics import (
     HALF_PI,
@@ -153,6 +154,10 @@ class Inputs(NamedTuple):
 
     tau_drive: float = 0.0    # N m, drive torque on the arm (counter-clockwise, along theta)
     payload: float = 0.0      # kg, payload at distance w
+
+
+# the FMU's input variables: the Ciupitu arm's
+INPUT_VARIABLES = input_variables(Inputs, **{v.name: v for v in ciupitu.INPUT_VARIABLES})
 
 
 # inputs whose change at a communication point is an event (switch_inputs)
@@ -338,6 +343,31 @@ class Outputs(NamedTuple):
     W_drive: float
     E_loss: float
     E_added: float
+
+
+# the FMU's output variables, one per Outputs field (ciupitu.ARM_OUTPUTS: every arm's)
+OUTPUT_VARIABLES = output_variables(
+    Outputs, Inputs,
+    theta=ciupitu.ARM_OUTPUTS["theta"],
+    omega=ciupitu.ARM_OUTPUTS["omega"],
+    tau_gravity=variable("N.m", "Gravity torque on the arm about O along theta, -dE_p/dtheta "
+                                "= -M_u when the fixed counterweight balances m c",
+                         depends_on=("payload",)),
+    E_p=ciupitu.ARM_OUTPUTS["E_p"],
+    E_kin=ciupitu.ARM_OUTPUTS["E_kin"],
+    M_g=ciupitu.ARM_OUTPUTS["M_g"],
+    M_b=variable("N.m", "Moment of the rocking counterweight and its bars about O, -m2 g "
+                        "dY_cw/dphi (paper's sign)"),
+    M_u=ciupitu.ARM_OUTPUTS["M_u"],
+    X_cw=variable("m", "Counterweight position, horizontal towards the payload's side (the "
+                       "paper's X = -x)"),
+    Y_cw=variable("m", "Counterweight height above O"),
+    psi=variable("rad", "Angle of the counterweight bar (A -> B) from the arm, counter-clockwise "
+                        "in the paper's frame"),
+    W_drive=ciupitu.ARM_OUTPUTS["W_drive"],
+    E_loss=ciupitu.ARM_OUTPUTS["E_loss"],
+    E_added=ciupitu.ARM_OUTPUTS["E_added"],
+)
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:

@@ -29,38 +29,24 @@ class SelfRegulatingBalancer(MechanismSlave):
     physics = physics
     hidden_state = ("state", "previous_inputs", "stop_reported", "off_angle_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=35.0, step_size=1e-3)
+    calculated_parameters = (
+        ("M0", "kg", "Counterweight mass holding the slider at b_design at theta = pi: eq. 10 "
+         "for an ideal spring, a massless slider and a balancing b0"),
+        ("b_design", "m", "Slider position M0 holds at theta = pi: least mean-square residual "
+         "torque over a full turn and the payload range once regulated (b0 for Table 1)"),
+        ("payload_max", "kg", "Payload capacity: regulation at theta = pi keeps the slider "
+         "within b_max (eq. 16 for Table 1)"),
+    )
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.description = ("Self-regulating gravity balancer (Franchetti, Boschetti, Lenzo "
                             "2021): 1-DOF link, zero-free-length spring on a lockable slider, "
                             "pulley-counterweight regulation")
-        self.add_calculated_parameter("M0", "kg", "Counterweight mass holding the slider at "
-                                      "b_design at theta = pi: eq. 10 for an ideal spring, a "
-                                      "massless slider and a balancing b0")
-        self.add_calculated_parameter("b_design", "m", "Slider position M0 holds at theta = "
-                                      "pi: least mean-square residual torque over a full turn "
-                                      "and the payload range once regulated (b0 for Table 1)")
-        self.add_calculated_parameter("payload_max", "kg", "Payload capacity: regulation at "
-                                      "theta = pi keeps the slider within b_max (eq. 16 for "
-                                      "Table 1)")
-        self.add_input("tau_drive", 0.0, "N.m", "Drive torque on the link about O")
-        self.add_input("payload", 0.0, "kg", "Payload mass at distance w (the paper's delta m)",
-                       min=0.0)
-        self.add_input("counterweight_added", 0.0, "kg",
-                       "Mass added to the counterweight M0 (same as the payload when regulating)")
-        self.add_input("slider_locked", True, None, "Slider clamped to the link (db/dt = 0)")
-        self.add_input("pulley_locked", True, None,
-                       "Pulley locked to the frame: counterweight idle, slider wire unloaded")
-        for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description, INPUT_DEPENDENCIES.get(name, ()))
         self.stop_reported = False
         self.off_angle_reported = False     # once per regulation (slider and pulley free)
 
     def initialise(self, params: physics.Parameters) -> None:
-        self.M0 = params.M0
-        self.b_design = params.b_design
-        self.payload_max = params.payload_max
         self.stop_reported = self.off_angle_reported = False
         super().initialise(params)
 
@@ -133,43 +119,6 @@ class SelfRegulatingBalancer(MechanismSlave):
         super().restore_hidden_state(hidden)
         self.stop_reported = bool(hidden["stop_reported"])
         self.off_angle_reported = bool(hidden["off_angle_reported"])
-
-
-OUTPUTS = (
-    ("theta", "rad", "Link angle from the upward vertical, counter-clockwise positive"),
-    ("omega", "rad/s", "Link angular velocity"),
-    ("b", "m", "Slider position along the link (O to B)"),
-    ("delta_b", "m", "Slider displacement from b0"),
-    ("x", "m", "Spring length A-B (eq. 4)"),
-    ("F_t", "N", "Spring force on the slider along the link, towards O"),
-    ("F_n", "N", "Spring force on the slider normal to the link"),
-    ("tau_gravity", "N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta"),
-    ("balance_error", "N.m", "(m c + payload w + m_slider b) g - k a b; 0 when balanced"),
-    ("E_p", "J", "Gravitational potential energy of link, payload and slider"),
-    ("E_e", "J", "Elastic energy of the spring"),
-    ("E_t", "J", "Total potential energy E_p + E_e"),
-    ("E_cw", "J", "Potential energy of the counterweight relative to its start"),
-    ("E_kin", "J", "Kinetic energy of link, payload, drive rotor, slider and counterweight"),
-    ("slider_at_stop", None, "Free slider resting on an end stop (b_min or b_max)"),
-    ("W_drive", "J", "Cumulative work of tau_drive on the link"),
-    ("E_loss", "J", "Cumulative energy dissipated: dampers, end-stop impacts, lock events, "
-                    "masses picked up while moving"),
-    ("E_added", "J", "Cumulative energy brought in (+) or taken out (-) by payload and "
-                     "counterweight mass joining or leaving; E_t + E_cw + E_kin + E_loss - "
-                     "W_drive - E_added is constant"),
-)
-# The inputs each output depends on directly (`physics.outputs`), its ModelStructure
-# dependencies; an output not listed is a function of the state alone.
-INPUT_DEPENDENCIES = {
-    "tau_gravity": ("payload",),
-    "balance_error": ("payload",),
-    "E_p": ("payload",),
-    "E_t": ("payload",),
-    "E_cw": ("counterweight_added",),
-    # the slider's effective mass includes the counterweight's while slider and pulley are free
-    "E_kin": ("payload", "counterweight_added", "slider_locked", "pulley_locked"),
-    "slider_at_stop": ("slider_locked",),
-}
 
 
 REGISTRATION = Registration(

@@ -13,6 +13,7 @@ from functools import cached_property
 from typing import NamedTuple
 
 from fmu_src.integration import ledger_accuracy
+from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.self_regulating.design import (
     _free_length_factor,
     _wire_pull,
@@ -145,6 +146,19 @@ class Inputs(NamedTuple):
     counterweight_added: float = 0.0  # kg, mass added to the counterweight M0
     slider_locked: bool = True
     pulley_locked: bool = True
+
+
+# the FMU's input variables, one per Inputs field
+INPUT_VARIABLES = input_variables(
+    Inputs,
+    tau_drive=variable("N.m", "Drive torque on the link about O"),
+    payload=variable("kg", "Payload mass at distance w (the paper's delta m)", min=0.0),
+    counterweight_added=variable(
+        "kg", "Mass added to the counterweight M0 (same as the payload when regulating)"),
+    slider_locked=variable(None, "Slider clamped to the link (db/dt = 0)"),
+    pulley_locked=variable(
+        None, "Pulley locked to the frame: counterweight idle, slider wire unloaded"),
+)
 
 
 # inputs whose change at a communication point is an event (switch_inputs)
@@ -373,6 +387,42 @@ class Outputs(NamedTuple):
     W_drive: float
     E_loss: float
     E_added: float
+
+
+# the FMU's output variables, one per Outputs field, with the inputs each reads directly in
+# `outputs` (its ModelStructure dependencies; none: a function of the state alone)
+OUTPUT_VARIABLES = output_variables(
+    Outputs, Inputs,
+    theta=variable("rad", "Link angle from the upward vertical, counter-clockwise positive"),
+    omega=variable("rad/s", "Link angular velocity"),
+    b=variable("m", "Slider position along the link (O to B)"),
+    delta_b=variable("m", "Slider displacement from b0"),
+    x=variable("m", "Spring length A-B (eq. 4)"),
+    F_t=variable("N", "Spring force on the slider along the link, towards O"),
+    F_n=variable("N", "Spring force on the slider normal to the link"),
+    tau_gravity=variable("N.m", "Gravity plus spring torque on the link about O, -dE_t/dtheta",
+                         depends_on=("payload",)),
+    balance_error=variable("N.m", "(m c + payload w + m_slider b) g - k a b; 0 when balanced",
+                           depends_on=("payload",)),
+    E_p=variable("J", "Gravitational potential energy of link, payload and slider",
+                 depends_on=("payload",)),
+    E_e=variable("J", "Elastic energy of the spring"),
+    E_t=variable("J", "Total potential energy E_p + E_e", depends_on=("payload",)),
+    E_cw=variable("J", "Potential energy of the counterweight relative to its start",
+                  depends_on=("counterweight_added",)),
+    # the slider's effective mass includes the counterweight's while slider and pulley are free
+    E_kin=variable("J", "Kinetic energy of link, payload, drive rotor, slider and counterweight",
+                   depends_on=("payload", "counterweight_added", "slider_locked",
+                               "pulley_locked")),
+    slider_at_stop=variable(None, "Free slider resting on an end stop (b_min or b_max)",
+                            depends_on=("slider_locked",)),
+    W_drive=variable("J", "Cumulative work of tau_drive on the link"),
+    E_loss=variable("J", "Cumulative energy dissipated: dampers, end-stop impacts, lock events, "
+                         "masses picked up while moving"),
+    E_added=variable("J", "Cumulative energy brought in (+) or taken out (-) by payload and "
+                          "counterweight mass joining or leaving; E_t + E_cw + E_kin + E_loss - "
+                          "W_drive - E_added is constant"),
+)
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:

@@ -48,6 +48,8 @@ from fmu_src.mechanisms.self_regulating.design import _free_length_factor
 # ledger_terms: imported here because the harness and the slave call them as physics.<name>
 from fmu_src.mechanisms.self_regulating.model import (  # noqa: F401
     EVENT_INPUTS,
+    INPUT_VARIABLES,
+    OUTPUT_VARIABLES,
     Inputs,
     Outputs,
     Parameters,

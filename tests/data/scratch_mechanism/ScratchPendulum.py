@@ -10,16 +10,6 @@ from pythonfmu.default_experiment import DefaultExperiment
 from fmu_src.fmi.mechanism_slave import MechanismSlave
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
 
-OUTPUTS = (
-    ("theta", "rad", "Angle from the downward vertical"),
-    ("omega", "rad/s", "Angular velocity"),
-    ("tau_gravity", "N.m", "Gravity torque about the pivot along theta"),
-    ("E_p", "J", "Gravitational potential energy (0 at the pivot's height)"),
-    ("E_kin", "J", "Kinetic energy of the bob and the drive rotor"),
-    ("W_drive", "J", "Cumulative work of tau_drive"),
-    ("E_loss", "J", "Cumulative energy dissipated by the pivot's friction"),
-)
-
 
 class ScratchPendulum(MechanismSlave):
     """A damped pendulum driven at its pivot."""
@@ -30,9 +20,6 @@ class ScratchPendulum(MechanismSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.description = "Damped pendulum (scratch mechanism of the registry test)"
-        self.add_input("tau_drive", 0.0, "N.m", "Drive torque about the pivot")
-        for name, unit, description in OUTPUTS:
-            self.add_output(name, unit, description)
 
 
 REGISTRATION = Registration(

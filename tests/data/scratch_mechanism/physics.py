@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src.integration import integrate
-from fmu_src.mechanism import no_input_events
+from fmu_src.mechanism import input_variables, no_input_events, output_variables, variable
 from fmu_src.parameters import check_ranges, parameter
 
 
@@ -43,6 +43,10 @@ class Inputs(NamedTuple):
     """Inputs held over a communication step."""
 
     tau_drive: float = 0.0  # N m, drive torque about the pivot
+
+
+INPUT_VARIABLES = input_variables(
+    Inputs, tau_drive=variable("N.m", "Drive torque about the pivot"))
 
 
 EVENT_INPUTS: tuple[str, ...] = ()  # the drive torque is no event
@@ -104,6 +108,18 @@ class Outputs(NamedTuple):
     E_kin: float
     W_drive: float
     E_loss: float
+
+
+OUTPUT_VARIABLES = output_variables(
+    Outputs, Inputs,
+    theta=variable("rad", "Angle from the downward vertical"),
+    omega=variable("rad/s", "Angular velocity"),
+    tau_gravity=variable("N.m", "Gravity torque about the pivot along theta"),
+    E_p=variable("J", "Gravitational potential energy (0 at the pivot's height)"),
+    E_kin=variable("J", "Kinetic energy of the bob and the drive rotor"),
+    W_drive=variable("J", "Cumulative work of tau_drive"),
+    E_loss=variable("J", "Cumulative energy dissipated by the pivot's friction"),
+)
 
 
 def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
