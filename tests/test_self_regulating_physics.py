@@ -12,7 +12,7 @@ import math
 import pytest
 from conftest import controlled_reference
 
-from fmu_src.mechanisms.self_regulating import model, physics
+from fmu_src.mechanisms.self_regulating import equilibrium, model, physics
 
 DEG = math.pi / 180.0
 TABLE_1 = physics.Parameters()
@@ -27,7 +27,7 @@ def test_table_1_design_numbers() -> None:
     assert p.pulley_ratio == pytest.approx(p.w / p.a, rel=1e-12)
     u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
                        pulley_locked=False)
-    assert model.regulated_slider_position(p, u, math.pi) == pytest.approx(0.095, abs=1e-12)
+    assert equilibrium.regulated_slider_position(p, u, math.pi) == pytest.approx(0.095, abs=1e-12)
     balanced = physics.outputs(p, physics.Inputs(), physics.initial_state(p))
     assert balanced.balance_error == pytest.approx(0.0, abs=1e-12)  # m c g = k a b0
 
@@ -65,7 +65,7 @@ def test_regulation_away_from_pi_has_the_closed_form_position() -> None:
                        pulley_locked=False)
     for theta in (120 * DEG, 150 * DEG, 210 * DEG):
         expected = p.a * math.cos(theta) + (p.M0 + 1.0) * p.g * p.R / (p.r * p.k)
-        assert model.regulated_slider_position(p, u, theta) == pytest.approx(expected,
+        assert equilibrium.regulated_slider_position(p, u, theta) == pytest.approx(expected,
                                                                                abs=1e-12)
 
 
@@ -262,7 +262,7 @@ def test_paper_design_keeps_eqs_10_and_16() -> None:
     assert p.b_design == pytest.approx(p.b0 + p.L0 + p.m_slider * p.g / p.k, rel=1e-12)
     u = physics.Inputs(payload=1.0, counterweight_added=1.0, slider_locked=False,
                        pulley_locked=False)
-    assert model.regulated_slider_position(p, u, math.pi) == pytest.approx(0.139, abs=1e-12)
+    assert equilibrium.regulated_slider_position(p, u, math.pi) == pytest.approx(0.139, abs=1e-12)
 
 
 def test_regulation_sweep_slider_settles_at_its_static_equilibrium() -> None:
@@ -282,7 +282,7 @@ def test_regulation_sweep_slider_settles_at_its_static_equilibrium() -> None:
     def settled(payload: float, deg: float) -> float:
         u = physics.Inputs(payload=payload, counterweight_added=payload, slider_locked=False,
                            pulley_locked=False)
-        return model.regulated_slider_position(p, u, deg * DEG)
+        return equilibrium.regulated_slider_position(p, u, deg * DEG)
 
     quoted = {150: 0.1084, 120: 0.145, 90: 0.195, 60: 0.245, 30: 0.2816, 0: 0.295, 180: 0.095}
     for r in rows:

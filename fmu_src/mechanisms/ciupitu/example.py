@@ -9,14 +9,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from fmu_src.mechanisms.ciupitu.physics import (
-    HALF_PI,
-    Moments,
-    Parameters,
-    _check_bar,
-    _geometry,
-    _moments,
-)
+from fmu_src.mechanisms.ciupitu.physics import HALF_PI, Parameters
+from fmu_src.mechanisms.ciupitu.statics import Moments, _check_bar, _geometry, _moments
 from fmu_src.parameters import check_ranges, parameter
 
 

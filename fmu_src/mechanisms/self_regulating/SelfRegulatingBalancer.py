@@ -12,7 +12,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.fmi.mechanism_slave import MechanismSlave
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
-from fmu_src.mechanisms.self_regulating import design, model, physics
+from fmu_src.mechanisms.self_regulating import design, equilibrium, model, physics
 from fmu_src.parameters import DomainError
 
 # How far from theta = pi (the reference configuration, paper Section 3) regulation warns.
@@ -81,7 +81,7 @@ class SelfRegulatingBalancer(MechanismSlave):
             theta = self.state.theta
             off = abs(math.remainder(theta - math.pi, 2.0 * math.pi))
             if off > REGULATION_ANGLE_TOLERANCE:
-                b_end = model.regulated_slider_position(p, u, theta)
+                b_end = equilibrium.regulated_slider_position(p, u, theta)
                 self.warn(f"regulating at theta = {math.degrees(theta):.2f} deg instead of 180 "
                           f"deg: the slider settles away from the balancing position (at "
                           f"b = {b_end:.4f} m for payload = {u.payload} kg)")
