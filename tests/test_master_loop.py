@@ -21,8 +21,8 @@ from harness.run import scenario_files as scenarios
 
 def test_a_refused_step_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
     """From step 5 on the reference is NaN, so the drive hands the mechanism a NaN effort,
-    which SelfRegulatingBalancer refuses when it is set (fmi2SetReal returns fmi2Error; it
-    used to be refused at the next fmi2DoStep): one line naming tau_drive and its range."""
+    which SelfRegulatingBalancer refuses when it is set (fmi2SetReal returns fmi2Error, before
+    any fmi2DoStep takes it): one line naming tau_drive and its range."""
     reference = scenarios.Scenario.reference
 
     def failing(self: scenarios.Scenario, times: np.ndarray, joint: int | str = 0) -> np.ndarray:

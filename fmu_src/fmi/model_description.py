@@ -1,7 +1,7 @@
 """Units and model-description XML of the FMUs (standard library only).
 
-PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns (its
-issue #33). `complete` adds them, in the way DNV's component-model does, from the slave's one
+PythonFMU 0.7.0 writes no units, no min/max, no TypeDefinitions and no InitialUnknowns.
+`complete` adds them, in the way DNV's component-model does, from the slave's one
 table of variable metadata (`VariableInfo`, also used to check inputs at run time), and writes
 each output's `dependencies`, from the inputs `add_output` declares it depends on.
 """

@@ -27,10 +27,10 @@ real-time factor. The last row is the sum, what `make cosim` spends in simulatio
 core.
 
 `master_share`: per franchetti2021 variant, the CPU time of one closed-loop step (as `cosim`)
-and that of its FMU calls alone (the run's efforts and input changes replayed through the
-master's prepared calls, the recording read included), best of repeats each, and their
-difference, the master's share: its set-up and result assembly spread over the steps, the
-controller and motor, the loop.
+and that of its FMU calls (the master's loop, `harness.run.loop.run_steps`, replaying the run's
+efforts with no controller and no motor: the input changes and the recording read included),
+best of repeats each, and their difference, the master's share: its set-up and result
+assembly spread over the steps, and the controller and motor.
 
 `convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
 reference (harness.run.reference): the relative error of each drive energy, which must shrink

@@ -3,6 +3,7 @@ co-simulation's steps, and the master's share of a run (see harness.bench)."""
 
 from __future__ import annotations
 
+import ctypes
 import re
 import subprocess
 import sys
@@ -16,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from fmpy import read_model_description
-from fmpy.fmi2 import fmi2True
 
 from fmu_src.mechanism import Port
 from harness import registry
@@ -25,7 +25,7 @@ from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
 from harness.run import master
 from harness.run import scenario_files as scenarios
-from harness.run.loop import FMICalls, input_changes
+from harness.run.loop import DriveStep, FMICalls, input_changes, run_steps
 from harness.run.results import RESULTS_DIR
 
 BENCH_DIR = RESULTS_DIR / "bench"
@@ -204,47 +204,41 @@ def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
     return pd.concat([table, pd.DataFrame([total])], ignore_index=True)
 
 
+def replay_step(efforts: ctypes.Array, index: int, effort: list[float]) -> DriveStep:
+    """A drive step that puts the recorded effort[k] in efforts[index] at step k: a joint of
+    the master's loop with the PID and motor replaced by a list read."""
+    def step(k: int, _position: float, _speed: float) -> None:
+        efforts[index] = effort[k]
+    return step
+
+
 def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
                    run: master.RunResult) -> float:
-    """CPU time [s] of this thread in the FMU calls alone of a run made with keep_traces: its
-    efforts and input changes replayed through the master's own prepared calls
-    (`harness.run.loop.FMICalls`: setReal of the efforts, the input changes, doStep, getReal of the
-    joints' states, and the recording read every RECORD_INTERVAL), with no controller and no
-    motor (the replay's own loop, copying each step's efforts into the C array, counts here);
-    the FMU instantiated and initialised as in the run, untimed. RuntimeError if the replay
-    does not end where the run ended."""
+    """CPU time [s] of this thread in the master's loop (`harness.run.loop.run_steps`) over a
+    run made with keep_traces, each joint's drive step replaced by its recorded efforts
+    (`replay_step`): the FMU calls (setReal of the efforts, the input changes, doStep, getReal
+    of the joints' states, and the recording read every RECORD_INTERVAL) and the loop's own
+    work, one call per joint and step included, with no controller and no motor; the FMU
+    instantiated and initialised as in the run, untimed. RuntimeError if the replay does not
+    end where the run ended."""
     scenario = scenario.for_variant(variant)
     joints, step_size = scenario.joints, run.step_size
     n_steps = round(scenario.duration / step_size)
     times = np.arange(n_steps + 1) * step_size
     inputs = scenario.inputs(times, variant)
     record_every = max(1, round(master.RECORD_INTERVAL / step_size))
-    efforts = [trace.effort.tolist() for trace in run.traces]
     with CoSimFMU(fmu_build.locate(run.model), f"replay.{scenario.name}") as fmu:
         fmu.set({name: signal[0] for name, signal in inputs.items()})
         fmu.initialize(run.parameters, stop_time=scenario.duration)
         calls = FMICalls(fmu, [joint.effort for joint in joints],
-                                [name for joint in joints for name in (joint.position,
-                                                                      joint.speed)],
-                                fmu.names("output") + list(inputs), len(fmu.messages))
+                         [name for joint in joints for name in (joint.position, joint.speed)],
+                         fmu.names("output") + list(inputs), len(fmu.messages))
         changes = input_changes(fmu, inputs)
-        values, step_times = calls.inputs, times.tolist()
+        drive_steps = [(replay_step(calls.inputs, j, trace.effort.tolist()), 2 * j)
+                       for j, trace in enumerate(run.traces)]
+        step_times = times.tolist()
         start = time.thread_time()
-        calls.record()
-        for first in range(0, n_steps, record_every):
-            last = min(first + record_every, n_steps)
-            for k in range(first, last):
-                for j, effort in enumerate(efforts):
-                    values[j] = effort[k]
-                calls.set_inputs()
-                if k in changes:
-                    for set_input, value_array, value, _ in changes[k]:
-                        value_array[0] = value
-                        set_input()
-                calls.do_step(step_times[k], step_size, fmi2True)
-                calls.get_states()
-            if last - first == record_every:
-                calls.record()
+        run_steps(calls, changes, drive_steps, step_times, step_size, record_every)
         seconds = time.thread_time() - start
         end = [value for trace in run.traces for value in (trace.position[-1], trace.speed[-1])]
         if calls.states[:] != end:
@@ -257,8 +251,8 @@ def master_share(steps: int = 0, repeats: int = 3,
                  scenario_name: str = "franchetti2021") -> pd.DataFrame:
     """The master's share of a closed-loop step at 1 ms per variant: the CPU time of one step
     of the run (as `cosim`: set-up, controller, motor, FMU calls, recording, result assembly;
-    `us_per_step`) less that of its FMU calls alone (`replay_seconds`; `fmu_calls_us_per_step`),
-    best of repeats each."""
+    `us_per_step`) less that of the master's loop replaying its efforts (`replay_seconds`: the
+    FMU calls and the loop; `fmu_calls_us_per_step`), best of repeats each."""
     scenario = scenarios.load(scenario_name)
     rows = []
     for variant in scenario.variants.values():

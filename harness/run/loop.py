@@ -1,15 +1,17 @@
 """The master's per-step work, made once per run: each joint's PID and sampled motor fused in
-one function per step (`DriveLoop`), and the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal on
-C arrays (`FMICalls`, `input_changes`), so the loop does no per-step lookups."""
+one function per step (`DriveLoop`), the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal on
+C arrays (`FMICalls`, `input_changes`), so the loop does no per-step lookups, and the loop
+itself (`run_steps`), which the master runs and the bench replays a run's efforts through."""
 
 from __future__ import annotations
 
 import ctypes
 import functools
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
-from fmpy.fmi2 import fmi2Boolean, fmi2False, fmi2ValueReference, fmi2Warning
+from fmpy.fmi2 import fmi2Boolean, fmi2False, fmi2True, fmi2ValueReference, fmi2Warning
 
 from fmu_src.units.controller.pid import DiscretePID
 from harness.fmu.loader import FATAL, CoSimFMU, FMICallException, FMUCallError
@@ -23,10 +25,15 @@ class DriveLoop:
     step, which the master puts in), the voltage [V], the armature current at its start [A]
     (and at the end of the last step), its step average [A] and the effort [N m or N].
 
-    `step` is the joint's step: `DiscretePID.update` and `SampledMotor.step` fused into one
-    function over local variables (one Python call per joint and step instead of four), the
-    same operations in the same order, so the same numbers to the last bit
-    (tests/test_master_loop.py checks it against the two).
+    `step` is the joint's step: `DiscretePID.update` followed by `SampledMotor.step` (the code
+    the PositionController and DcMotorDrive FMUs run) fused into one function over local
+    variables: one Python call per joint and step instead of four (the step, `update`, the
+    motor's `step` and its torque-per-amp property), and no attribute reads. Measured in one
+    process, interleaved, best of 7 over 100 000 steps: 648 ns per joint step fused, 909 ns
+    calling the two: 0.26 us per joint of franchetti2021's 22 us closed-loop step. The same
+    operations in the same order, so the same numbers to the last bit: tests/test_master_loop.py
+    checks it against the two over a random input sequence (and tests/test_drive_fmus.py the
+    two FMUs against the two).
     """
 
     __slots__ = ("step", "position", "speed", "voltage", "start_current", "current", "effort")
@@ -113,7 +120,7 @@ class FMICalls:
         self._get_booleans = functools.partial(
             dll.fmi2GetBoolean, component, _references(fmu, self._booleans),
             len(self._booleans), self._boolean_values)
-        self._fmu, self._first_message = fmu, first_message
+        self.fmu, self.first_message = fmu, first_message
         # each record() as the bytes of its C arrays, and the other types' values
         self._real_rows: list[bytes] = []
         self._boolean_rows: list[bytes] = []
@@ -122,14 +129,14 @@ class FMICalls:
     def record(self) -> None:
         """Read the recorded variables' current values (FMUCallError if the FMU refuses)."""
         if (status := self._get_reals()) > fmi2Warning:
-            raise refused(self._fmu, "fmi2GetReal", status, self._first_message)
+            raise refused(self.fmu, "fmi2GetReal", status, self.first_message)
         self._real_rows.append(bytes(self._real_values))
         if self._booleans:
             if (status := self._get_booleans()) > fmi2Warning:
-                raise refused(self._fmu, "fmi2GetBoolean", status, self._first_message)
+                raise refused(self.fmu, "fmi2GetBoolean", status, self.first_message)
             self._boolean_rows.append(bytes(self._boolean_values))
         if self._others:
-            self._other_rows.append(list(self._fmu.get(self._others).values()))
+            self._other_rows.append(list(self.fmu.get(self._others).values()))
 
     def recorded(self) -> pd.DataFrame:
         """One row per `record()`, one column per recorded variable."""
@@ -141,6 +148,48 @@ class FMICalls:
                            pd.DataFrame(booleans, columns=self._booleans),
                            pd.DataFrame(self._other_rows, columns=self._others)], axis=1)
         return table[self._record_names]
+
+
+DriveStep = Callable[[int, float, float], None]  # (k, position, speed) -> None, as DriveLoop.step
+
+
+def run_steps(calls: FMICalls, changes: dict[int, list],
+              drive_steps: list[tuple[DriveStep, int]], step_times: list[float],
+              step_size: float, record_every: int,
+              progress: Callable[[int], None] | None = None) -> None:
+    """The master's loop over steps k = 0 .. len(step_times) - 2 of step_size [s]: per step,
+    each (drive step, index) puts its joint's effort in calls.inputs from the joint's position
+    and speed at t_k (calls.states[index] and [index + 1]); then the efforts are set, the
+    input changes of k (`input_changes`) applied, the FMU stepped from step_times[k] and the
+    joints' states read into calls.states. `calls.record()` at t = 0 and after every full
+    block of record_every steps, each followed by progress(record_every).
+
+    FMUCallError (`refused`) when the FMU refuses a call."""
+    fmu, first_message = calls.fmu, calls.first_message
+    set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
+    state_values, n_steps = calls.states, len(step_times) - 1
+    calls.record()
+    # in blocks of record_every steps, recording after each full block
+    for first in range(0, n_steps, record_every):
+        last = min(first + record_every, n_steps)
+        for k in range(first, last):
+            for drive_step, index in drive_steps:
+                drive_step(k, state_values[index], state_values[index + 1])
+            if (status := set_efforts()) > fmi2Warning:
+                raise refused(fmu, "fmi2SetReal", status, first_message)
+            if k in changes:
+                for set_input, value_array, value, function in changes[k]:
+                    value_array[0] = value
+                    if (status := set_input()) > fmi2Warning:
+                        raise refused(fmu, function, status, first_message)
+            if (status := do_step(step_times[k], step_size, fmi2True)) > fmi2Warning:
+                raise refused(fmu, "fmi2DoStep", status, first_message)
+            if (status := get_states()) > fmi2Warning:
+                raise refused(fmu, "fmi2GetReal", status, first_message)
+        if last - first == record_every:
+            calls.record()
+            if progress is not None:
+                progress(record_every)
 
 
 def refused(fmu: CoSimFMU, function: str, status: int, first_message: int) -> FMUCallError:

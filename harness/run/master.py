@@ -6,10 +6,11 @@ Per communication step k (time t = k dt), with the FMU's outputs at t, for each 
   2. motor: V_j and the joint speed held over the step -> step-average current and effort;
 then the FMU: set every joint's effort and the scenario inputs of t, doStep(t, dt), read the
 joints' positions and speeds. Every output of the FMU is read at the recording rate only
-(100 Hz by default). The loop calls the FMU's fmi2SetReal, fmi2DoStep and fmi2GetReal (and
-the recording's fmi2GetReal) on C arrays made once (`FMICalls`); each joint's PID and motor
-are one fused function per step (`DriveLoop.step`) that records what the drive held and
-carried in lists made once, from which its `DriveTrace`, metrics and CSV columns are made.
+(100 Hz by default). The loop (`harness.run.loop.run_steps`) calls the FMU's fmi2SetReal,
+fmi2DoStep and fmi2GetReal (and the recording's fmi2GetReal) on C arrays made once
+(`FMICalls`); each joint's PID and motor are one fused function per step (`DriveLoop.step`)
+that records what the drive held and carried in lists made once, from which its
+`DriveTrace`, metrics and CSV columns are made.
 
 The run starts in equilibrium: the mechanism at rest at the initial positions and each
 joint's PID integrator and motor current holding the static effort the FMU reports for that
@@ -29,7 +30,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from fmpy import read_model_description
-from fmpy.fmi2 import fmi2True, fmi2Warning
 
 from fmu_src.units.drive.dc_motor import DriveEnergies, armature_voltage
 from harness.errors import UserError
@@ -38,7 +38,7 @@ from harness.fmu.loader import CoSimFMU
 from harness.run import metrics
 from harness.run.controller import ControllerDesign, PIDGains, design_pid, discrete_pid
 from harness.run.drive import DriveTrace, MotorParameters, motors, sampled_motor
-from harness.run.loop import DriveLoop, FMICalls, input_changes, refused
+from harness.run.loop import DriveLoop, FMICalls, input_changes, run_steps
 from harness.run.scenario_files import Joint, Scenario, Variant
 
 DEFAULT_STEP = 1e-3       # communication step [s]
@@ -129,36 +129,12 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
             loops.append(DriveLoop(pid, sampled_motor(drive_motor, step_size, hold_current),
                                    references[j].tolist(), calls.inputs, j))
 
-        changes = input_changes(fmu, inputs)
-        state_values = calls.states
-        state_values[:] = state
-        set_efforts, do_step, get_states = calls.set_inputs, calls.do_step, calls.get_states
-        step_times = times.tolist()
-        drive_steps = [(loop.step, 2 * j) for j, loop in enumerate(loops)]
-        calls.record()
-        # in blocks of record_every steps, recording after each full block
-        for first in range(0, n_steps, record_every):
-            last = min(first + record_every, n_steps)
-            for k in range(first, last):
-                for drive_step, index in drive_steps:
-                    drive_step(k, state_values[index], state_values[index + 1])
-                if (status := set_efforts()) > fmi2Warning:
-                    raise refused(fmu, "fmi2SetReal", status, first_message)
-                if k in changes:
-                    for set_input, value_array, value, function in changes[k]:
-                        value_array[0] = value
-                        if (status := set_input()) > fmi2Warning:
-                            raise refused(fmu, function, status, first_message)
-                if (status := do_step(step_times[k], step_size, fmi2True)) > fmi2Warning:
-                    raise refused(fmu, "fmi2DoStep", status, first_message)
-                if (status := get_states()) > fmi2Warning:
-                    raise refused(fmu, "fmi2GetReal", status, first_message)
-            if last - first == record_every:
-                calls.record()
-                if progress is not None:
-                    progress(record_every)
+        calls.states[:] = state
+        run_steps(calls, input_changes(fmu, inputs),
+                  [(loop.step, 2 * j) for j, loop in enumerate(loops)], times.tolist(),
+                  step_size, record_every, progress)
         for j, loop in enumerate(loops):  # the joints at the end of the run
-            loop.position[n_steps], loop.speed[n_steps] = state_values[2 * j:2 * j + 2]
+            loop.position[n_steps], loop.speed[n_steps] = calls.states[2 * j:2 * j + 2]
         messages = [f"{m.status}: {m.message}" for m in fmu.messages[first_message:]]
 
     traces = [loop.trace(joint, drive_motor, step_size, reference)
