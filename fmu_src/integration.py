@@ -255,3 +255,19 @@ def advance_arm(f: Callable[[float, float], tuple[float, float]], s: S, tau: flo
                                                       dt, n), E_added))
 
     return ledger_controlled(run, terms, (2,), s, first_substeps(dt, rate), dt, p, (payload,))
+
+
+def kept_outputs(ledger_terms: Callable) -> Callable:
+    """The mechanism's `outputs(p, u, s)` for a `ledger_terms` that evaluates the step's end
+    once for the ledger and the outputs and keeps them in `p._kept_outputs[0]` as (state,
+    inputs, outputs): the kept outputs when state and inputs are those objects, else a fresh
+    evaluation. A closure, so reading the outputs costs one call, as a written-out reader."""
+    def outputs(p, u, s):
+        kept = p._kept_outputs[0]
+        if kept[0] is not s or kept[1] is not u:
+            ledger_terms(p, u, s)
+            kept = p._kept_outputs[0]
+        return kept[2]
+    outputs.__doc__ = ("All outputs for the state s and inputs u (those `ledger_terms` "
+                       "computed with them at the end of the step, if it did).")
+    return outputs

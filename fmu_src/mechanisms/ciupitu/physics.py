@@ -72,7 +72,7 @@ from functools import partial
 from typing import NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import advance_arm, ledger_accuracy
+from fmu_src.integration import advance_arm, kept_outputs, ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.ciupitu.statics import _check_bar, _geometry, _moments
 from fmu_src.parameters import check_ranges, parameter
@@ -432,11 +432,4 @@ OUTPUT_VARIABLES = output_variables(
 )
 
 
-def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
-    """All outputs for the state s and inputs u (those `ledger_terms` computed with them at the
-    end of the step, if it did)."""
-    kept = p._kept_outputs[0]
-    if kept[0] is not s or kept[1] is not u:
-        ledger_terms(p, u, s)
-        kept = p._kept_outputs[0]
-    return kept[2]
+outputs = kept_outputs(ledger_terms)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import ledger_accuracy
+from fmu_src.integration import kept_outputs, ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.self_regulating.design import (
     _free_length_factor,
@@ -399,16 +399,6 @@ OUTPUT_VARIABLES = output_variables(
 )
 
 
-def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
-    """All outputs for the state s and inputs u (those `ledger_terms` computed with them at the
-    end of the step, if it did)."""
-    kept = p._kept_outputs[0]
-    if kept[0] is not s or kept[1] is not u:
-        ledger_terms(p, u, s)
-        kept = p._kept_outputs[0]
-    return kept[2]
-
-
 def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
     """The signed terms of the energy ledger [J], E_t + E_cw + E_kin (in parts), E_loss,
     -W_drive and -E_added (as `outputs` reports them): their sum is constant
@@ -436,3 +426,6 @@ def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
                          E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))
     p._kept_outputs[0] = (s, u, out)
     return E_p, E_e, E_cw, E_link, 0.5 * mass * v * v, E_loss, -W_drive, -E_added
+
+
+outputs = kept_outputs(ledger_terms)
