@@ -335,7 +335,7 @@ def test_stage_rates_are_the_spring_and_carriage_laws(params: dict, inputs: tupl
         h = 0.05   # long enough for the increments to show the rounding of their sums
         reference = integration.rk4(partial(physics.derivatives, p, u, direction=direction),
                                     s, h)
-        step = physics._rk4_step(rates, u.tau_drive, u.F_adjust, s, h)
+        step = integration.rk4_link_carriage_step(rates, u.tau_drive, u.F_adjust, s, h)
         assert type(step) is physics.State
         assert [(x, math.copysign(1.0, x)) for x in step] == [
             (x, math.copysign(1.0, x)) for x in reference]

@@ -82,12 +82,12 @@ with E_loss also counting the dampers d_link and d_q and the screw's friction.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING
 
 from fmu_src import ledger
-from fmu_src.integration import first_substeps, ledger_controlled
+from fmu_src.integration import first_substeps, ledger_controlled, rk4_link_carriage_step
 
 # model.py holds the Physics protocol's data types, validate, initial_state and outputs:
 # imported here because the harness and the slave call them as physics.<name>
@@ -224,35 +224,6 @@ def _rate(p: Parameters, u: Inputs, s: State, J: float, moment: float) -> float:
     return rate
 
 
-def _rk4_step(rates: StageRates, tau_drive: float, F_adjust: float, s: Sequence[float],
-              h: float) -> State:
-    """One RK4 step of size h [s] from s for the stage rates of `_stage_rates`, the screw's
-    regime fixed by the motion at its start: the same numbers as `integration.rk4` over the
-    full state (`derivatives`), bit for bit, with the stages in local floats."""
-    theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
-    half, sixth = 0.5 * h, h / 6.0
-    a1, b1, l1 = rates(theta, omega, q, q_dot, q_dot, tau_drive, F_adjust)
-    o2, v2 = omega + half * a1, q_dot + half * b1
-    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, q_dot, tau_drive,
-                       F_adjust)
-    o3, v3 = omega + half * a2, q_dot + half * b2
-    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, q_dot, tau_drive,
-                       F_adjust)
-    o4, v4 = omega + h * a3, q_dot + h * b3
-    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, q_dot, tau_drive, F_adjust)
-    return tuple.__new__(State, (
-        theta + sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4),
-        omega + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
-        q + sixth * (q_dot + 2.0 * v2 + 2.0 * v3 + v4),
-        q_dot + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
-        W_drive + sixth * (tau_drive * omega + 2.0 * (tau_drive * o2) + 2.0 * (tau_drive * o3)
-                           + tau_drive * o4),
-        W_adjust + sixth * (F_adjust * q_dot + 2.0 * (F_adjust * v2) + 2.0 * (F_adjust * v3)
-                            + F_adjust * v4),
-        E_loss + sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4),
-        E_added + sixth * 0.0))    # E_added' = 0 (-0.0 turns +0.0, as in rk4)
-
-
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
     from the rate rule, raised until the energy ledger meets p.ledger_accuracy
@@ -278,14 +249,14 @@ def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: Sta
     tau_drive, F_adjust = u.tau_drive, u.F_adjust
     lossless = p._stage_constants[-1]
     for _ in range(n):
-        new = _rk4_step(rates, tau_drive, F_adjust, s, h)
+        new = rk4_link_carriage_step(rates, tau_drive, F_adjust, s, h)
         if not lossless and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
-            stopped = _rk4_step(rates, tau_drive, F_adjust, s, h_stop)
+            stopped = rk4_link_carriage_step(rates, tau_drive, F_adjust, s, h_stop)
             stopped = stopped._replace(
                 q_dot=0.0,
                 E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
-            new = _rk4_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
+            new = rk4_link_carriage_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
         s = new
     return s
 

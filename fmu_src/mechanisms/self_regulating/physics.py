@@ -38,6 +38,8 @@ from functools import partial
 
 from fmu_src.integration import (
     first_substeps,
+    integrate_link_slider,
+    integrate_sine_arm,
     integrate_substeps,
     ledger_controlled,
     substeps,
@@ -270,11 +272,10 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     (`integration.ledger_controlled`).
 
     A clamped slider (the usual step) leaves a 1-DOF link: b and s_cw stay put and v = 0, so
-    RK4 runs over the link and its ledger alone (`_integrate_locked_slider`, `integrate_arm`'s
-    scheme), its angular acceleration written out in each stage, with the terms constant
-    over the step computed once (a call and a tuple per stage cost more than the link's
-    arithmetic). The same numbers, bit for bit (same operations in the same order), as
-    `integrate_substeps` over the full state with the derivatives of `_state_rates`.
+    RK4 runs over the link and its ledger alone (`_integrate_locked_slider`), with the terms
+    constant over the step computed once. The same numbers, bit for bit (same operations in
+    the same order), as `integrate_substeps` over the full state with the derivatives of
+    `_state_rates`.
     """
     if not u.slider_locked:
         return _advance_free_slider(p, u, s, dt)
@@ -286,85 +287,27 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
 
 
 def _integrate_locked_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
-    """The link with the slider clamped over dt [s] in n RK4 sub-steps (`advance`)."""
+    """The link with the slider clamped over dt [s] in n RK4 sub-steps (`advance`): a link
+    of constant inertia with gravity, the spring's moment spring sin(theta) (1 - L0/x) and
+    the link damper (`integrate_sine_arm`)."""
     theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
-    tau, d = u.tau_drive, p.d_link
     moment, J, spring = _link_terms(p, u.payload, b)[:3]
-    h = dt / n
-    half, sixth = 0.5 * h, h / 6.0
-    # the spring's moment is spring sin(theta) (1 - L0/x): the factor is exactly 1.0 for
-    # the ideal spring (and multiplying by 1.0 changes no number)
-    real_spring = p.L0 > 0.0
-    f1 = f2 = f3 = f4 = 1.0
-    for _ in range(n):
-        t2 = theta + half * omega
-        if real_spring:
-            f1, f2 = _free_length_factor(p, theta, b), _free_length_factor(p, t2, b)
-        s1 = math.sin(theta)
-        a1 = (tau + moment * s1 - spring * s1 * f1 - d * omega) / J
-        o2 = omega + half * a1
-        s2 = math.sin(t2)
-        a2 = (tau + moment * s2 - spring * s2 * f2 - d * o2) / J
-        o3 = omega + half * a2
-        t3 = theta + half * o2
-        if real_spring:
-            f3 = _free_length_factor(p, t3, b)
-        s3 = math.sin(t3)
-        a3 = (tau + moment * s3 - spring * s3 * f3 - d * o3) / J
-        o4 = omega + h * a3
-        t4 = theta + h * o3
-        if real_spring:
-            f4 = _free_length_factor(p, t4, b)
-        s4 = math.sin(t4)
-        a4 = (tau + moment * s4 - spring * s4 * f4 - d * o4) / J
-        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
-        E_loss += sixth * (d * omega * omega + 2.0 * (d * o2 * o2) + 2.0 * (d * o3 * o3)
-                           + d * o4 * o4)
-        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
-        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    factor = (lambda theta: _free_length_factor(p, theta, b)) if p.L0 > 0.0 else None
+    theta, omega, W_drive, E_loss = integrate_sine_arm(
+        u.tau_drive, moment, spring, factor, p.d_link, J, theta, omega, W_drive, E_loss, dt, n)
     return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
 
 
 def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
     """`integrate_substeps` (n sub-steps over dt [s]) over the state with the derivatives of
     `_state_rates` and `_apply_constraints` after each sub-step (a free slider with no
-    friction state to hold), bit for bit (same operations in the same order), with the RK4
-    stages kept in local floats: one call of `_slider_rates` per stage and no tuple per
-    stage, where the tuples, calls and the full-state arithmetic cost more than the
-    slider's own."""
-    rates = _slider_rates(p, u)
-    tau, pulley_locked, cw_ratio = u.tau_drive, u.pulley_locked, p.pulley_ratio
-    b_min, b_max = p.b_min, p.b_max
-    massive = slider_mass(p, u) != 0.0  # _apply_constraints leaves it alone within the stops
-    theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
-    h = dt / n
-    half, sixth = 0.5 * h, h / 6.0
-    for _ in range(n):
-        a1, b1, v1, l1 = rates(theta, omega, b, v)
-        o2 = omega + half * a1
-        a2, b2, v2, l2 = rates(theta + half * omega, o2, b + half * b1, v + half * v1)
-        o3 = omega + half * a2
-        a3, b3, v3, l3 = rates(theta + half * o2, o3, b + half * b2, v + half * v2)
-        o4 = omega + h * a3
-        a4, b4, v4, l4 = rates(theta + h * o3, o4, b + h * b3, v + h * v3)
-        # rk4's sums for s_cw, whose rate is 0.0 while the pulley is locked, and E_added
-        # (rate 0.0): adding sixth times the zero sum is adding 0.0
-        if pulley_locked:
-            s_cw += 0.0
-        else:
-            s_cw += sixth * (cw_ratio * b1 + 2.0 * (cw_ratio * b2) + 2.0 * (cw_ratio * b3)
-                             + cw_ratio * b4)
-        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
-        E_loss += sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
-        E_added += 0.0
-        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
-        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        b += sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-        v += sixth * (v1 + 2.0 * v2 + 2.0 * v3 + v4)
-        if not (massive and b_min <= b <= b_max):
-            theta, omega, b, v, s_cw, W_drive, E_loss, E_added = _apply_constraints(
-                p, u, _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added)))
-    return _new(State, (theta, omega, b, v, s_cw, W_drive, E_loss, E_added))
+    friction state to hold): `integrate_link_slider` for the rates of `_slider_rates`, the
+    counterweight coupled while the pulley turns, `_apply_constraints` wherever it can change
+    something (beyond a stop, or a massless slider after every sub-step)."""
+    low, high = (p.b_min, p.b_max) if slider_mass(p, u) != 0.0 else (math.inf, -math.inf)
+    return integrate_link_slider(_slider_rates(p, u), s, u.tau_drive,
+                                 None if u.pulley_locked else p.pulley_ratio, dt, n, low, high,
+                                 _apply_constraints, p, u)
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
