@@ -18,6 +18,13 @@ Rules:
   added after `__init__` (a `functools.cached_property` writes the instance `__dict__`)
   turns every later read of every field into a dictionary look-up, slower in each RK4
   stage. So a derived constant is computed eagerly, and a slot exists from the start.
+- A derived constant is computed before `validate` sees the fields, so it must not raise
+  for values `validate` rejects: it divides by a field with `quotient`, which gives NaN
+  for a zero divisor, and `validate` then names the field.
+- The one exception is a constant too costly to compute at every construction (a design
+  optimisation, tens of milliseconds) that an evaluation for rejected values may make
+  raise: it is a `functools.cached_property`, computed at its first read, and the
+  instance's field reads are slower from then on.
 - A key is compared by identity (`is`) where the very object comes back (the state a step
   ended in and the next starts from, an input held over many steps, an angle an RK4 stage
   passes on): the comparison costs no arithmetic, and the entry holds a reference to the
@@ -37,6 +44,7 @@ Rules:
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 
@@ -45,6 +53,11 @@ def derive(instance: Any, **values: Any) -> None:
     `__post_init__` (see the module's rules), in the order given."""
     for name, value in values.items():
         object.__setattr__(instance, name, value)
+
+
+def quotient(dividend: float, divisor: float) -> float:
+    """dividend / divisor, NaN for a zero divisor (of parameters `validate` rejects)."""
+    return dividend / divisor if divisor != 0.0 else math.nan
 
 
 def slot(empty: tuple, entries: int = 1) -> list[tuple]:
