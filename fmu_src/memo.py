@@ -19,8 +19,9 @@ Rules:
   turns every later read of every field into a dictionary look-up, slower in each RK4
   stage. So a derived constant is computed eagerly, and a slot exists from the start.
 - A derived constant is computed before `validate` sees the fields, so it must not raise
-  for values `validate` rejects: it divides by a field with `quotient`, which gives NaN
-  for a zero divisor, and `validate` then names the field.
+  for values `validate` rejects (a division by a zero field, a power that overflows): one
+  that may is `unless_rejected(lambda: ...)`, NaN where it raises, and `validate` then
+  names the field.
 - The one exception is a constant too costly to compute at every construction (a design
   optimisation, tens of milliseconds) that an evaluation for rejected values may make
   raise: it is a `functools.cached_property`, computed at its first read, and the
@@ -45,6 +46,7 @@ Rules:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 
@@ -55,9 +57,13 @@ def derive(instance: Any, **values: Any) -> None:
         object.__setattr__(instance, name, value)
 
 
-def quotient(dividend: float, divisor: float) -> float:
-    """dividend / divisor, NaN for a zero divisor (of parameters `validate` rejects)."""
-    return dividend / divisor if divisor != 0.0 else math.nan
+def unless_rejected(compute: Callable[[], float]) -> float:
+    """compute(), or NaN where it raises ArithmeticError (a division by zero, an overflow):
+    a derived constant of field values that `validate` rejects."""
+    try:
+        return compute()
+    except ArithmeticError:
+        return math.nan
 
 
 def slot(empty: tuple, entries: int = 1) -> list[tuple]:

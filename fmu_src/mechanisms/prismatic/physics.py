@@ -74,7 +74,7 @@ from fmu_src.integration import (
     ledger_controlled,
 )
 from fmu_src.mechanism import input_variables, no_input_events, output_variables, variable
-from fmu_src.memo import derive, quotient
+from fmu_src.memo import derive, unless_rejected
 from fmu_src.parameters import check_ranges, parameter
 
 
@@ -148,13 +148,15 @@ class Parameters:
         # m2 g / (2 r) (eq. 3.6), k2 = lc1 m1 g / (c d) (eq. 3.13), k3 = m2 g ls0 / (a b)
         # (eqs. 3.15, 3.17), rho = b / ls0 (eq. 3.17), else the given k1, k2, k3 and rho
         design = self.design_springs
-        derive(self, J1=self.I1 + self.m1 * self.lc1 ** 2, mass_2=self.m2 + self.m_drive2,
-               k1_used=quotient(self.m2 * self.g, 2.0 * self.r) if design else self.k1,
-               k2_used=quotient(self.lc1 * self.m1 * self.g, self.c * self.d) if design
-               else self.k2,
-               k3_used=quotient(self.m2 * self.g * self.ls0, self.a * self.b) if design
-               else self.k3,
-               rho_used=quotient(self.b, self.ls0) if design else self.rho)
+        derive(self, J1=unless_rejected(lambda: self.I1 + self.m1 * self.lc1 ** 2),
+               mass_2=self.m2 + self.m_drive2,
+               k1_used=unless_rejected(lambda: self.m2 * self.g / (2.0 * self.r)) if design
+               else self.k1,
+               k2_used=unless_rejected(lambda: self.lc1 * self.m1 * self.g / (self.c * self.d))
+               if design else self.k2,
+               k3_used=unless_rejected(lambda: self.m2 * self.g * self.ls0 / (self.a * self.b))
+               if design else self.k3,
+               rho_used=unless_rejected(lambda: self.b / self.ls0) if design else self.rho)
 
     def inertia_1(self, q2: float) -> float:
         """Inertia of the revolute joint at travel q2, J1 + J_drive1 + m2 (ls0 + q2)^2 [kg m^2]."""
