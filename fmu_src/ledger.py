@@ -2,7 +2,8 @@
 
 The ledger of every mechanism (docs/energy_ledger.md): stored energy + E_loss - W_drive -
 E_added (- W_worm, - W_adjust) stays constant. This module books the one event the
-one-link arms share: a payload that joins or leaves at a communication point.
+one-link arms share: a payload that joins or leaves at a communication point, or, for a
+continuous-time model, changes continuously.
 """
 
 from __future__ import annotations
@@ -68,3 +69,28 @@ def payload_switch(inertia: Callable[[Any, float, float], tuple]) -> Callable:
         return change_payload(s, before.payload, after.payload, p.w, p.g,
                               lambda payload: inertia(p, payload, s.theta)[0])
     return switch_inputs
+
+
+def payload_derivatives(arm_rates: Callable[[Any, float, float], Callable],
+                        inertia: Callable[[Any, float, float], tuple],
+                        state: Callable[..., S]) -> Callable:
+    """`derivatives` of a one-link arm whose state is (theta, omega, W_drive, E_loss,
+    E_added), given its arm_rates(p, payload, tau_drive), the rates (theta, omega) ->
+    (omega', friction loss [W]), its inertia(p, payload, theta) (as for `payload_switch`)
+    and its State type."""
+    def derivatives(p: Any, u: Any, s: S, rates: Any = None) -> S:
+        """Time derivative of the state (Lagrange equation) for inputs u that are constant
+        or, for a continuous-time model such as the harness's reference, change at `rates`
+        (d/dt of the inputs): the continuous limit of switch_inputs (`payload_flow`), a
+        payload joining from rest brakes the arm, J omega' gains -payload_rate w^2 omega and
+        E_loss 1/2 payload_rate w^2 omega^2; a payload leaving takes its kinetic energy
+        (E_added)."""
+        theta, omega = s[0], s[1]
+        omega_dot, loss = arm_rates(p, u.payload, u.tau_drive)(theta, omega)
+        if rates is None:
+            return state(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
+        flow = payload_flow(rates.payload, p.w, p.g, theta, omega,
+                            inertia(p, u.payload, theta)[0])
+        return state(omega, omega_dot + flow.omega_dot, u.tau_drive * omega, loss + flow.loss,
+                     flow.added)
+    return derivatives

@@ -105,9 +105,10 @@ def test_non_finite_time_is_refused(tmp_path: Path) -> None:
 
 def test_plot_onto_a_fifo_or_a_device_node_leaves_the_node(
         tmp_path: Path, reference: Path, capsys: pytest.CaptureFixture) -> None:
-    """compare --plot /dev/null used to exit 0 and replace the node with a PNG. The nodes are
-    made in tmp_path (never the system's /dev/null, which a regression run as root would
-    replace); a device node only where mknod is allowed."""
+    """compare --plot onto a FIFO or a device node exits 2 with one line and leaves the node
+    as it is, not replaced by a PNG. The nodes are made in tmp_path (never the system's
+    /dev/null, which a regression run as root would replace); a device node only where
+    mknod is allowed."""
     nodes = [tmp_path / "fifo"]
     os.mkfifo(nodes[0])
     with contextlib.suppress(PermissionError):
@@ -124,7 +125,8 @@ def test_plot_onto_a_fifo_or_a_device_node_leaves_the_node(
 def test_plot_to_a_folder_or_a_read_only_place_is_one_line(
         tmp_path: Path, reference: Path, capsys: pytest.CaptureFixture,
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """Both used to end in a traceback (IsADirectoryError, PermissionError)."""
+    """A plot to a folder or to a read-only mount is one line naming the place, not a
+    traceback (IsADirectoryError, PermissionError)."""
     assert cli.main(["compare", str(reference), str(reference), "--plot", str(tmp_path)]) == 2
     assert f"cannot write {tmp_path}: it is a folder" in capsys.readouterr().err
     # a read-only mount (the tests may run as root, whom file modes do not stop)

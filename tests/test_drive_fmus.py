@@ -271,9 +271,9 @@ def test_bad_parameter_fails_initialisation_naming_it(model: str, parameters: di
      "input theta = nan rad is not a finite number in [-inf, inf]"),
 ], ids=["V=nan", "omega=inf", "theta=nan"])
 def test_bad_input_is_refused_when_set(model: str, inputs: dict[str, float], named: str) -> None:
-    """A non-finite input used to be accepted and the next step discarded: now fmi2SetReal
-    refuses it naming the input and its range, keeps the previous value, and a step then runs
-    with that value (the same outputs as an instance never given the bad value)."""
+    """fmi2SetReal refuses a non-finite input naming the input and its range (accepted, it
+    would make the next step fail), keeps the previous value, and a step then runs with that
+    value (the same outputs as an instance never given the bad value)."""
     with open_fmu(fmu_build.fmu_path(model)) as fmu, \
             open_fmu(fmu_build.fmu_path(model)) as untouched:
         outputs = fmu.names("output")

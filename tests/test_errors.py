@@ -1,7 +1,7 @@
 """Our error types across processes, and FMU failures raised where the FMU is freed.
 
 An error raised in a worker process (cosim --workers, a sweep's Dask worker) reaches the
-parent pickled; one that cannot be unpickled broke the whole process pool (issue 22).
+parent pickled; one that cannot be unpickled would break the whole process pool.
 """
 
 from __future__ import annotations

@@ -72,7 +72,8 @@ def test_save_figure_writes_a_png_and_closes_a_pyplot_figure(tmp_path: Path) -> 
 
 def test_a_full_disk_is_one_line_naming_the_path_and_keeps_the_old_file(
         tmp_path: Path) -> None:
-    """A write failing with ENOSPC used to surface as a traceback (an OSError)."""
+    """A write failing with ENOSPC is one line naming the path, not a traceback (an
+    OSError), and the file keeps its old content."""
     path = tmp_path / "summary.csv"
     path.write_text("old")
 

@@ -370,11 +370,11 @@ def test_bad_step_size_discards_the_step(srb_fmu: Path, step_size: float, named:
         "counterweight_added=-inf", "payload=-1.4", "payload=1e300"])
 def test_bad_input_is_refused_when_set(srb_fmu: Path, inputs: dict[str, float],
                                        named: str) -> None:
-    """fmi2SetReal used to accept these (NaN or inf in tau_gravity, E_p, E_kin at the next get;
-    payload = -1.4 then killed the instance with fmi2Fatal at the get). Now it refuses them
-    with fmi2Error naming the input and its range, the previous value stays (payload 0.3), the
-    outputs read as before, and a step runs on with the previous value: the same state as an
-    instance never given the bad value."""
+    """fmi2SetReal refuses a non-finite, out-of-range or too large input with fmi2Error naming
+    the input and its range (accepted, it would put NaN or inf in tau_gravity, E_p and E_kin,
+    or end the instance with fmi2Fatal at the next get): the previous value stays (payload
+    0.3), the outputs read as before, and a step runs on with the previous value, to the same
+    state as an instance never given the bad value."""
     with open_fmu(srb_fmu, {"omega0": 1.0, "payload": 0.3}) as fmu, \
             open_fmu(srb_fmu, {"omega0": 1.0, "payload": 0.3}) as untouched:
         outputs = fmu.names("output")

@@ -81,8 +81,8 @@ def test_configure_rejects_bad_paths(path: str) -> None:
 
 
 def test_bad_values_and_bad_paths_stop_the_sweep_refused_runs_fail(tmp_path: Path) -> None:
-    """A value out of its field's range (motor.N = -1) used to be found run by run; it now
-    stops the sweep at load, naming the axis, the value and the field (issue 22). A run whose
+    """A value out of its field's range (motor.N = -1) stops the sweep at load, naming the
+    axis, the value and the field, before any run is spent on it. A run whose
     configuration is refused all the same (values refused only together) is a failed row."""
     path = tmp_path / "motor.toml"
     text = (SMALL.read_text().replace('"short_regulation.toml"',

@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 from fmu_src.integration import ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -79,23 +80,22 @@ class Parameters:
     ledger_accuracy: float = ledger_accuracy()
 
     def __post_init__(self) -> None:
-        # derived constants and what `outputs` keeps for the next step's rate, set here, in
-        # __init__: an attribute added later (a cached_property) slows every read of the fields
-        object.__setattr__(self, "carriage_inertia", self.m_q + self.m_drive_q)
+        # the derived constants and slots (fmu_src.memo): `outputs` keeps (state, l_s, F_s),
+        # keyed by identity, for the next step's rate; `_payload_terms` keeps (payload,
+        # inertia, moment, stage rates), keyed by equality; `_stage_rates` reads
+        # _stage_constants, in one tuple
+        carriage_inertia = self.m_q + self.m_drive_q
         if self.mu > 0.0:
             eta_forward, eta_backward = screw_efficiencies(self.mu, self.lead_angle,
                                                            self.flank_angle)
         else:
             eta_forward, eta_backward = 1.0, 0.0 if self.self_locking else 1.0
-        object.__setattr__(self, "eta_forward", eta_forward)
-        object.__setattr__(self, "eta_backward", eta_backward)
-        object.__setattr__(self, "_kept_spring", [(None, 0.0, 0.0)])
-        object.__setattr__(self, "_kept_payload", [(None, 0.0, 0.0, None)])   # _payload_terms
-        # what `_stage_rates` reads, in one tuple
-        object.__setattr__(self, "_stage_constants", (
-            self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0, self.d_link,
-            self.d_q, self.carriage_inertia, self.m_q * self.g, 1.0 / eta_forward, eta_backward,
-            eta_forward == eta_backward == 1.0))
+        derive(self, carriage_inertia=carriage_inertia, eta_forward=eta_forward,
+               eta_backward=eta_backward, _kept_spring=slot((None, 0.0, 0.0)),
+               _kept_payload=slot((None, 0.0, 0.0, None)), _stage_constants=(
+                   self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0,
+                   self.d_link, self.d_q, carriage_inertia, self.m_q * self.g,
+                   1.0 / eta_forward, eta_backward, eta_forward == eta_backward == 1.0))
 
     @property
     def free_length(self) -> float:

@@ -75,6 +75,7 @@ from fmu_src import ledger
 from fmu_src.integration import advance_arm, kept_outputs, ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.ciupitu.statics import _check_bar, _geometry, _moments
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -122,12 +123,11 @@ class Parameters:
                 + self.m2 * (self.AB - self.OA) ** 2)
 
     def __post_init__(self) -> None:
-        # What `_held` and `_arm_terms` keep with the parameters (added here, in __init__,
-        # so that reading the fields stays fast: an attribute added later slows every read)
-        object.__setattr__(self, "_last_held", [(None, ())])
-        object.__setattr__(self, "_last_terms", [(None, None, ())])
-        # (state, inputs, outputs): what `ledger_terms` computed last, for `outputs`
-        object.__setattr__(self, "_kept_outputs", [(None, None, None)])
+        # the slots (fmu_src.memo) of `_held`, (payload, terms), and `_arm_terms`, (theta,
+        # payload, terms), keyed by identity; (state, inputs, outputs) of `ledger_terms`,
+        # for `outputs`
+        derive(self, _last_held=slot((None, ())), _last_terms=slot((None, None, ())),
+               _kept_outputs=slot((None, None, None)))
 
 
 def validate(params: Parameters) -> None:
@@ -316,20 +316,8 @@ def _pivoted_rates(held: _Held, tau_drive: float,
     return pivoted
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
-    """Time derivative of the state (Lagrange equation) for inputs u that are constant or, for
-    a continuous-time model such as the harness's reference, change at `rates` (d/dt of the
-    inputs): the continuous limit of switch_inputs, a payload joining from rest brakes the
-    arm, J omega' gains -payload_rate w^2 omega and E_loss 1/2 payload_rate w^2 omega^2; a
-    payload leaving takes its kinetic energy (E_added)."""
-    theta, omega = s[0], s[1]
-    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive)(theta, omega)
-    if rates is None:
-        return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
-    flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
-                               inertia(p, u.payload, theta)[0])
-    return State(omega, omega_dot + flow.omega_dot, u.tau_drive * omega, loss + flow.loss,
-                 flow.added)
+# d/dt of the state, for constant or continuously changing inputs (docs/energy_ledger.md)
+derivatives = ledger.payload_derivatives(_arm_rates, inertia, State)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:

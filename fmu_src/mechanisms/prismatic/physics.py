@@ -64,7 +64,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property, partial
+from functools import partial
 from typing import NamedTuple
 
 from fmu_src.integration import (
@@ -74,6 +74,7 @@ from fmu_src.integration import (
     ledger_controlled,
 )
 from fmu_src.mechanism import input_variables, no_input_events, output_variables, variable
+from fmu_src.memo import derive, unless_rejected
 from fmu_src.parameters import check_ranges, parameter
 
 
@@ -140,40 +141,27 @@ class Parameters:
                               "at the end of the 1 m link, 1 m - ls0)")
     ledger_accuracy: float = ledger_accuracy()
 
-    @cached_property
-    def J1(self) -> float:
-        """Inertia of link 1 about O, I1 + m1 lc1^2 [kg m^2]."""
-        return self.I1 + self.m1 * self.lc1 ** 2
+    def __post_init__(self) -> None:
+        # the derived constants (fmu_src.memo): J1 = I1 + m1 lc1^2, the inertia of link 1
+        # about O [kg m^2]; mass_2 = m2 + m_drive2, the inertia of the prismatic joint [kg];
+        # the stiffnesses [N/m] and belt ratio q*/q2 [1] in use: with design_springs k1 =
+        # m2 g / (2 r) (eq. 3.6), k2 = lc1 m1 g / (c d) (eq. 3.13), k3 = m2 g ls0 / (a b)
+        # (eqs. 3.15, 3.17), rho = b / ls0 (eq. 3.17), else the given k1, k2, k3 and rho
+        design = self.design_springs
+        derive(self, J1=unless_rejected(lambda: self.I1 + self.m1 * self.lc1 ** 2),
+               mass_2=self.m2 + self.m_drive2,
+               k1_used=unless_rejected(lambda: self.m2 * self.g / (2.0 * self.r)) if design
+               else self.k1,
+               k2_used=unless_rejected(lambda: self.lc1 * self.m1 * self.g / (self.c * self.d))
+               if design else self.k2,
+               k3_used=unless_rejected(lambda: self.m2 * self.g * self.ls0 / (self.a * self.b))
+               if design else self.k3,
+               rho_used=unless_rejected(lambda: self.b / self.ls0) if design else self.rho)
 
     def inertia_1(self, q2: float) -> float:
         """Inertia of the revolute joint at travel q2, J1 + J_drive1 + m2 (ls0 + q2)^2 [kg m^2]."""
         lc2 = self.ls0 + q2
         return self.J1 + self.J_drive1 + self.m2 * lc2 * lc2
-
-    @cached_property
-    def mass_2(self) -> float:
-        """Inertia of the prismatic joint, m2 + m_drive2 [kg]."""
-        return self.m2 + self.m_drive2
-
-    @cached_property
-    def k1_used(self) -> float:
-        """Effective pin-slot spring stiffness, design m2 g / (2 r) (eq. 3.6) [N/m]."""
-        return self.m2 * self.g / (2.0 * self.r) if self.design_springs else self.k1
-
-    @cached_property
-    def k2_used(self) -> float:
-        """Effective stiffness of spring CD, design lc1 m1 g / (c d) (eq. 3.13) [N/m]."""
-        return self.lc1 * self.m1 * self.g / (self.c * self.d) if self.design_springs else self.k2
-
-    @cached_property
-    def k3_used(self) -> float:
-        """Effective stiffness of spring AB, design m2 g ls0 / (a b) (eqs. 3.15, 3.17) [N/m]."""
-        return self.m2 * self.g * self.ls0 / (self.a * self.b) if self.design_springs else self.k3
-
-    @cached_property
-    def rho_used(self) -> float:
-        """Effective belt ratio q*/q2, design b / ls0 (eq. 3.17) [-]."""
-        return self.b / self.ls0 if self.design_springs else self.rho
 
 
 def validate(params: Parameters) -> None:

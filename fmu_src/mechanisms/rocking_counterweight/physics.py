@@ -70,6 +70,7 @@ from fmu_src.mechanisms.rocking_counterweight.statics import (
     check_linkage,
     geometry,
 )
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import check_ranges, parameter
 
 # ---- dynamics for the FMU ---------------------------------------------------------------
@@ -125,13 +126,11 @@ class Parameters:
     ledger_accuracy: float = ledger_accuracy()
 
     def __post_init__(self) -> None:
-        # The linkage fields as one Linkage, which the dynamics read at every evaluation,
-        # and what `_arm_terms` keeps; set here, in __init__: an attribute added later (a
-        # cached_property) slows every read of the fields.
-        object.__setattr__(self, "linkage", Linkage.of(self))
-        object.__setattr__(self, "_last_terms", [(None, None, ())])
-        # (state, inputs, outputs): what `ledger_terms` computed last, for `outputs`
-        object.__setattr__(self, "_kept_outputs", [(None, None, None)])
+        # (fmu_src.memo) the linkage fields as one Linkage, which the dynamics read at every
+        # evaluation; the slots of `_arm_terms`, (theta, payload, terms) keyed by identity,
+        # and of `ledger_terms`, (state, inputs, outputs) for `outputs`
+        derive(self, linkage=Linkage.of(self), _last_terms=slot((None, None, ())),
+               _kept_outputs=slot((None, None, None)))
 
     @property
     def J_fixed(self) -> float:
@@ -258,20 +257,8 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     return rates
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
-    """Time derivative of the state (Lagrange equation) for inputs u that are constant or,
-    for a continuous-time model such as the harness's reference, change at `rates` (d/dt of
-    the inputs): the continuous limit of switch_inputs, a payload joining from rest brakes the
-    arm (J omega' gains -payload_rate w^2 omega, E_loss 1/2 payload_rate w^2 omega^2); a
-    payload leaving takes its kinetic energy with it (E_added)."""
-    theta, omega = s[0], s[1]
-    omega_dot, loss = _arm_rates(p, u.payload, u.tau_drive)(theta, omega)
-    if rates is None:
-        return State(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
-    flow = ledger.payload_flow(rates.payload, p.w, p.g, theta, omega,
-                               inertia(p, u.payload, theta)[0])
-    return State(omega, omega_dot + flow.omega_dot, u.tau_drive * omega, loss + flow.loss,
-                 flow.added)
+# d/dt of the state, for constant or continuously changing inputs (docs/energy_ledger.md)
+derivatives = ledger.payload_derivatives(_arm_rates, inertia, State)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:

@@ -21,6 +21,7 @@ from fmu_src.mechanisms.self_regulating.design import (
     gravity_moment,
     spring_length,
 )
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import DomainError, check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -113,19 +114,15 @@ class Parameters:
         """Counterweight travel per unit slider travel, R/r (design value w/a, eq. 13)."""
         return self.R / self.r
 
-    @cached_property
-    def _link_memo(self) -> list:
-        """[((payload, b), _link_terms)] * 2: the last two link terms computed with these
-        parameters, the latest first (a locked slider and a held payload repeat them at every
-        step; a payload event reads them before and after it)."""
-        return [((math.nan, math.nan), ())] * 2
-
-    @cached_property
-    def _kept_outputs(self) -> list:
-        """[(state, inputs, outputs)]: the outputs `ledger_terms` computed last with these
-        parameters, for `outputs` of the very same state and inputs objects (the end of a
-        step: the ledger's control evaluates it, then the slave reads its outputs)."""
-        return [(None, None, None)]
+    def __post_init__(self) -> None:
+        # the slots (fmu_src.memo) of `_link_terms`, ((payload, b), terms) keyed by equality,
+        # two entries, the latest first (a locked slider and a held payload repeat them at
+        # every step; a payload event reads them before and after it); of `ledger_terms`,
+        # (state, inputs, outputs) keyed by identity, for `outputs` of the very same state
+        # and inputs (the end of a step: the ledger's control evaluates it, then the slave
+        # reads its outputs)
+        derive(self, _link_memo=slot(((math.nan, math.nan), ()), 2),
+               _kept_outputs=slot((None, None, None)))
 
 
 def validate(params: Parameters) -> None:
