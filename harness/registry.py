@@ -66,11 +66,6 @@ def _instance(model: str) -> Any:
         instance_name=f"registry.{model}", resources=None)
 
 
-def variable_names(model: str) -> tuple[str, ...]:
-    """The names of the model's FMI variables, as its FMU declares them."""
-    return tuple(var.name for var in _instance(model).vars.values())
-
-
 def input_units(model: str) -> dict[str, str | None]:
     """The unit of each input of the model's slave (None for a Boolean), as its FMU declares
     it: read from an instance of the slave class."""

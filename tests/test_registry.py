@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 from conftest import open_fmu, run
+from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from fmu_src import mechanism
@@ -155,17 +156,17 @@ def test_no_harness_or_shared_module_names_a_mechanism() -> None:
     registrations alone: no string constant of a harness module (its design tools aside) or
     of an fmu_src module outside fmu_src/mechanisms is a mechanism's model name, or the name
     of an output that not every mechanism has (and that is no variable of the drive, the
-    controller or the sequencer), but those of NOT_A_MECHANISM_NAME. (The generated
-    sequencer_scenario.py is a scenario file's data.)"""
+    controller or the sequencer, as their FMUs declare them), but those of
+    NOT_A_MECHANISM_NAME."""
     assert len(MECHANISMS) >= 5
     outputs = [set(r.physics.Outputs._fields) for r in MECHANISMS.values()]
-    units = {var for model in set(fmu_build.MODELS) - set(MECHANISMS)
-             for var in registry.variable_names(model)}
+    units = {var.name for model in set(fmu_build.MODELS) - set(MECHANISMS)
+             for var in read_model_description(fmu_build.fmu_path(model)).modelVariables}
     names = {*MECHANISMS, *(set().union(*outputs) - set.intersection(*outputs) - units)}
     assert {"W_adjust", "delta_b", "OB", "Y_cw", "l_s", "q"} <= names
     source = registry.SOURCE_DIR
-    shared = [p for p in sorted(source.rglob("*.py")) if p.relative_to(source).parts[0]
-              != "mechanisms" and p.stem != "sequencer_scenario"]
+    shared = [p for p in sorted(source.rglob("*.py"))
+              if p.relative_to(source).parts[0] != "mechanisms"]
     assert {"fmi/slave.py", "units/sequencer/ScenarioSequencer.py", "integration.py"} <= {
         p.relative_to(source).as_posix() for p in shared}
     for root, paths in ((HARNESS, sorted(HARNESS.rglob("*.py"))), (source, shared)):

@@ -11,6 +11,7 @@ import math
 import subprocess
 import sys
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -22,7 +23,7 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from fmu_src.units.sequencer import scenario as core
-from fmu_src.units.sequencer import sequencer_scenario
+from fmu_src.units.sequencer.ScenarioSequencer import EMBEDDED_MODULE
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
 from harness.run import drive
@@ -291,10 +292,15 @@ def start_sequencer(fmu: CoSimFMU, variant: str) -> None:
     fmu.initialize({"variant": variant})
 
 
-def test_embedded_scenario_is_the_file() -> None:
-    assert sequencer_scenario.NAME == "franchetti2021"
-    assert sequencer_scenario.TOML == (scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text()
-    assert scenarios.EMBEDDED.read_text() == scenarios.embedded_source("franchetti2021")
+def test_embedded_scenario_is_the_file(sequencer: Path) -> None:
+    """The default sequencer FMU carries the scenario module generated from franchetti2021."""
+    with zipfile.ZipFile(sequencer) as archive:
+        source = archive.read(f"resources/{'/'.join(EMBEDDED_MODULE)}").decode()
+    module: dict[str, object] = {}
+    exec(source, module)
+    assert module["NAME"] == "franchetti2021"
+    assert module["TOML"] == (scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text()
+    assert source == scenarios.embedded_source("franchetti2021")
 
 
 def test_sequencer_model_description(sequencer: Path) -> None:

@@ -23,10 +23,9 @@ function over pythonfmu's Python API, loading the libpython the FMU was built wi
 pythonfmu's own linux64 binary is not shipped; its win64 binary is. `build(..., runtime=False)`
 keeps pythonfmu's binaries as they are: the benchmark's stock floor.
 
-The ScenarioSequencer plays the scenario embedded in its module `sequencer_scenario`: the
-committed `fmu_src/units/sequencer/sequencer_scenario.py` (franchetti2021), or, with
-`--sequencer-scenario FILE` (`build(..., sequencer_scenario=FILE)`), a module generated from
-that file into the build's staging folder only, so the source tree keeps its default.
+The ScenarioSequencer plays the scenario embedded in its module `sequencer_scenario`,
+generated (`embedded_module`) into the build's staging folder only: from DEFAULT_SCENARIO, or,
+with `--sequencer-scenario FILE` (`build(..., sequencer_scenario=FILE)`), from that file.
 
 A build is by content: every FMU records in `resources/build_inputs.sha256` the digest of
 everything that goes into it (`fmu_inputs`: the slave script and the fmu_src modules it
@@ -64,6 +63,7 @@ from xml.etree import ElementTree
 import fmpy
 from pythonfmu.builder import FmuBuilder
 
+from fmu_src.units.sequencer.ScenarioSequencer import EMBEDDED_MODULE
 from harness import registry
 from harness.errors import UserError
 from harness.fmu import docs as fmu_docs
@@ -76,8 +76,9 @@ DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
 # Slave scripts, one per FMU: the file name is the model identifier.
 MODELS = registry.models(SOURCE_DIR)  # those that declare a registration (harness.registry)
 SEQUENCER = "ScenarioSequencer"
+DEFAULT_SCENARIO = "franchetti2021"  # the scenario the sequencer of `make fmu` plays
 # where the sequencer FMU's scenario module goes in the staged package fmu_src
-EMBEDDED_SCENARIO = Path("units", "sequencer", "sequencer_scenario.py")
+EMBEDDED_SCENARIO = Path(*EMBEDDED_MODULE[1:])
 RUNTIME_SOURCE = Path(__file__).resolve().parent / "runtime" / "fmi2_runtime.c"
 # the minimal C FMI host that runs an FMU outside any Python process (bench, tests)
 HOST_SOURCE = Path(__file__).resolve().parent / "host" / "fmi2_host.c"
@@ -128,8 +129,9 @@ def script(model: str, source_dir: Path = SOURCE_DIR) -> Path:
 
 
 def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
-    """fmu_src modules the model's slave script needs, followed transitively (a module
-    generated at build time, GENERATED, is not among them)."""
+    """fmu_src modules the model's slave script needs, followed transitively (the
+    sequencer's scenario module, generated at build time by `embedded_module`, is not among
+    them)."""
     pending, found = [script(model, source_dir)], set()
     while pending:
         for name in _fmu_src_imports(pending.pop()):
@@ -140,10 +142,17 @@ def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
     return sorted(found)
 
 
-def sequencer_module(scenario: str | Path) -> str:
-    """The source of the ScenarioSequencer's module `sequencer_scenario` for a scenario (name
-    or file); UserError if the file does not load or the sequencer cannot play it (a Real
-    input that no mechanism of its variants has)."""
+def embedded_module(model: str, sequencer_scenario: str | Path | None = None) -> str | None:
+    """The source of the module `sequencer_scenario` the FMU of the model carries: for the
+    ScenarioSequencer, that of sequencer_scenario (name or file; None: DEFAULT_SCENARIO), and
+    None for any other model. UserError if a scenario is given for another model, if its file
+    does not load or if the sequencer cannot play it (a Real input that no mechanism of its
+    variants has)."""
+    if model != SEQUENCER:
+        if sequencer_scenario is not None:
+            raise UserError(f"a sequencer scenario is for the {SEQUENCER}, not {model}")
+        return None
+    scenario = DEFAULT_SCENARIO if sequencer_scenario is None else sequencer_scenario
     try:
         return scenarios.embedded_source(scenario)
     except UserError as error:
@@ -290,12 +299,13 @@ def install_runtime(fmu: Path, model: str, inputs: str, runtime: bool = True) ->
     write_archive(fmu, entries)
 
 
-def fmu_inputs(model: str, source_dir: Path = SOURCE_DIR, embedded: str | None = None,
-               runtime: bool = True) -> str:
+def fmu_inputs(model: str, source_dir: Path = SOURCE_DIR,
+               sequencer_scenario: str | Path | None = None, runtime: bool = True) -> str:
     """Digest of everything that goes into the FMU of source_dir/<model>.py: the script, the
-    fmu_src modules it imports, the embedded `sequencer_scenario` source (if any), the
-    runtime's inputs (or that pythonfmu's binary stays), the building interpreter's record,
-    the tools' versions and BUILD_CODE."""
+    fmu_src modules it imports, the embedded `sequencer_scenario` source (`embedded_module`),
+    the runtime's inputs (or that pythonfmu's binary stays), the building interpreter's
+    record, the tools' versions and BUILD_CODE."""
+    embedded = embedded_module(model, sequencer_scenario)
     binary = (compile_inputs(RUNTIME_SOURCE, *RUNTIME_OPTIONS) if runtime
               else "pythonfmu's binaries")
     return digest(script(model, source_dir), *dependencies(model, source_dir),
@@ -309,12 +319,10 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     dest/<model>.fmu (atomically) and return that path, whether or not it is stale.
 
     sequencer_scenario (ScenarioSequencer only): the scenario (shipped name or TOML file) the
-    FMU plays instead of the committed default. runtime False: pythonfmu's own binaries.
+    FMU plays instead of DEFAULT_SCENARIO. runtime False: pythonfmu's own binaries.
     """
-    if sequencer_scenario is not None and model != SEQUENCER:
-        raise UserError(f"a sequencer scenario is for the {SEQUENCER}, not {model}")
-    embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
-    inputs = fmu_inputs(model, source_dir, embedded, runtime)  # before reading them
+    inputs = fmu_inputs(model, source_dir, sequencer_scenario, runtime)  # before reading them
+    embedded = embedded_module(model, sequencer_scenario)
     dest.mkdir(parents=True, exist_ok=True)
     slave_script = script(model, source_dir)
     modules = dependencies(model, source_dir)
@@ -330,6 +338,7 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
                 copy.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy2(module, copy)
             if embedded is not None:
+                staged = sorted([*staged, package / EMBEDDED_SCENARIO])
                 (package / EMBEDDED_SCENARIO).write_text(embedded)
             FmuBuilder.build_FMU(
                 shutil.copy2(slave_script, stage), dest=partial,
@@ -352,9 +361,8 @@ def update(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     """Build dest/<model>.fmu (see `build`) if forced or stale, that is, unless it records
     the digest of its current inputs (`fmu_inputs`); True if it was built. An up-to-date
     FMU whose OSP model description is missing gets it written again."""
-    embedded = None if sequencer_scenario is None else sequencer_module(sequencer_scenario)
     fmu = dest / f"{model}.fmu"
-    if not force and not stale(fmu, fmu_inputs(model, source_dir, embedded, runtime)):
+    if not force and not stale(fmu, fmu_inputs(model, source_dir, sequencer_scenario, runtime)):
         if not (dest / f"{model}{osp.SUFFIX}").exists():  # deleted beside an up-to-date FMU
             osp.write_model_description(fmu)
         return False
@@ -393,7 +401,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--sequencer-scenario", metavar="NAME_OR_FILE",
         help=f"build only the {SEQUENCER}, playing this scenario (a name of "
-             f"harness/scenarios or a TOML file) instead of franchetti2021, into "
+             f"harness/scenarios or a TOML file) instead of {DEFAULT_SCENARIO}, into "
              f"DIR/{SEQUENCER}.fmu (default: build every FMU)")
     parser.add_argument("--force", action="store_true",
                         help="rebuild even the FMUs whose inputs have not changed (default: "

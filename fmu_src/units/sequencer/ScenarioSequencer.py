@@ -3,8 +3,11 @@ inputs the scenario drives, as outputs to connect to a mechanism FMU and its con
 
 A thin layer over `scenario` (this folder's scenario.py), the definitions the harness uses. The
 scenario is the file embedded at build time as the module `sequencer_scenario` of this folder in
-the FMU's resources: franchetti2021 by default (`harness.run.scenario_files.embed`), or any
-scenario file with `python -m harness build-fmus --sequencer-scenario FILE`. The String
+the FMU's resources, generated into the build's staging folder (`harness.fmu.build`):
+franchetti2021 by default, or any scenario file with `python -m harness build-fmus
+--sequencer-scenario FILE`. The module also holds the unit of each Real input, which the
+harness reads from the mechanisms the scenario drives, so the slave runs only with a resources
+folder that holds it (inside an FMU, or one the harness stages). The String
 parameter `variant` picks one of its variants by name, or the Integer parameter `variant_number`
 by its position in the scenario file (1, 2, ...; 0, the default, leaves the choice to
 `variant`), for hosts that cannot set String parameters (OMSimulator reads no String parameter
@@ -51,15 +54,15 @@ EMBEDDED_MODULE = ("fmu_src", "units", "sequencer", "sequencer_scenario.py")
 
 
 def embedded_scenario(resources: str | None) -> tuple[core.Scenario, dict[str, str]]:
-    """The scenario embedded in the FMU with this resources folder (outside an FMU, None: the
-    module `sequencer_scenario` of the source tree) and the unit of each Real input it drives
-    (its INPUT_UNITS, written by the harness from the mechanisms' inputs)."""
-    path = None if resources is None else Path(resources, *EMBEDDED_MODULE)
-    if path is not None and path.is_file():
-        module = runpy.run_path(str(path))  # not cached in sys.modules (see the docstring)
-    else:
-        from fmu_src.units.sequencer import sequencer_scenario
-        module = vars(sequencer_scenario)
+    """The scenario embedded in the FMU with this resources folder and the unit of each Real
+    input it drives (its INPUT_UNITS, written by the harness from the mechanisms' inputs);
+    ValueError if the folder (None: none) holds no embedded module."""
+    path = Path(resources or ".", *EMBEDDED_MODULE)
+    if resources is None or not path.is_file():
+        raise ValueError(f"no scenario module {'/'.join(EMBEDDED_MODULE)} in the resources "
+                         f"folder {resources}: the sequencer plays the scenario its build "
+                         "embeds (harness.fmu.build)")
+    module = runpy.run_path(str(path))  # not cached in sys.modules (see the docstring)
     return scenario_format.parse(module["DATA"], f"{module['NAME']}.toml"), module["INPUT_UNITS"]
 
 
