@@ -305,7 +305,12 @@ def fmu_inputs(model: str, source_dir: Path = SOURCE_DIR,
     fmu_src modules it imports, the embedded `sequencer_scenario` source (`embedded_module`),
     the runtime's inputs (or that pythonfmu's binary stays), the building interpreter's
     record, the tools' versions and BUILD_CODE."""
-    embedded = embedded_module(model, sequencer_scenario)
+    return _inputs_digest(model, source_dir, embedded_module(model, sequencer_scenario),
+                          runtime)
+
+
+def _inputs_digest(model: str, source_dir: Path, embedded: str | None, runtime: bool) -> str:
+    """`fmu_inputs` for the source of the embedded module (`embedded_module`), made once."""
     binary = (compile_inputs(RUNTIME_SOURCE, *RUNTIME_OPTIONS) if runtime
               else "pythonfmu's binaries")
     return digest(script(model, source_dir), *dependencies(model, source_dir),
@@ -321,8 +326,8 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
     sequencer_scenario (ScenarioSequencer only): the scenario (shipped name or TOML file) the
     FMU plays instead of DEFAULT_SCENARIO. runtime False: pythonfmu's own binaries.
     """
-    inputs = fmu_inputs(model, source_dir, sequencer_scenario, runtime)  # before reading them
     embedded = embedded_module(model, sequencer_scenario)
+    inputs = _inputs_digest(model, source_dir, embedded, runtime)  # before reading them
     dest.mkdir(parents=True, exist_ok=True)
     slave_script = script(model, source_dir)
     modules = dependencies(model, source_dir)
