@@ -128,6 +128,22 @@ def no_input_events(p: Any, before: Any, after: Any, s: Any) -> Any:
     return s
 
 
+# The one-link figure's panels after the link angle (Franchetti et al. 2021, Figure 5), as
+# (title, unit): a one-link mechanism draws its outputs in them (Registration.plot_panels), so
+# that the variants of one scenario, whatever their models, share them
+ENERGY_PANEL = ("(b) energies", "J")
+ADJUSTMENT_PANEL = ("(c) adjuster travel and payload", "mm | kg")
+GEOMETRY_PANEL = ("(d) spring length or counterweight position", "mm")
+
+
+def one_link_panels(energies: tuple[str, ...], adjustment: tuple[str, ...],
+                    geometry: tuple[str, ...]) -> tuple[tuple[str, str, tuple[str, ...]], ...]:
+    """The plot_panels of a one-link mechanism: the variables it draws in ENERGY_PANEL,
+    ADJUSTMENT_PANEL and GEOMETRY_PANEL."""
+    return ((*ENERGY_PANEL, energies), (*ADJUSTMENT_PANEL, adjustment),
+            (*GEOMETRY_PANEL, geometry))
+
+
 # OSP-IS port kinds (harness.fmu.osp): effort and flow of each
 ANGULAR = "AngularMechanicalPort"   # Torque [N.m], AngularVelocity [rad/s]
 LINEAR = "LinearMechanicalPort"     # Force [N], LinearVelocity [m/s]
@@ -225,8 +241,9 @@ class Registration:
     ledger: Mapping[str, int] = field(default_factory=dict)
     # the monolithic reference (harness.run.reference) can solve it as one ODE
     monolithic_reference: bool = True
-    # plot panels of a multi-joint mechanism after its joints' tracking panels:
-    # (title, unit, output names)
+    # plot panels after the joints' tracking panels: (title, unit, names of its inputs or
+    # outputs; a one-link mechanism's are `one_link_panels`); the panels of one title are one
+    # panel in a figure of several models' variants, a line style per name in order
     plot_panels: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
     # outputs a result summary reports at the end of a run (an adjusting actuator's work)
     summary_outputs: tuple[str, ...] = ()

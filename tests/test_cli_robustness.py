@@ -19,7 +19,7 @@ from conftest import write
 
 from harness import cli
 from harness.errors import UserError
-from harness.run import results
+from harness.run import plots, results
 from harness.run import scenario_files as scenarios
 from harness.sweeps import definition, execution
 
@@ -194,8 +194,8 @@ def test_worker_processes_write_what_one_process_writes(tmp_path: Path) -> None:
 
 def test_interrupted_write_leaves_the_result_set_as_it_was(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Killed mid-write, cosim used to leave a new CSV and a 1-row summary beside the old
-    plot; now every file is staged first, so a failure before the renames changes nothing."""
+    """Killed mid-write (while plotting, after the CSVs are made), cosim leaves every file of
+    the result set as it was: nothing is renamed into place before all are staged."""
     path, out = scenario_file(tmp_path), tmp_path / "out"
     assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet"]) == 0
     before = {p.name: p.read_bytes() for p in (out / "short").iterdir()}
@@ -203,7 +203,7 @@ def test_interrupted_write_leaves_the_result_set_as_it_was(
     def killed(*_args: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(results, "plot", killed)
+    monkeypatch.setattr(plots, "plot", killed)
     assert cli.main(["cosim", "--scenario", str(path), "--variants", "unbalanced", "--step",
                      "0.002", "--out", str(out), "--quiet"]) == 130
     assert {p.name: p.read_bytes() for p in (out / "short").iterdir()} == before

@@ -145,9 +145,6 @@ NOT_A_MECHANISM_NAME = {
     "sweeps/definition.py": {"x"}, "sweeps/plots.py": {"x"},
     # the scenario format's default joint: the one-link mechanisms' common names
     "units/sequencer/scenario.py": {"tau_gravity"},
-    # the one-joint figure (Franchetti 2021 Figure 5), whose panels several mechanisms share:
-    # not derived from the registrations yet, as that would change the committed plots' lines
-    "run/results.py": {"E_p", "E_e", "E_t", "delta_b", "q", "x", "OB", "Y_cw", "l_s"},
 }
 
 

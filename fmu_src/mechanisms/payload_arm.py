@@ -9,7 +9,7 @@ from typing import Any
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.fmi.mechanism_slave import MechanismSlave
-from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
+from fmu_src.mechanism import ANGULAR, Port, Registration, Run, one_link_panels, rest_to_rest_move
 
 
 class PayloadArmSlave(MechanismSlave):
@@ -21,11 +21,13 @@ class PayloadArmSlave(MechanismSlave):
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=1e-3)
 
 
-def payload_arm(physics: Any, reference_outputs: tuple[str, ...], **more: Any) -> Registration:
+def payload_arm(physics: Any, reference_outputs: tuple[str, ...], counterweight_position: str,
+                **more: Any) -> Registration:
     """The registration of a one-link arm with a drive torque and a payload at distance w
     (`PayloadArmSlave`): its joint theta, the ledger E_p + E_kin + E_loss - W_drive
     - E_added, a rest-to-rest move without payload recording reference_outputs, a payload of
-    2 kg that moves it, and a probe with both inputs acting; more: further fields."""
+    2 kg that moves it, a probe with both inputs acting, and the one-link figure's panels
+    (E_p, the payload and the output counterweight_position); more: further fields."""
     return Registration(
         physics=physics,
         ports=(Port(ANGULAR, "joint", "tau_drive", "omega", "theta"),),
@@ -34,4 +36,5 @@ def payload_arm(physics: Any, reference_outputs: tuple[str, ...], **more: Any) -
                                         reference_outputs, "; no payload"),
         moving_run=Run({}, {"payload": 2.0}, 2.0),
         dependency_probes=(Run({}, {"tau_drive": 1.0, "payload": 0.5}, 0.3),),
+        plot_panels=one_link_panels(("E_p",), ("payload",), (counterweight_position,)),
         **more)

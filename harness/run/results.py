@@ -1,4 +1,5 @@
-"""Result files (docs/results.md): per-variant CSV series, a summary table, plots.
+"""Result files (docs/results.md): per-variant CSV series, a summary table, the plot
+(`harness.run.plots`).
 
 CSVs follow the FMI cross-check conventions (as fmpy.util.write_csv): quoted header,
 `time` first, one column per quantity named after the FMU variable or drive signal, SI units,
@@ -24,17 +25,13 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-
-from harness import registry  # noqa: E402
-from harness.errors import UserError  # noqa: E402
-from harness.io import check_target, save_figure, write_csv  # noqa: E402
+from harness import registry
+from harness.errors import UserError
+from harness.io import check_target, write_csv
+from harness.run import plots
 from harness.run.master import RunResult, suffix
 from harness.run.metrics import METRICS, efficaciousness
 from harness.run.scenario_files import Scenario
@@ -265,7 +262,7 @@ def _stage(results: list[RunResult], scenario: Scenario, out_dir: Path,
               for variant, model in zip(kept.variant, kept.model, strict=True)
               if (out_dir / f"{variant}.csv").exists()]  # a row without its CSV: not plotted
     runs = sorted([*results, *stored], key=lambda r: rank.get(r.variant, len(rank)))
-    staged.append(plot(runs, scenario, folder / f"{scenario.name}.png"))
+    staged.append(plots.plot(runs, scenario, folder / f"{scenario.name}.png"))
     staged.append(write_csv(table, folder / "summary.csv"))
     return staged
 
@@ -280,113 +277,6 @@ def _read_csv(path: Path, **options: object) -> pd.DataFrame:
         reason = error.strerror if isinstance(error, OSError) else str(error).splitlines()[0]
         raise UserError(f"{path} cannot be read as a CSV table ({reason}): move it away to "
                         "start a new result set") from None
-
-
-# ---- plots -------------------------------------------------------------------------------
-def _to_mm(values: np.ndarray) -> np.ndarray:
-    return 1e3 * values
-
-
-# panels: (title, unit, [(column, conversion or None), ...]); a column ending in _ref is the
-# reference, drawn once in black
-MECHANISM_PANELS = (
-    ("(a) link angle", "deg", [("theta", np.degrees), ("theta_ref", np.degrees)]),
-    ("(b) energies", "J", [("E_p", None), ("E_e", None), ("E_t", None)]),
-    ("(c) slider travel, carriage travel and payload", "mm | kg",
-     [("delta_b", _to_mm), ("payload", None), ("q", _to_mm)]),
-    ("(d) spring length x (l_s), counterweight distance OB or height Y_cw", "mm",
-     [("x", _to_mm), ("OB", _to_mm), ("Y_cw", _to_mm), ("l_s", _to_mm)]),
-)
-DRIVE_PANELS = (
-    ("drive torque", "N m", "tau_drive"),
-    ("motor current", "A", "i"),
-    ("electrical power", "W", "P_elec"),
-    ("energy drawn", "J", "E_drawn"),
-)
-STYLES = ("-", "--", ":", "-.")
-
-
-def panels(scenario: Scenario, model: str) -> tuple[tuple, tuple]:
-    """(mechanism panels, drive panels) of a scenario's plot: Franchetti Figure 5's four
-    panels for one-joint scenarios; per joint tracking, the model's own panels (its
-    registration's plot_panels) and per drive efforts, total power and energy drawn for
-    several joints."""
-    if len(scenario.joints) == 1:
-        return MECHANISM_PANELS, DRIVE_PANELS
-    tracking, efforts = [], []
-    for joint in scenario.joints:
-        revolute = joint.kind == "revolute"
-        convert, unit = (np.degrees, "deg") if revolute else (_to_mm, "mm")
-        tracking.append((f"joint {joint.name}", unit, [(joint.position, convert),
-                                                       (f"{joint.position}_ref", convert)]))
-        efforts.append((f"drive effort {joint.effort} ({joint.motor} motor)",
-                        "N m" if revolute else "N", joint.effort))
-    found = registry.registration(model)
-    own = () if found is None else tuple((title, unit, [(name, None) for name in names])
-                                         for title, unit, names in found.plot_panels)
-    return ((*tracking, *own),
-            (*efforts, ("electrical power, all drives", "W", "P_elec"),
-             ("energy drawn, all drives", "J", "E_drawn")))
-
-
-def plot(results: Sequence[RunResult | StoredRun], scenario: Scenario, path: Path) -> Path:
-    """The mechanism per variant (left; a model's other quantities share a panel, e.g.
-    Ciupitu's OB in Franchetti's (d)) and the drives per variant (right), see `panels`."""
-    mechanism, drives = panels(scenario, results[0].model)
-    rows = max(len(mechanism), len(drives))
-    fig, axes = plt.subplots(rows, 2, figsize=(13, 3 * rows), sharex=True, squeeze=False)
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for row, (title, unit, signals) in enumerate(mechanism):
-        ax = axes[row, 0]
-        for colour, r in zip(colours, results, strict=False):
-            for style, (name, convert) in zip(STYLES, signals, strict=False):
-                reference = name.endswith("_ref")
-                if name not in r.series or (reference and r is not results[0]):
-                    continue
-                values = r.series[name].to_numpy()
-                ax.plot(r.series.time, convert(values) if convert else values, style,
-                        color="k" if reference else colour, lw=1.2)
-        # one legend entry per signal shown (line style) and per variant (colour)
-        shown = [(style, name) for style, (name, _) in zip(STYLES, signals, strict=False)
-                 if any(name in r.series for r in results)]
-        handles = [Line2D([], [], ls=style, color="0.4", label=name)
-                   for style, name in shown if not name.endswith("_ref")]
-        handles += [Line2D([], [], color=colour, label=r.variant)
-                    for colour, r in zip(colours, results, strict=False)
-                    if any(name in r.series for _, name in shown)]
-        handles += [Line2D([], [], ls=style, color="k", label="reference")
-                    for style, name in shown if name.endswith("_ref")]
-        ax.legend(handles=handles, fontsize=7, ncol=2)
-        _decorate(ax, title, unit)
-    for row, (title, unit, name) in enumerate(drives):
-        ax = axes[row, 1]
-        for colour, r in zip(colours, results, strict=False):
-            # a several-joint run shows its first joint's signal (<name>_<joint>); a stored
-            # run of another layout may have neither
-            column = name if name in r.series else next(
-                (c for c in r.series.columns if c.startswith(f"{name}_")), None)
-            if column is None:
-                continue
-            ax.plot(r.series.time, r.series[column], color=colour, lw=1.2, label=r.variant)
-        ax.legend(fontsize=7)
-        _decorate(ax, title, unit)
-    for ax in axes[rows - 1:, :].ravel():
-        ax.set_xlabel("time [s]")
-    for row in range(len(mechanism), rows):
-        axes[row, 0].set_visible(False)
-    for row in range(len(drives), rows):
-        axes[row, 1].set_visible(False)
-    fig.suptitle(f"{scenario.name}: mechanism (panels of Franchetti et al. 2021, Fig. 5) "
-                 "and drive" if len(scenario.joints) == 1 else
-                 f"{scenario.name}: joints, mechanism and drives")
-    fig.tight_layout()
-    return save_figure(fig, path)
-
-
-def _decorate(ax: plt.Axes, title: str, unit: str) -> None:
-    ax.set_title(title, loc="left", fontsize=10)
-    ax.set_ylabel(unit)
-    ax.grid(alpha=0.3)
 
 
 def summary_text(path: Path, scenario: Scenario) -> str:

@@ -12,7 +12,15 @@ from typing import Any
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.fmi.mechanism_slave import MechanismSlave
-from fmu_src.mechanism import ANGULAR, LINEAR, Port, Registration, Run, rest_to_rest_move
+from fmu_src.mechanism import (
+    ANGULAR,
+    LINEAR,
+    Port,
+    Registration,
+    Run,
+    one_link_panels,
+    rest_to_rest_move,
+)
 from fmu_src.mechanisms.active_spring import physics
 
 
@@ -65,4 +73,5 @@ REGISTRATION = Registration(
     moving_run=Run({}, {"tau_drive": 0.5, "F_adjust": 30.0, "payload": 0.5}, 2.0),
     # carriage pushed up against the spring while the link swings: the screw's force acts
     dependency_probes=(Run({}, {"tau_drive": 1.0, "F_adjust": 40.0, "payload": 0.5}, 0.3),),
+    plot_panels=one_link_panels(("E_p", "E_e", "E_t"), ("q", "payload"), ("l_s",)),
 )

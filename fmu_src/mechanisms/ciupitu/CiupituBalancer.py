@@ -27,4 +27,4 @@ class CiupituBalancer(PayloadArmSlave):
 
 REGISTRATION = payload_arm(
     physics, ("theta", "omega", "OB", "tau_gravity", "E_p", "E_kin", "M_g", "M_b", "M_u", "M_bar"),
-    initial_parameters={"omega0": 0.5})
+    "OB", initial_parameters={"omega0": 0.5})

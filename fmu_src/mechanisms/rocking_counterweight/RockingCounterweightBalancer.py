@@ -27,4 +27,5 @@ class RockingCounterweightBalancer(PayloadArmSlave):
 
 
 REGISTRATION = payload_arm(
-    physics, ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi"))
+    physics, ("theta", "omega", "tau_gravity", "E_p", "E_kin", "M_b", "M_u", "X_cw", "Y_cw", "psi"),
+    "Y_cw")

@@ -11,7 +11,7 @@ from typing import Any
 from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.fmi.mechanism_slave import MechanismSlave
-from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
+from fmu_src.mechanism import ANGULAR, Port, Registration, Run, one_link_panels, rest_to_rest_move
 from fmu_src.mechanisms.self_regulating import design, equilibrium, model, physics
 from fmu_src.parameters import DomainError
 
@@ -140,4 +140,5 @@ REGISTRATION = Registration(
         Run({"theta0": math.pi}, {"tau_drive": 1.0, "slider_locked": False}, 1.0),
     ),
     initial_parameters={"omega0": 0.5},
+    plot_panels=one_link_panels(("E_p", "E_e", "E_t"), ("delta_b", "payload"), ("x",)),
 )
