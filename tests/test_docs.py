@@ -72,10 +72,17 @@ def test_relative_links_resolve():
     assert not broken, f"broken links: {broken}"
 
 
-def test_the_readme_lists_every_fmu_by_its_slave_script() -> None:
-    """The README's tour names the slave script of every registered FMU, and no other."""
-    readme = " ".join((ROOT / "README.md").read_text().split())
-    listed = set(re.findall(r"`fmu_src/[\w/]+/([A-Z]\w+)\.py`", readme))
-    assert listed == set(fmu_build.MODELS)
+def test_the_fmu_index_lists_every_fmu_by_its_slave_script() -> None:
+    """docs/fmus.md is what `make docs` writes for the FMUs as built now: the slave script
+    of every registered FMU, and no other, each with its variable page; the README points
+    to it."""
+    descriptions = [read_model_description(str(fmu_build.fmu_path(m))) for m in fmu_build.MODELS]
+    index = variable_pages.FMU_INDEX
+    assert index.is_file(), f"{index} is missing: run `make docs`"
+    assert index.read_text() == variable_pages.fmu_index_markdown(descriptions), (
+        f"{index.relative_to(ROOT)} is out of date: run `make docs`")
+    listed = re.findall(r"\[`(fmu_src/[\w/]+/([A-Z]\w+)\.py)`\]", index.read_text())
+    assert [model for _, model in listed] == list(fmu_build.MODELS)
     for model, script in registry.scripts().items():
-        assert f"`{script.relative_to(ROOT).as_posix()}`" in readme, model
+        assert (script.relative_to(ROOT).as_posix(), model) in listed, model
+    assert "(docs/fmus.md)" in (ROOT / "README.md").read_text()
