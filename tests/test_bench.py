@@ -47,14 +47,15 @@ def test_every_mechanism_step_must_cost_more_than_the_floor(ratio: float, passed
     assert row.value == ratio or math.isnan(ratio)
 
 
-@pytest.mark.parametrize(("fmu_calls_us", "passed"), [(29.9, True), (30.0, False),
-                                                      (31.0, False)])
+@pytest.mark.parametrize(("fmu_calls_us", "passed"), [(29.9, True), (31.4, True),
+                                                      (31.5, False), (33.0, False)])
 def test_fmu_calls_must_cost_less_than_the_closed_loop_step(fmu_calls_us: float,
                                                            passed: bool) -> None:
+    """The FMU calls of a 30 us step may measure up to 5 % (the timing spread) above it."""
     table = bench.checks({"master_share": master_share_table(fmu_calls_us)})
     assert verdicts(table) == {"demian2022.compensated fmu_calls_us_per_step": True,
                                "demian2022.uncompensated fmu_calls_us_per_step": passed}
-    assert list(table.bound) == [20.0, 30.0] and set(table.relation) == {"<"}
+    assert list(table.bound) == pytest.approx([21.0, 31.5]) and set(table.relation) == {"<"}
 
 
 @pytest.mark.parametrize(("best_s", "passed"), [(0.4, True), (1.0, False), (1.3, False)])
@@ -99,7 +100,7 @@ def test_bench_keeps_the_checks_of_tables_it_did_not_rerun(
     """`--only fmu_step` over a folder holding a failing master_share.csv: checks.csv keeps
     that table's checks (re-evaluated from the CSV, failing), the exit status covers only the
     benchmark run now (0); an earlier table that is not one is refused in one line."""
-    master_share_table(31.0).to_csv(tmp_path / "master_share.csv", index=False)
+    master_share_table(33.0).to_csv(tmp_path / "master_share.csv", index=False)
     fabricate(monkeypatch, fmu_step=fmu_step_table(1.5))
     assert cli.main(["bench", "--only", "fmu_step", "--out", str(tmp_path)]) == 0
     written = pd.read_csv(tmp_path / "checks.csv")
