@@ -1,9 +1,9 @@
 """Ctrl-C (SIGINT): exit 130 with one line, whatever the worker count, and nothing lost.
 
-Issue 22: `cosim --workers 1` exited 2 blaming the FMU in 4 of 6 tries (the interrupt was
-raised inside the slave's Python code, so the FMU call failed, or inside the FMI logger
-callback, where ctypes printed and dropped it); `cosim --workers 2` and `sweep` printed a
-traceback in 1 of 2 tries (worker processes interrupted while idle or starting).
+An interrupt can land inside the slave's Python code (the FMU call then fails), inside the
+FMI logger callback (where ctypes would print and drop it), or in a worker process while it
+is idle or starting: each case must still end as one line and exit 130, never as an FMU error
+(exit 2) or a traceback.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -27,6 +28,15 @@ from harness.run import scenario_files as scenarios
 from tests.conftest import SRB
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(autouse=True)
+def default_sigint() -> Iterator[None]:
+    """Python's own SIGINT handler during each test, whatever the test process inherited (a
+    shell starts a background job with SIGINT ignored), restored after."""
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, inherited)
 
 
 # ---- the mechanism -------------------------------------------------------------------------
