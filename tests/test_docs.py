@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -65,7 +66,11 @@ LINK = re.compile(r"\]\(([^)#\s]+)(#[^)\s]*)?\)")
 
 
 def test_relative_links_resolve():
-    pages = [ROOT / "README.md", *DOCS.rglob("*.md")]
+    """In every Markdown page of the repository (the mechanisms' READMEs included)."""
+    tracked = subprocess.run(["git", "ls-files", "*.md"], cwd=ROOT, capture_output=True,
+                             text=True, check=True).stdout.split()
+    pages = [ROOT / name for name in tracked]
+    assert ROOT / "fmu_src/mechanisms/ciupitu/README.md" in pages
     broken = [f"{page.relative_to(ROOT)}: {target}" for page in pages
               for target, _ in LINK.findall(page.read_text())
               if "://" not in target and not (page.parent / target).exists()]
@@ -86,3 +91,35 @@ def test_the_fmu_index_lists_every_fmu_by_its_slave_script() -> None:
     for model, script in registry.scripts().items():
         assert (script.relative_to(ROOT).as_posix(), model) in listed, model
     assert "(docs/fmus.md)" in (ROOT / "README.md").read_text()
+
+
+@pytest.mark.parametrize("model", sorted(registry.mechanisms()))
+def test_each_mechanism_readme_states_its_reference_run_and_ledger(model: str) -> None:
+    """The README beside the slave script holds the section `make docs` writes from the
+    registration (reference run, ledger identity), once and up to date."""
+    script, found = registry.scripts()[model], registry.mechanisms()[model]
+    readme = (script.parent / "README.md").read_text()
+    section = variable_pages.reference_and_ledger_markdown(script, found)
+    assert readme.count(variable_pages.GENERATED_START) == 1
+    assert variable_pages.with_generated_section(readme, section) == readme, (
+        f"{script.parent.relative_to(ROOT)}/README.md is out of date: run `make docs`")
+    assert variable_pages.ledger_identity(found.ledger) in readme
+
+
+def test_the_ledger_page_states_every_mechanism_ledger() -> None:
+    """docs/energy_ledger.md's list: one line per mechanism, its registration's identity."""
+    page = (DOCS / "energy_ledger.md").read_text()
+    lines = {" ".join(line.split()) for line in page.splitlines()}
+    for model, found in registry.mechanisms().items():
+        assert f"{model}: {variable_pages.ledger_identity(found.ledger)}" in lines, model
+
+
+def test_the_generated_section_replaces_only_itself() -> None:
+    """with_generated_section appends the section once, then replaces it in place, leaving
+    the hand-written text before and after it unchanged."""
+    section = "## Reference run and energy ledger\n\n" + variable_pages.GENERATED_START + (
+        "\n\nA.\n\n" + variable_pages.GENERATED_END + "\n")
+    first = variable_pages.with_generated_section("# M\n\nText.\n", section)
+    assert first == "# M\n\nText.\n\n" + section
+    changed = first.replace("A.", "B.") + "\n## After\n"
+    assert variable_pages.with_generated_section(changed, section) == first + "\n## After\n"

@@ -1,15 +1,18 @@
 """`python -m harness docs` (`make docs`): docs/fmus.md, the list of the FMUs with their slave
-scripts, and docs/variables/<Model>.md, the variable table of each built FMU's model
-description; tests/test_docs.py fails when a page no longer matches."""
+scripts; docs/variables/<Model>.md, the variable table of each built FMU's model
+description; and in each mechanism's README.md the section on its reference run and energy
+ledger, from its registration. tests/test_docs.py fails when one no longer matches."""
 
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
+from fmu_src.mechanism import Registration
 from harness import registry
 from harness.fmu import build as fmu_build
 from harness.fmu.docs import VARIABLE_COLUMNS, variable_cells
@@ -60,6 +63,55 @@ def variables_markdown(md: ModelDescription) -> str:
         *table, ""])
 
 
+GENERATED_START = "<!-- written by `make docs` from the registration: edits here are replaced -->"
+GENERATED_END = "<!-- end of what `make docs` writes -->"
+
+
+def ledger_identity(ledger: dict[str, int]) -> str:
+    """A registration's ledger (output -> sign) as the identity its outputs keep, e.g.
+    "E_p + E_kin - W_drive = constant"."""
+    terms = [f"{'-' if sign < 0 else '+'} {name}" for name, sign in ledger.items()]
+    return " ".join(terms).removeprefix("+ ") + " = constant"
+
+
+def reference_and_ledger_markdown(script: Path, found: Registration) -> str:
+    """The README section of a mechanism on its reference run and its energy ledger, as
+    `make docs` writes it between GENERATED_START and GENERATED_END."""
+    run = found.reference_run
+    recorded = "all outputs" if run.outputs is None else ", ".join(f"`{n}`" for n in run.outputs)
+    docs = Path(os.path.relpath(ROOT / "docs", script.parent)).as_posix()
+    return "\n".join([
+        "## Reference run and energy ledger", "", GENERATED_START, "",
+        f"**Reference run** (in the FMU's `documentation/index.html`, and its FMI cross-check "
+        f"files): {run.description} Recorded: {recorded}.", "",
+        f"**Energy ledger** ([energy_ledger.md]({docs}/energy_ledger.md)): "
+        f"`{ledger_identity(found.ledger)}`, to the ledger's bound, whatever the inputs do.",
+        "", GENERATED_END, ""])
+
+
+def with_generated_section(text: str, section: str) -> str:
+    """A README's text with its generated section replaced by section (appended at the end
+    when it has none)."""
+    start = text.find(GENERATED_START)
+    if start < 0:
+        return text.rstrip("\n") + "\n\n" + section
+    heading = text.rfind("\n## ", 0, start) + 1
+    end = text.index(GENERATED_END, start) + len(GENERATED_END)
+    return text[:heading] + section.rstrip("\n") + text[end:]
+
+
+def write_mechanism_readmes() -> list[Path]:
+    """Each mechanism's README.md, beside its slave script, with its generated section."""
+    scripts, written = registry.scripts(), []
+    for model, found in registry.mechanisms().items():
+        readme = scripts[model].parent / "README.md"
+        old = readme.read_text()
+        text = with_generated_section(old, reference_and_ledger_markdown(scripts[model], found))
+        if text != old:
+            written.append(_write_text(readme, text))
+    return written
+
+
 def _write_text(path: Path, text: str) -> Path:
     return write_atomic(path, lambda tmp: tmp.write_text(text))
 
@@ -70,7 +122,8 @@ def write_pages(fmus: list[Path], folder: Path = DOCS_VARIABLES,
     descriptions = [read_model_description(str(fmu)) for fmu in fmus]
     pages = [_write_text(folder / f"{md.modelName}.md", variables_markdown(md))
              for md in descriptions]
-    return [*pages, _write_text(index, fmu_index_markdown(descriptions))]
+    return [*pages, _write_text(index, fmu_index_markdown(descriptions)),
+            *write_mechanism_readmes()]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -79,7 +132,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    for written in write_pages([fmu_build.locate(m, args.fmus)
-                                         for m in fmu_build.MODELS]):
+    for written in write_pages([fmu_build.locate(m, args.fmus) for m in fmu_build.MODELS]):
         print(written)
     return 0
