@@ -66,7 +66,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.bench.steps import BENCH_DIR, cosim, fmu_step, master_share, native_step
+from harness.bench.steps import (
+    BENCH_DIR,
+    MASTER_SHARE_REPEATS,
+    cosim,
+    fmu_step,
+    master_share,
+    native_step,
+)
 from harness.bench.studies import cli_help, convergence, ecco, ecco_plot, sweep_benchmark
 from harness.bench.targets import checks, earlier_tables
 from harness.errors import UserError
@@ -77,8 +84,9 @@ BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "native_step": native_step,
     # steps and repeats apply to the FMU-only step cost
     "cosim": cosim,
-    # steps do not apply
-    "master_share": master_share,
+    # steps do not apply; at least MASTER_SHARE_REPEATS repeats
+    "master_share": lambda steps, repeats: master_share(
+        steps, max(repeats, MASTER_SHARE_REPEATS)),
     # steps and repeats do not apply
     "convergence": lambda steps, repeats: convergence(),
     "ecco": ecco,
