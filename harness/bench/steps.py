@@ -247,19 +247,13 @@ def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
         return seconds
 
 
-# The run and its replay are timed seconds apart, so each needs enough repeats for its best to
-# reach the machine's quiet state: with 3, one bench run in three had a variant's FMU calls
-# 6.7 % above its whole step; with 5, three runs in a row kept them at most 0.93 times it
-MASTER_SHARE_REPEATS = 5
-
-
 def master_share(steps: int = 0, repeats: int = 3,
                  scenario_name: str = "franchetti2021") -> pd.DataFrame:
     """The master's share of a closed-loop step at 1 ms per variant: the CPU time of one step
     of the run (as `cosim`: set-up, controller, motor, FMU calls, recording, result assembly;
     `us_per_step`) less that of the master's loop replaying its efforts (`replay_seconds`: the
     FMU calls and the loop; `fmu_calls_us_per_step`), best of repeats each (`make bench`
-    takes at least MASTER_SHARE_REPEATS)."""
+    takes at least harness.bench.MASTER_SHARE_REPEATS)."""
     scenario = scenarios.load(scenario_name)
     rows = []
     for variant in scenario.variants.values():

@@ -25,7 +25,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 
 from harness import registry  # noqa: E402
 from harness.io import save_figure  # noqa: E402
-from harness.run.scenario_files import Scenario  # noqa: E402
+from harness.run.scenario_files import Joint, Scenario  # noqa: E402
 
 Conversion = Callable[[np.ndarray], np.ndarray] | None
 # a mechanism panel: (title, unit, [(column, conversion), ...]); a column ending in _ref is
@@ -59,26 +59,25 @@ def _to_mm(values: np.ndarray) -> np.ndarray:
 DRAWN_IN = {"m": ("mm", _to_mm), "rad": ("deg", np.degrees)}
 
 
-def _variable_units(models: Sequence[str]) -> dict[str, str | None]:
-    """The unit of every input and output of the models' physics, first model first."""
-    units: dict[str, str | None] = {}
-    for model in reversed(list(dict.fromkeys(models))):
-        found = registry.registration(model)
-        if found is not None and found.physics is not None:
-            units |= {v.name: v.unit for v in (*found.physics.INPUT_VARIABLES,
-                                                 *found.physics.OUTPUT_VARIABLES)}
-    return units
+def joint_drawn_in(joint: Joint) -> tuple[str, Conversion]:
+    """What a joint's position (and tracking error) is drawn in: deg for a revolute joint,
+    mm for a prismatic one (plot unit, conversion from SI)."""
+    return DRAWN_IN["rad" if joint.kind == "revolute" else "m"]
 
 
 def declared_panels(models: Sequence[str]) -> list[Panel]:
     """The models' plot_panels merged by title in order of first appearance, each name once,
-    with the conversion its unit is drawn in."""
+    with the conversion its unit (that of the first model declaring it) is drawn in."""
     merged: dict[str, tuple[str, dict[str, None]]] = {}
+    units: dict[str, str | None] = {}
     for model in dict.fromkeys(models):
         found = registry.registration(model)
-        for title, unit, names in () if found is None else found.plot_panels:
+        if found is None or found.physics is None:
+            continue
+        for title, unit, names in found.plot_panels:
             merged.setdefault(title, (unit, {}))[1].update(dict.fromkeys(names))
-    units = _variable_units(models)
+        for v in (*found.physics.INPUT_VARIABLES, *found.physics.OUTPUT_VARIABLES):
+            units.setdefault(v.name, v.unit)
     return [(title, unit, [(name, DRAWN_IN.get(units.get(name), (None, None))[1])
                            for name in names])
             for title, (unit, names) in merged.items()]
@@ -93,7 +92,7 @@ def panels(scenario: Scenario, models: Sequence[str]) -> tuple[list[Panel], list
     tracking, efforts = [], []
     for joint in scenario.joints:
         revolute = joint.kind == "revolute"
-        unit, convert = DRAWN_IN["rad" if revolute else "m"]
+        unit, convert = joint_drawn_in(joint)
         title = (f"(a) link {'angle' if revolute else 'position'}" if one_joint
                  else f"joint {joint.name}")
         tracking.append((title, unit, [(joint.position, convert),

@@ -25,7 +25,6 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from harness import registry
@@ -295,8 +294,7 @@ def summary_text(path: Path, scenario: Scenario) -> str:
     for s, joint in suffixes.items():
         for column in (f"track_err_max{s}", f"track_err_rms{s}"):
             if column in table:
-                table[column] = np.degrees(table[column]) if joint.kind == "revolute" else (
-                    1e3 * table[column])
+                table[column] = plots.joint_drawn_in(joint)[1](table[column])
     shown += ["eps", "W_phases", "eps_W", *(c for c in summary_outputs() if c in table)]
     folder = path.parent.name  # the scenario's, or its loss set's inside it (realistic)
     title = folder if folder == scenario.name else f"{scenario.name} {folder}"

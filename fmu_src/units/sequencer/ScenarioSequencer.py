@@ -57,8 +57,8 @@ def embedded_scenario(resources: str | None) -> tuple[core.Scenario, dict[str, s
     """The scenario embedded in the FMU with this resources folder and the unit of each Real
     input it drives (its INPUT_UNITS, written by the harness from the mechanisms' inputs);
     ValueError if the folder (None: none) holds no embedded module."""
-    path = Path(resources or ".", *EMBEDDED_MODULE)
-    if resources is None or not path.is_file():
+    path = None if resources is None else Path(resources, *EMBEDDED_MODULE)
+    if path is None or not path.is_file():
         raise ValueError(f"no scenario module {'/'.join(EMBEDDED_MODULE)} in the resources "
                          f"folder {resources}: the sequencer plays the scenario its build "
                          "embeds (harness.fmu.build)")
