@@ -1,4 +1,4 @@
-"""The FMUs' own FMI 2.0 runtime (harness/fmu/runtime/fmi2_runtime.c) under stress, in a C host.
+"""The FMUs' own FMI 2.0 runtime (fmu_src/runtime/fmi2_runtime.c) under stress, in a C host.
 
 tests/native_host/fmi2_stress.c loads unzipped FMUs as a long-running importing tool does,
 with an empty environment unless stated: load and unload cycles with state round trips

@@ -2,7 +2,7 @@
 library only).
 
 A refusal that ends the call is a ValueError whose message names the variable and its range;
-the FMU's runtime (harness/fmu/runtime/fmi2_runtime.c on Linux) returns fmi2Error and logs
+the FMU's runtime (fmu_src/runtime/fmi2_runtime.c on Linux) returns fmi2Error and logs
 "<fmi2 function>: ValueError: <message>" (pythonfmu's win64 binary returns fmi2Fatal with the
 same message). A refusal of the physics (`fmu_src.parameters.DomainError`) or a failed
 computation refuses a step (fmi2Discard); any other exception of a step is a defect.

@@ -7,7 +7,7 @@ with the calls the co-simulation master makes per step (harness.run.master: setR
 doStep, getReal theta and omega), next to the same loop over `BenchFloor`, a pythonfmu
 FMU that only copies its input to its output, with pythonfmu's own binary: the floor that
 pythonfmu imposes on any FMU made with it. `BenchFloorRuntime` is the same slave on our
-runtime (harness/fmu/runtime), as every FMU of the product is.
+runtime (fmu_src/runtime), as every FMU of the product is.
 
 `native_step`: the same step loop (setReal, doStep, one getReal) of the floors and of each
 mechanism FMU run by the C host of tests/native_host, as a tool that is not a Python process

@@ -29,7 +29,7 @@ from harness.run.loop import DriveStep, FMICalls, input_changes, run_steps
 from harness.run.results import RESULTS_DIR
 
 BENCH_DIR = RESULTS_DIR / "bench"
-FLOOR_SOURCE_DIR = Path(__file__).resolve().parent / "floor"
+FLOOR_SOURCE_DIR = fmu_build.SOURCE_DIR / "bench_floor"
 FLOOR_BUILD_DIR = fmu_build.DEFAULT_DEST.parent / "bench"
 STEP_SIZE = 1e-3  # communication step [s], the harness default
 NATIVE_HOST_SOURCE = fmu_build.HOST_SOURCE

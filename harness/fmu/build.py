@@ -16,7 +16,7 @@ onto `<model>.fmu` only when the FMU and its documentation are complete, so an i
 failed build never leaves a broken FMU behind (and a concurrent reader sees the old or the
 new FMU, never a partial one).
 
-Every FMU's linux64 binary is our FMI 2.0 runtime (`harness/fmu/runtime/fmi2_runtime.c`, C only,
+Every FMU's linux64 binary is our FMI 2.0 runtime (`fmu_src/runtime/fmi2_runtime.c`, C only,
 compiled here with `python -m ziglang cc` for glibc 2.17 and later): it implements every FMI
 function over pythonfmu's Python API, loading the libpython the FMU was built with (recorded in
 `resources/python.txt`, with the FMU's GUID) when the host is not a Python process.
@@ -79,7 +79,7 @@ SEQUENCER = "ScenarioSequencer"
 DEFAULT_SCENARIO = "franchetti2021"  # the scenario the sequencer of `make fmu` plays
 # where the sequencer FMU's scenario module goes in the staged package fmu_src
 EMBEDDED_SCENARIO = Path(*EMBEDDED_MODULE[1:])
-RUNTIME_SOURCE = Path(__file__).resolve().parent / "runtime" / "fmi2_runtime.c"
+RUNTIME_SOURCE = SOURCE_DIR / "runtime" / "fmi2_runtime.c"
 # the minimal C FMI host that runs an FMU outside any Python process (bench, tests)
 HOST_SOURCE = Path(__file__).resolve().parent / "host" / "fmi2_host.c"
 RUNTIME_BUILD = DEFAULT_DEST.parent / "runtime" / "fmi2_runtime.so"
