@@ -8,10 +8,17 @@ LOCK := constraints.txt
 
 .PHONY: venv fmu test test-all fuzz valgrind cosim bench lint xc sweep clean lock docs
 
+# pyproject.toml's dependencies and its dev extra, as a requirements list: the venv installs
+# them, not the project, which runs from this folder (`python -m harness`), so no package of
+# ours is built or copied and nothing goes stale
+REQUIREMENTS = $(PYTHON) -c "import tomllib; p = tomllib.load(open('pyproject.toml', 'rb'))['project']; \
+	print(*p['dependencies'], *p['optional-dependencies']['dev'], sep='\n')"
+
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip -c $(LOCK)
-	$(PY) -m pip install --quiet -e ".[dev]" -c $(LOCK)
+	$(REQUIREMENTS) > $(VENV)/requirements.txt
+	$(PY) -m pip install --quiet -r $(VENV)/requirements.txt -c $(LOCK)
 	touch $@
 
 venv: $(STAMP)
@@ -63,9 +70,10 @@ lock:
 	rm -rf build/lock-venv
 	$(PYTHON) -m venv build/lock-venv
 	build/lock-venv/bin/python -m pip install --quiet --upgrade pip
-	build/lock-venv/bin/python -m pip install --quiet -e ".[dev]"
+	$(REQUIREMENTS) > build/lock-venv/requirements.txt
+	build/lock-venv/bin/python -m pip install --quiet -r build/lock-venv/requirements.txt
 	{ echo "# Pinned by 'make lock' with $$($(PYTHON) --version) on $$(uname -sm): do not edit."; \
-	  build/lock-venv/bin/python -m pip freeze --all --exclude-editable; } > $(LOCK).tmp
+	  build/lock-venv/bin/python -m pip freeze --all; } > $(LOCK).tmp
 	mv $(LOCK).tmp $(LOCK)
 	rm -rf build/lock-venv
 

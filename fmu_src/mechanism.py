@@ -2,7 +2,7 @@
 
 `Physics` is the contract every mechanism's pure physics module meets: the slave
 (`fmu_src.fmi.mechanism_slave.MechanismSlave`), the monolithic reference
-(`harness.run.reference`) and the tests use a mechanism through it alone.
+(`harness.engines.reference`) and the tests use a mechanism through it alone.
 
 `Registration` is what the harness knows of an FMU beyond its slave class, declared once, as
 `REGISTRATION`, in the FMU's slave script `fmu_src/<folders>/<Model>.py`: the build finds the
@@ -239,7 +239,7 @@ class Registration:
     physics: Any = None  # the mechanism's Physics module
     # the energy ledger: output -> sign; the signed sum is constant (docs/energy_ledger.md)
     ledger: Mapping[str, int] = field(default_factory=dict)
-    # the monolithic reference (harness.run.reference) can solve it as one ODE
+    # the monolithic reference (harness.engines.reference) can solve it as one ODE
     monolithic_reference: bool = True
     # plot panels after the joints' tracking panels: (title, unit, names of its inputs or
     # outputs; a one-link mechanism's are `one_link_panels`); the panels of one title are one

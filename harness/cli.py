@@ -27,10 +27,8 @@ COMMANDS = {
     "build-fmus": Command("harness.fmu.build",
                           "build the FMUs of fmu_src whose inputs changed into build/fmus"),
     "cosim": Command("harness.run.cosim",
-                     "co-simulate scenario variants and write CSV series, summary and plots"),
-    "system": Command("harness.systems.system",
-                      "run scenario variants as a system of FMUs (SSP/OSP) in libcosim or "
-                      "FMPy's SSP runner; results as the harness writes them"),
+                     "run scenario variants in an engine (FMPy master, monolithic reference, "
+                     "libcosim, FMPy's SSP runner) and write CSV series, summary and plots"),
     "compare": Command("harness.run.compare",
                        "compare two result CSV files signal by signal within tolerances"),
     "ciupitu-example": Command("harness.design.ciupitu_example",
@@ -59,10 +57,11 @@ COMMANDS = {
 }
 
 
-class HelpFormatter(argparse.HelpFormatter):
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
     """Appends '(default: ...)' to an option's help unless the help already states its
     default or the option has none (a flag, or None: the help says what happens then);
-    a default path is shown relative to the working directory when inside it."""
+    a default path is shown relative to the working directory when inside it. A command's
+    epilog (its list of choices) keeps its lines."""
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
@@ -94,26 +93,37 @@ def parser(command: str | None = None) -> argparse.ArgumentParser:
     top = argparse.ArgumentParser(prog="python -m harness", description=__doc__.splitlines()[0])
     commands = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
-        add_command(commands, name, load=name == command)
+        sub = add_command(commands, name, load=name == command)
+        if name == command:
+            top.set_defaults(subparser=sub)
     return top
 
 
+def parse(argv: list[str]) -> argparse.Namespace:
+    """The parsed command line; a word the command does not know is that command's error,
+    reported with its usage (argparse's top level would show its own)."""
+    # the top level has no options that take a value: the first other word is the command
+    command = next((word for word in argv if not word.startswith("-")), None)
+    top = parser(command)
+    args, unknown = top.parse_known_args(argv)
+    if unknown:
+        getattr(args, "subparser", top).error(f"unrecognized arguments: {' '.join(unknown)}")
+    return args
+
+
 def check_out_folder(args: argparse.Namespace) -> None:
-    """UserError if --out (every command's folder for its files, `out` or `dest`) names
-    something that exists and is not a folder: found before the command does any work."""
-    for name in ("out", "dest"):
-        folder = getattr(args, name, None)
-        if isinstance(folder, Path) and folder.exists() and not folder.is_dir():
-            raise UserError(f"output folder --out = {folder} is not writable (it is a file, "
-                            "not a folder)")
+    """UserError if --out (every command's folder for its files) names something that exists
+    and is not a folder: found before the command does any work."""
+    folder = getattr(args, "out", None)
+    if isinstance(folder, Path) and folder.exists() and not folder.is_dir():
+        raise UserError(f"output folder --out = {folder} is not writable (it is a file, "
+                        "not a folder)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    # the top level has no options that take a value: the first other word is the command
-    command = next((word for word in argv if not word.startswith("-")), None)
     try:  # a Ctrl-C while the command's module is imported is an interrupt too
-        args = parser(command).parse_args(argv)
+        args = parse(argv)
         check_out_folder(args)
         return args.run(args)
     except UserError as error:  # bad input: one clear line, non-zero exit; else a traceback

@@ -14,12 +14,12 @@ import pytest
 
 from fmu_src import integration
 from harness import registry
+from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU, FMICallException
 from harness.run import results
 from harness.run.compare import compare, read_result, report
-from harness.run.master import RunResult
-from harness.run.scenario_files import Scenario
+from harness.scenarios import Scenario
 
 # fmi2Status codes (FMI 2.0 standard, section 2.1.3)
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR, FMI_FATAL = range(5)

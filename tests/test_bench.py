@@ -47,17 +47,6 @@ def test_every_mechanism_step_must_cost_more_than_the_floor(ratio: float, passed
     assert row.value == ratio or math.isnan(ratio)
 
 
-@pytest.mark.parametrize(("fmu_calls_us", "passed"), [(29.9, True), (31.4, True),
-                                                      (31.5, False), (33.0, False)])
-def test_fmu_calls_must_cost_less_than_the_closed_loop_step(fmu_calls_us: float,
-                                                           passed: bool) -> None:
-    """The FMU calls of a 30 us step may measure up to 5 % (the timing spread) above it."""
-    table = bench.checks({"master_share": master_share_table(fmu_calls_us)})
-    assert verdicts(table) == {"demian2022.compensated fmu_calls_us_per_step": True,
-                               "demian2022.uncompensated fmu_calls_us_per_step": passed}
-    assert list(table.bound) == pytest.approx([21.0, 31.5]) and set(table.relation) == {"<"}
-
-
 @pytest.mark.parametrize(("best_s", "passed"), [(0.4, True), (1.0, False), (1.3, False)])
 def test_the_top_level_help_must_take_under_a_second(best_s: float, passed: bool) -> None:
     table = bench.checks({"cli_help": help_table(best_s)})
@@ -66,7 +55,11 @@ def test_the_top_level_help_must_take_under_a_second(best_s: float, passed: bool
 
 
 def test_unchecked_benchmarks_give_no_checks() -> None:
-    assert bench.checks({"convergence": pd.DataFrame({"x": [1.0]})}).empty
+    """The convergence table, and the master's share of a step, are reported figures: the
+    latter compares two timings taken seconds apart, which the machine's load moves more than
+    any bound a check could hold."""
+    assert bench.checks({"convergence": pd.DataFrame({"x": [1.0]}),
+                         "master_share": master_share_table(33.0)}).empty
 
 
 def fabricate(monkeypatch: pytest.MonkeyPatch, **tables: pd.DataFrame) -> None:
@@ -88,8 +81,8 @@ def test_bench_writes_the_checks_and_fails_on_one(tmp_path: Path,
     written = pd.read_csv(tmp_path / "checks.csv")
     assert list(written.columns) == ["benchmark", "figure", "value", "relation", "bound",
                                      "unit", "passed"]
-    assert list(written.benchmark) == ["fmu_step"] * 2 + ["master_share"] * 2 + ["cli_help"]
-    assert list(written.passed) == [True, False, True, True, True]
+    assert list(written.benchmark) == ["fmu_step"] * 2 + ["cli_help"]
+    assert list(written.passed) == [True, False, True]
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["bench check failed: fmu_step: SelfRegulatingBalancer ratio_to_floor = "
                    "0.98, must be > 1"]
@@ -97,15 +90,14 @@ def test_bench_writes_the_checks_and_fails_on_one(tmp_path: Path,
 
 def test_bench_keeps_the_checks_of_tables_it_did_not_rerun(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """`--only fmu_step` over a folder holding a failing master_share.csv: checks.csv keeps
-    that table's checks (re-evaluated from the CSV, failing), the exit status covers only the
+    """`--only fmu_step` over a folder holding a failing cli_help.csv: checks.csv keeps
+    that table's check (re-evaluated from the CSV, failing), the exit status covers only the
     benchmark run now (0); an earlier table that is not one is refused in one line."""
-    master_share_table(33.0).to_csv(tmp_path / "master_share.csv", index=False)
+    help_table(1.3).to_csv(tmp_path / "cli_help.csv", index=False)
     fabricate(monkeypatch, fmu_step=fmu_step_table(1.5))
     assert cli.main(["bench", "--only", "fmu_step", "--out", str(tmp_path)]) == 0
     written = pd.read_csv(tmp_path / "checks.csv")
     assert list(zip(written.benchmark, written.passed)) == [
-        ("fmu_step", True), ("fmu_step", True), ("master_share", True),
-        ("master_share", False)]
-    (tmp_path / "master_share.csv").write_text("variant\nx\n")
+        ("fmu_step", True), ("fmu_step", True), ("cli_help", False)]
+    (tmp_path / "cli_help.csv").write_text("variant\nx\n")
     assert cli.main(["bench", "--only", "fmu_step", "--out", str(tmp_path)]) == 2

@@ -1,12 +1,12 @@
-"""The command line: `--help` imports no command (its time is `make bench`'s cli_help) and every
-option says what it does and its default."""
+"""The command line: `--help` imports no command (its time is `make bench`'s cli_help), every
+option says what it does and its default, none is hidden, `cosim --help` names the scenarios,
+variants and engines, and a command's mistakes are reported with that command's usage."""
 
 from __future__ import annotations
 
 import argparse
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -28,11 +28,11 @@ def test_top_level_help_imports_no_command():
         assert name in out
 
 
-def options(name: str) -> list[argparse.Action]:
-    """The visible options of command `name` (its module imported)."""
+def options(name: str, visible: bool = True) -> list[argparse.Action]:
+    """The options of command `name` (its module imported): the visible ones, or all."""
     commands = argparse.ArgumentParser().add_subparsers()
     sub = cli.add_command(commands, name, load=True)
-    return [a for a in sub._actions if a.help != argparse.SUPPRESS
+    return [a for a in sub._actions if (a.help != argparse.SUPPRESS or not visible)
             and not isinstance(a, argparse._HelpAction)]
 
 
@@ -55,15 +55,34 @@ def test_every_option_has_help_with_its_default(name):
             assert "default" in text, f"{name} {action.option_strings[0]}: no default in help"
 
 
-@pytest.mark.parametrize(("argv", "dest", "value"), [
-    (["build-fmus", "--dest", "x"], "dest", Path("x")),
-    (["cross-check", "--dest", "x"], "dest", Path("x")),
-    (["system", "--variant", "unbalanced"], "variant", "unbalanced"),
-    (["bench", "--steps", "7"], "steps", 7),
-])
-def test_former_option_spellings_still_work(argv, dest, value):
-    """Options renamed for consistency keep their former spelling, out of the help."""
-    args = cli.parser(argv[0]).parse_args(argv)
-    assert getattr(args, dest) == value
-    shown = {option for action in options(argv[0]) for option in action.option_strings}
-    assert argv[1] not in shown
+@pytest.mark.parametrize("name", cli.COMMANDS)
+def test_no_option_is_hidden(name):
+    """Every option a command takes is in its help: no hidden alias."""
+    def strings(actions: list[argparse.Action]) -> list[str]:
+        return [s for action in actions for s in action.option_strings]
+    assert strings(options(name, visible=False)) == strings(options(name))
+
+
+def test_cosim_help_names_the_scenarios_variants_engines_and_choices(capsys):
+    from harness import scenarios
+    from harness.engines import ENGINES
+    with pytest.raises(SystemExit):
+        cli.main(["cosim", "--help"])
+    text = capsys.readouterr().out
+    for name in scenarios.available():
+        assert f"  {name}" in text
+        assert ", ".join(scenarios.load(name).variants) in text
+    for engine in ENGINES:
+        assert f"  {engine}: " in text
+    assert "{all,ideal,realistic}" in text and "{osp,ssp}" in text
+
+
+@pytest.mark.parametrize("argv", [["cosim", "--scenaro", "x"], ["cosim", "--engine", "fmu"],
+                                  ["sweep", "a.toml", "--bogus"]])
+def test_a_commands_mistake_shows_that_commands_usage(argv, capsys):
+    with pytest.raises(SystemExit) as stop:
+        cli.main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: python -m harness {argv[0]} ")
+    assert err.strip().splitlines()[-1].startswith(f"python -m harness {argv[0]}: error: ")

@@ -17,10 +17,9 @@ import pandas as pd
 import pytest
 from conftest import write
 
-from harness import cli
+from harness import cli, scenarios
 from harness.errors import UserError
 from harness.run import plots, results
-from harness.run import scenario_files as scenarios
 from harness.sweeps import definition, execution
 
 SHORT = '''
@@ -406,7 +405,8 @@ def _latin1(path: Path) -> Path:
 
 COSIM = ["cosim", "--scenario", "{scenario}", "--out", "{out}", "--quiet"]
 SWEEP_CLI = ["sweep", "{sweep}", "--out", "{out}", "--quiet"]
-SYSTEM = ["system", "--scenario", "{scenario}", "--out", "{out}"]
+SYSTEM = ["cosim", "--engine", "libcosim", "--scenario", "{scenario}", "--out", "{out}",
+          "--quiet"]
 # id -> (files: scenario and sweep text, or a function of the files; argv; named strings)
 CASES: dict[str, tuple[Any, list[str], tuple[str, ...]]] = {
     # exit 0 on nonsense
@@ -420,7 +420,7 @@ CASES: dict[str, tuple[Any, list[str], tuple[str, ...]]] = {
     "sweep-variants-repeat": ({"sweep": SWEEP.replace('["balanced"]', '["balanced", "balanced"]')},
                               SWEEP_CLI, ("variants = ['balanced', 'balanced']",
                                           "more than once")),
-    # no step bound in system (cosim's bound: the duration in at most 10 million steps)
+    # every engine has the bound of the scenario's duration in at most 10 million steps
     "system-step=1e-9": ({}, SYSTEM + ["--engine", "fmpy-ssp", "--step", "1e-9"],
                          ("--step = 1e-09 s is outside [4e-08, 0.4]",)),
     "sweep-step_size=1e-9": ({"sweep": SWEEP.replace('name = "tiny"',
@@ -472,7 +472,10 @@ CASES: dict[str, tuple[Any, list[str], tuple[str, ...]]] = {
                      ("folder.toml: cannot be read as a file",)),
     # options
     "system-step=inf": ({}, SYSTEM + ["--step", "inf"], ("--step = inf s is outside",)),
-    "system-out-is-a-file": ({}, ["system", "--out", "{file}"], ("a_file is not writable",)),
+    "system-out-is-a-file": ({}, ["cosim", "--engine", "fmpy-ssp", "--out", "{file}"],
+                             ("a_file is not writable",)),
+    "losses-unknown": ({}, COSIM + ["--losses", "real"],
+                       ("--losses = 'real'", "all", "ideal", "realistic")),
     "build-fmus-out-is-a-file": ({}, ["build-fmus", "--out", "{file}"],
                                  ("a_file is not writable",)),
     "active-design-Fs0-k": ({}, ["active-design", "--Fs0", "1e50", "--k", "1e-50"],
@@ -533,4 +536,5 @@ def test_user_mistake_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureF
     start = time.perf_counter()
     refused([word.format(**paths) for word in argv], capsys, *named)
     assert time.perf_counter() - start < 30.0  # refused up front, not after the runs
-    assert not any(paths["out"].rglob("*.csv")) if paths["out"].exists() else True
+    written = [p for p in paths["out"].rglob("*") if p.is_file()] if paths["out"].exists() else []
+    assert written == []  # nothing was written

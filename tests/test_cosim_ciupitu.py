@@ -17,10 +17,12 @@ from conftest import assert_reproduces_committed_series, assert_reproduces_commi
 from scipy.integrate import quad
 
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
+from harness import scenarios
 from harness.design import ciupitu as ciupitu_design
-from harness.run import master, reference, results
-from harness.run import scenario_files as scenarios
-from harness.run.drive import MotorParameters
+from harness.drive.motor import MotorParameters
+from harness.engines import fmpy_master, reference
+from harness.engines.result import RunResult
+from harness.run import results
 
 MOTOR = MotorParameters()
 G = 9.81
@@ -44,15 +46,15 @@ def test_cycle_holds_the_paper_data() -> None:
 
 
 @pytest.fixture(scope="module")
-def cycle() -> dict[str, master.RunResult]:
-    return {v: master.run(CYCLE, CYCLE.variant(v)) for v in CYCLE_VARIANTS}
+def cycle() -> dict[str, RunResult]:
+    return {v: fmpy_master.run(CYCLE, CYCLE.variant(v)) for v in CYCLE_VARIANTS}
 
 
 @pytest.fixture(scope="module")
-def monolithic() -> dict[str, reference.ReferenceResult]:
+def monolithic() -> dict[str, RunResult]:
     """The monolithic reference of each cycle variant (rtol 1e-6: E_drawn to 1e-7 of the
     rtol 1e-9 result, in a fifth of the time)."""
-    return {v: reference.simulate(CYCLE, CYCLE.variant(v), rtol=1e-6) for v in CYCLE_VARIANTS}
+    return {v: reference.run(CYCLE, CYCLE.variant(v), rtol=1e-6) for v in CYCLE_VARIANTS}
 
 
 def stroke_work(variant: str, direction: float) -> float:
@@ -88,7 +90,7 @@ def stroke_work(variant: str, direction: float) -> float:
 
 
 @pytest.mark.parametrize("variant", CYCLE_VARIANTS)
-def test_stroke_work_is_the_lagrangian_energy(cycle: dict[str, master.RunResult],
+def test_stroke_work_is_the_lagrangian_energy(cycle: dict[str, RunResult],
                                               variant: str) -> None:
     for stroke, direction in STROKES.items():
         expected = stroke_work(variant, direction)
@@ -103,8 +105,8 @@ def static_eps(law: str) -> float:
 
 
 @pytest.mark.parametrize("law, value", [("parabolic", 0.9326007), ("linear", 0.5)])
-def test_eps_on_work_approaches_the_static_value(cycle: dict[str, master.RunResult],
-                                                 monolithic: dict[str, reference.ReferenceResult],
+def test_eps_on_work_approaches_the_static_value(cycle: dict[str, RunResult],
+                                                 monolithic: dict[str, RunResult],
                                                  law: str, value: float) -> None:
     assert static_eps(law) == pytest.approx(value, abs=1e-7)
     table = results.summary(cycle.values(), CYCLE.baselines).set_index("variant")
@@ -124,7 +126,7 @@ def test_eps_on_work_approaches_the_static_value(cycle: dict[str, master.RunResu
 
 
 @pytest.mark.parametrize("variant", CYCLE_VARIANTS)
-def test_cycle_tracking_without_saturation(cycle: dict[str, master.RunResult],
+def test_cycle_tracking_without_saturation(cycle: dict[str, RunResult],
                                            variant: str) -> None:
     m = cycle[variant].metrics
     # the design's loop (triple pole at omega_c = 25 rad/s) alone leaves 0.0011 deg rms on
@@ -133,7 +135,7 @@ def test_cycle_tracking_without_saturation(cycle: dict[str, master.RunResult],
     assert m["V_peak"] < MOTOR.V_supply
 
 
-def assert_matches_reference(run: master.RunResult, ref: reference.ReferenceResult) -> None:
+def assert_matches_reference(run: RunResult, ref: RunResult) -> None:
     """Energy metrics within 0.5 % (of the metric, or of E_drawn for a small difference)."""
     for name in ("E_in", "E_drawn", "E_copper", "E_mech"):
         tolerance = 0.005 * max(abs(ref.metrics[name]), run.metrics["E_drawn"])
@@ -141,8 +143,8 @@ def assert_matches_reference(run: master.RunResult, ref: reference.ReferenceResu
 
 
 @pytest.mark.parametrize("variant", CYCLE_VARIANTS)
-def test_cycle_matches_monolithic_reference(cycle: dict[str, master.RunResult],
-                                            monolithic: dict[str, reference.ReferenceResult],
+def test_cycle_matches_monolithic_reference(cycle: dict[str, RunResult],
+                                            monolithic: dict[str, RunResult],
                                             variant: str) -> None:
     assert_matches_reference(cycle[variant], monolithic[variant])
 
@@ -214,11 +216,12 @@ def test_design_is_the_global_optimum(chosen: ciupitu_design.Design,
 
 
 @pytest.fixture(scope="module")
-def franchetti() -> dict[str, master.RunResult]:
-    return {v: master.run(FRANCHETTI, FRANCHETTI.variant(v)) for v in ("ciupitu", "unbalanced")}
+def franchetti() -> dict[str, RunResult]:
+    return {v: fmpy_master.run(FRANCHETTI, FRANCHETTI.variant(v))
+            for v in ("ciupitu", "unbalanced")}
 
 
-def test_ciupitu_saves_drive_energy(franchetti: dict[str, master.RunResult],
+def test_ciupitu_saves_drive_energy(franchetti: dict[str, RunResult],
                                     chosen: ciupitu_design.Design) -> None:
     m = franchetti["ciupitu"].metrics
     assert m["E_drawn"] < 0.2 * franchetti["unbalanced"].metrics["E_drawn"]
@@ -231,13 +234,13 @@ def test_ciupitu_saves_drive_energy(franchetti: dict[str, master.RunResult],
 
 
 def test_franchetti_ciupitu_matches_monolithic_reference(
-        franchetti: dict[str, master.RunResult]) -> None:
+        franchetti: dict[str, RunResult]) -> None:
     assert_matches_reference(franchetti["ciupitu"],
-                             reference.simulate(FRANCHETTI, FRANCHETTI.variant("ciupitu")))
+                             reference.run(FRANCHETTI, FRANCHETTI.variant("ciupitu")))
 
 
-def test_rerun_reproduces_committed_results(cycle: dict[str, master.RunResult],
-                                            franchetti: dict[str, master.RunResult]) -> None:
+def test_rerun_reproduces_committed_results(cycle: dict[str, RunResult],
+                                            franchetti: dict[str, RunResult]) -> None:
     assert_reproduces_committed_summary(CYCLE, cycle.values())
     for run in cycle.values():
         assert_reproduces_committed_series(CYCLE, run, ["theta", "payload", "tau_drive", "E_drawn"])

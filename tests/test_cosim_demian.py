@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
 
-from harness.run import master, reference
-from harness.run import scenario_files as scenarios
-from harness.run.drive import MOTORS
+from harness import scenarios
+from harness.drive.motor import MOTORS
+from harness.engines import fmpy_master, reference
+from harness.engines.result import RunResult
 
 SCENARIO = scenarios.load("demian2022")
 VARIANTS = ("compensated", "compensated_backdrivable", "uncompensated")
@@ -25,8 +26,8 @@ TRAVEL = {"q1": Q1, "q2": Q2}
 
 
 @pytest.fixture(scope="module")
-def runs() -> dict[str, master.RunResult]:
-    return {v: master.run(SCENARIO, SCENARIO.variant(v)) for v in VARIANTS}
+def runs() -> dict[str, RunResult]:
+    return {v: fmpy_master.run(SCENARIO, SCENARIO.variant(v)) for v in VARIANTS}
 
 
 def test_variants_cover_the_worm_modes() -> None:
@@ -35,7 +36,7 @@ def test_variants_cover_the_worm_modes() -> None:
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
-def test_tracking_without_saturation(runs: dict[str, master.RunResult], variant: str) -> None:
+def test_tracking_without_saturation(runs: dict[str, RunResult], variant: str) -> None:
     """Each joint follows its reference within 0.5 % of its travel; no drive saturates."""
     m = runs[variant].metrics
     for joint in SCENARIO.joints:
@@ -48,7 +49,7 @@ def test_tracking_without_saturation(runs: dict[str, master.RunResult], variant:
     ("compensated", 0.0, 0.0),
     ("compensated_backdrivable", 0.0, M2 * G * B / A),      # m2 g ((b + q*)/a - sin q1)
 ])
-def test_drives_start_holding_the_static_efforts(runs: dict[str, master.RunResult],
+def test_drives_start_holding_the_static_efforts(runs: dict[str, RunResult],
                                                  variant: str, tau1: float, f2: float) -> None:
     first = runs[variant].series.iloc[0]
     assert first.tau1 == pytest.approx(tau1, abs=1e-9)
@@ -73,7 +74,7 @@ def potential_and_worm_work(variant: str) -> tuple[float, float]:
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
-def test_energy_balance(runs: dict[str, master.RunResult], variant: str) -> None:
+def test_energy_balance(runs: dict[str, RunResult], variant: str) -> None:
     """At every phase end, the drives' work on both joints (sum of effort times travel per
     step) = change of E_grav + E_springs + E_kin - W_worm + friction losses, within 0.5 % of
     the potential energy the task exchanges; out at 4 s, E_grav and W_worm are the path's."""
@@ -101,7 +102,7 @@ def test_energy_balance(runs: dict[str, master.RunResult], variant: str) -> None
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
-def test_electrical_energy_balance(runs: dict[str, master.RunResult], variant: str) -> None:
+def test_electrical_energy_balance(runs: dict[str, RunResult], variant: str) -> None:
     # per drive: electrical energy in = armature losses + work on the joint + magnetic energy
     # left (eta = 1); the tolerance covers the use of step-average current in R i^2
     m = runs[variant].metrics
@@ -119,7 +120,7 @@ def test_electrical_energy_balance(runs: dict[str, master.RunResult], variant: s
     assert m["E_drawn"] >= m["E_in"] and m["E_mech"] >= abs(m["W_link"])
 
 
-def test_compensation_saves_the_drive_energy(runs: dict[str, master.RunResult]) -> None:
+def test_compensation_saves_the_drive_energy(runs: dict[str, RunResult]) -> None:
     """Without springs the revolute drive holds about 6 N m for the whole task (0.15 J drawn
     with the compensator, 23.7 J without); the back-drivable worm lets spring k3 load q2."""
     drawn = {v: runs[v].metrics["E_drawn"] for v in VARIANTS}
@@ -134,13 +135,13 @@ def test_compensation_saves_the_drive_energy(runs: dict[str, master.RunResult]) 
 
 
 @pytest.fixture(scope="module")
-def monolithic() -> dict[str, reference.ReferenceResult]:
-    return {v: reference.simulate(SCENARIO, SCENARIO.variant(v)) for v in VARIANTS}
+def monolithic() -> dict[str, RunResult]:
+    return {v: reference.run(SCENARIO, SCENARIO.variant(v)) for v in VARIANTS}
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_cosimulation_matches_monolithic_reference(
-        runs: dict[str, master.RunResult], monolithic: dict[str, reference.ReferenceResult],
+        runs: dict[str, RunResult], monolithic: dict[str, RunResult],
         variant: str) -> None:
     for name, ref in monolithic[variant].metrics.items():
         # 0.5 % of the metric, or of this variant's drawn energy when the metric is small
@@ -148,12 +149,12 @@ def test_cosimulation_matches_monolithic_reference(
         assert runs[variant].metrics[name] == pytest.approx(ref, abs=tolerance), name
 
 
-def test_rerun_reproduces_committed_summary(runs: dict[str, master.RunResult]) -> None:
+def test_rerun_reproduces_committed_summary(runs: dict[str, RunResult]) -> None:
     assert_reproduces_committed_summary(SCENARIO, runs.values())
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
-def test_rerun_reproduces_committed_series(runs: dict[str, master.RunResult],
+def test_rerun_reproduces_committed_series(runs: dict[str, RunResult],
                                            variant: str) -> None:
     assert_reproduces_committed_series(
         SCENARIO, runs[variant], ["q1", "q2", "tau1", "f2", "i_q1", "i_q2", "E_drawn", "W_worm"])

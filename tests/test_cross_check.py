@@ -13,12 +13,11 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.cross_check import validate_vendor_repo
 from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
-from harness import cli
+from harness import cli, scenarios
 from harness.fmu import build as fmu_build
 from harness.fmu import cross_check
 from harness.fmu import docs as fmu_docs
 from harness.fmu.loader import CoSimFMU
-from harness.run import scenario_files as scenarios
 
 INPUT_MODELS = [m for m in fmu_build.MODELS if fmu_docs.reference_run(m).inputs is not None]
 
@@ -33,7 +32,7 @@ def built() -> dict[str, tuple[int, bytes]]:
 @pytest.fixture(scope="module")
 def repo(tmp_path_factory: pytest.TempPathFactory, built: dict[str, tuple[int, bytes]]) -> Path:
     dest = tmp_path_factory.mktemp("xc")
-    assert cli.main(["cross-check", "--dest", str(dest)]) == 0
+    assert cli.main(["cross-check", "--out", str(dest)]) == 0
     return dest
 
 

@@ -10,9 +10,9 @@ import pytest
 from fmpy import read_model_description
 
 from harness import registry
+from harness.drive.metrics import METRICS
 from harness.fmu import build as fmu_build
 from harness.fmu import variable_pages
-from harness.run.metrics import METRICS
 from harness.run.results import SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,7 +11,7 @@ import pytest
 
 from fmu_src.units.controller.pid import PIDGains, tustin_coefficients
 from fmu_src.units.drive.dc_motor import MotorParameters, SampledMotor, zoh_coefficients
-from harness.run.controller import (
+from harness.drive.controller import (
     ControllerDesign,
     design_pid,
     design_report,
@@ -19,8 +19,8 @@ from harness.run.controller import (
     discretise,
     reduced_plant,
 )
-from harness.run.drive import MOTORS, motor_system
-from harness.run.drive import discretise as discretise_motor
+from harness.drive.motor import MOTORS, motor_system
+from harness.drive.motor import discretise as discretise_motor
 
 MOTOR = MotorParameters()
 LINK_INERTIA = 0.16 + MOTOR.J_drive  # Franchetti link plus reflected rotor [kg m^2]

@@ -18,8 +18,9 @@ from fmu_src.units.drive.dc_motor import (
     zoh_coefficients,
 )
 from fmu_src.units.sequencer.scenario import Joint
-from harness.run.drive import DriveTrace, start_currents
-from harness.run.metrics import drive_metrics
+from harness.drive.metrics import drive_metrics
+from harness.drive.motor import start_currents
+from harness.drive.trace import DriveTrace
 
 MOTOR = MotorParameters()
 REVOLUTE = Joint("theta", "theta", "omega", "tau_drive", "theta0", "J_link", "d_link",

@@ -1,6 +1,6 @@
 """The DcMotorDrive and PositionController FMUs are the harness's drive and controller:
-stepped by FMPy with the same inputs they give what harness.run.drive.sampled_motor and
-harness.run.controller.discrete_pid give (python-control c2d there, closed forms in the FMUs, so
+stepped by FMPy with the same inputs they give what harness.drive.motor.sampled_motor and
+harness.drive.controller.discrete_pid give (python-control c2d there, closed forms in the FMUs, so
 agreement to rounding, not bit for bit), also when the step size changes; chained
 Gauss-Seidel with a mechanism FMU they reproduce the harness's loop; plus the exact copper
 loss, voltage saturation, defaults and misuse.
@@ -20,11 +20,12 @@ from fmpy import read_model_description
 from fmu_src.mechanisms.self_regulating import physics as self_regulating
 from fmu_src.units.controller.PositionController import ControllerParameters
 from fmu_src.units.sequencer.scenario import Joint
+from harness.drive.controller import design_pid, discrete_pid, discretise
+from harness.drive.metrics import drive_metrics
+from harness.drive.motor import MotorParameters, sampled_motor
+from harness.drive.trace import DriveTrace
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
-from harness.run.controller import design_pid, discrete_pid, discretise
-from harness.run.drive import DriveTrace, MotorParameters, sampled_motor
-from harness.run.metrics import drive_metrics
 
 MOTOR = MotorParameters()
 JOINT = Joint("theta", "theta", "omega", "tau_drive", "theta0", "J_link", "d_link", "J_drive",
@@ -59,8 +60,8 @@ def drive_fmu(fmu: CoSimFMU, inputs: Mapping[str, Sequence[float]], steps: Seque
 
 def test_motor_fmu_gives_the_harness_sampled_motor(motor_fmu: Path) -> None:
     """Voltage and speed sequences within the limits (steps, ramps, noise), from a current
-    that holds a load: tau_drive and i as harness.run.drive.sampled_motor to rounding, E_in,
-    E_drawn and E_copper as harness.run.metrics sums them from the drive's trace."""
+    that holds a load: tau_drive and i as harness.drive.motor.sampled_motor to rounding, E_in,
+    E_drawn and E_copper as harness.drive.metrics sums them from the drive's trace."""
     rng = np.random.default_rng(6)
     n, i0 = 3000, 1.5
     t = np.arange(n) * DT
@@ -147,7 +148,7 @@ def test_motor_starts_from_its_initial_current(motor_fmu: Path) -> None:
 
 def test_controller_fmu_gives_the_harness_discrete_pid(controller_fmu: Path) -> None:
     """A reference step with a lagging, noisy measured angle (the output saturates and
-    recovers), from a preset integrator: V as harness.run.controller.discrete_pid to rounding."""
+    recovers), from a preset integrator: V as harness.drive.controller.discrete_pid to rounding."""
     rng = np.random.default_rng(7)
     n, integral0 = 2000, 3.0
     t = np.arange(n) * DT
@@ -205,10 +206,10 @@ def test_controller_defaults_are_the_harness_design(controller_fmu: Path) -> Non
 
 def test_drive_and_controller_fmus_chained_reproduce_the_harness_loop(
         srb_fmu: Path, motor_fmu: Path, controller_fmu: Path) -> None:
-    """The harness's loop (harness.run.master): V = PID(theta_ref - theta), drive step with V and
-    omega held, mechanism step with its effort, from equilibrium (a 0.5 kg payload on the
-    locked balancer, held by the drive). Stepping controller, drive and mechanism FMUs in
-    that order (Gauss-Seidel) gives the same trajectory."""
+    """The harness's loop (harness.engines.fmpy_master): V = PID(theta_ref - theta), drive
+    step with V and omega held, mechanism step with its effort, from equilibrium (a 0.5 kg
+    payload on the locked balancer, held by the drive). Stepping controller, drive and
+    mechanism FMUs in that order (Gauss-Seidel) gives the same trajectory."""
     n, theta0, theta1 = 1500, 2.0, 2.5
     t = np.arange(n) * DT
     s = np.clip(t / 1.0, 0.0, 1.0)  # a 1 s quintic move, then hold

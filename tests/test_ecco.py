@@ -1,5 +1,5 @@
 """Power bonds (docs/results.md#power-bonds): the coupling's energy per drive-to-joint bond in
-every run, and libcosim's ECCO algorithm on the systems of harness.systems.system.
+every run, and libcosim's ECCO algorithm on the systems of harness.engines.libcosim.
 
 The bond's two sides are integrals of the same effort against two speeds: the drive's
 (tau omega_held h) and the joint's (tau_held dq). With the harness's master the effort is the
@@ -18,11 +18,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import cli, registry
+from harness import cli, registry, scenarios
+from harness.drive import metrics
+from harness.engines import DEFAULT_STEP, fmpy_master, result, writers
+from harness.engines import libcosim as engines
+from harness.engines import system as description
+from harness.engines.result import RunResult
 from harness.fmu import osp
-from harness.run import master, metrics
-from harness.run import scenario_files as scenarios
-from harness.systems import description, engines, writers
 
 FRANCHETTI = scenarios.load("franchetti2021")
 DEMIAN = scenarios.load("demian2022")
@@ -30,9 +32,9 @@ OSP = f"{{{writers.OSP_NS}}}"
 
 
 @functools.cache
-def harness_run(scenario_name: str, variant: str, step: float) -> master.RunResult:
+def harness_run(scenario_name: str, variant: str, step: float) -> RunResult:
     scenario = scenarios.load(scenario_name)
-    return master.run(scenario, scenario.variant(variant), step, keep_traces=True)
+    return fmpy_master.run(scenario, scenario.variant(variant), step, keep_traces=True)
 
 
 @pytest.mark.parametrize(("scenario", "variant", "count"), [
@@ -67,12 +69,12 @@ def test_harness_bond_columns_close_and_meet_their_definition() -> None:
     """demian2022 (8 s, two bonds): the CSV columns are the cumulative sums of their
     definitions, the joint side is the mechanism's own W_drive ledger term (its RK4 sub-steps
     integrate tau omega), and the error stays within its step-size bound."""
-    run = harness_run("demian2022", "compensated", master.DEFAULT_STEP)
+    run = harness_run("demian2022", "compensated", DEFAULT_STEP)
     h = run.step_size
-    rows = master.recorded_points(run.traces[0].times, h)[:len(run.series)]
+    rows = result.recorded_points(run.traces[0].times, h)[:len(run.series)]
     joint_total = 0.0
     for trace in run.traces:
-        s = master.suffix(DEMIAN, trace.joint)
+        s = result.suffix(DEMIAN, trace.joint)
         n = len(trace.voltage)
         out = trace.effort * trace.speed[:n] * h         # no delay: the drive's own effort
         received = trace.effort * np.diff(trace.position)
@@ -134,16 +136,18 @@ def test_fixed_algorithm_is_the_default_and_writes_no_bond(tmp_path: Path) -> No
     text = writers.write_osp(described, tmp_path).read_text()
     assert "<Algorithm>fixedStep</Algorithm>" in text
     assert "powerBond" not in text and "EccoConfiguration" not in text
-    assert cli.parser("system").parse_args(["system"]).algorithm == "fixed"
+    assert cli.parser("cosim").parse_args(["cosim"]).engine == "fmpy"
 
 
-@pytest.mark.parametrize(("option", "value", "field"), [
-    ("--ecco-min-step", "0", "min_step"), ("--ecco-abs-tolerance", "nan", "abs_tolerance"),
-    ("--ecco-max-change-rate", "0.5", "change rates"), ("--engine", "fmpy-ssp", "--engine"),
-    ("--source", "ssp", "--source osp")])
-def test_bad_ecco_setting_is_one_line(option: str, value: str, field: str,
+@pytest.mark.parametrize(("engine", "option", "value", "field"), [
+    ("libcosim-ecco", "--ecco-min-step", "0", "min_step"),
+    ("libcosim-ecco", "--ecco-abs-tolerance", "nan", "abs_tolerance"),
+    ("libcosim-ecco", "--ecco-max-change-rate", "0.5", "change rates"),
+    ("fmpy-ssp", "--ecco-min-step", "1e-3", "--ecco-min-step applies to --engine libcosim-ecco"),
+    ("libcosim-ecco", "--source", "ssp", "--source applies to --engine libcosim only")])
+def test_bad_ecco_setting_is_one_line(engine: str, option: str, value: str, field: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:
-    assert cli.main(["system", "--algorithm", "ecco", option, value]) == 2
+    assert cli.main(["cosim", "--engine", engine, option, value]) == 2
     error = capsys.readouterr().err.strip()
     assert field in error and len(error.splitlines()) == 1
 
@@ -155,14 +159,14 @@ def test_ecco_runs_demian2022_with_variable_steps_and_reports_its_events() -> No
     settings = description.EccoSettings(abs_tolerance=1e-5)
     described = description.describe(DEMIAN, DEMIAN.variant("compensated"), ecco=settings)
     run = engines.run_libcosim(described)
-    harness = harness_run("demian2022", "compensated", master.DEFAULT_STEP)
+    harness = harness_run("demian2022", "compensated", DEFAULT_STEP)
     assert run.metrics["E_drawn"] == pytest.approx(harness.metrics["E_drawn"], rel=0.01)
     steps = run.metrics["steps"]
     assert steps < 8000  # fewer than the fixed 1 ms step's
     assert run.step_size == pytest.approx(run.series.time.iloc[-1] / steps, rel=0.01)
     # the bonds close on their own definition: error = joint side - drive side
     for joint in DEMIAN.joints:
-        s = master.suffix(DEMIAN, joint)
+        s = result.suffix(DEMIAN, joint)
         assert run.metrics[f"W_bond_error{s}"] == pytest.approx(
             run.metrics[f"W_bond_joint{s}"] - run.metrics[f"W_bond_drive{s}"], abs=1e-15)
     lag = run.metrics["event_lag_max"]
@@ -190,14 +194,14 @@ def test_ecco_lock_switches_at_the_first_point_after_the_phase_start() -> None:
             # no later than the lag plus one recording interval after it
             seen = series.time[series[name] == int(after[name][0])]
             first = seen[seen > t0 - 1.0].iloc[0]
-            assert t0 - 1e-9 <= first <= t0 + lag + master.RECORD_INTERVAL + 1e-9, name
+            assert t0 - 1e-9 <= first <= t0 + lag + result.RECORD_INTERVAL + 1e-9, name
     assert switches >= 2
     assert run.metrics["E_drawn"] == pytest.approx(0.0699, rel=0.01)
 
 
 def test_variable_step_metrics_weigh_each_step_by_its_length() -> None:
     """A trace of unequal steps: RMS over time, and the bond's drive side sums tau omega h."""
-    run = harness_run("demian2022", "compensated", master.DEFAULT_STEP)
+    run = harness_run("demian2022", "compensated", DEFAULT_STEP)
     trace = run.traces[0]
     steps = np.full(len(trace.voltage), trace.step_size)
     variable = dataclasses.replace(trace, step_size=steps)
@@ -205,8 +209,8 @@ def test_variable_step_metrics_weigh_each_step_by_its_length() -> None:
     for name, value in fixed_metrics.items():
         assert variable_metrics[name] == pytest.approx(value, rel=1e-9, abs=1e-15), name
     np.testing.assert_allclose(variable.times, trace.times, rtol=1e-12)
-    assert pd.Series(master.recorded_points(variable.times, steps)).equals(
-        pd.Series(master.recorded_points(trace.times, trace.step_size)))
+    assert pd.Series(result.recorded_points(variable.times, steps)).equals(
+        pd.Series(result.recorded_points(trace.times, trace.step_size)))
 
 
 @pytest.mark.slow   # about 5 s: demian2022 in libcosim at the fixed step and under ECCO
@@ -219,7 +223,7 @@ def test_ecco_with_its_step_frozen_reproduces_the_fixed_step(tmp_path: Path) -> 
     frozen = engines.run_libcosim(description.describe(
         DEMIAN, DEMIAN.variant("compensated"),
         ecco=description.EccoSettings(min_change_rate=1.0, max_change_rate=1.0)))
-    assert frozen.metrics["steps"] == pytest.approx(DEMIAN.duration / master.DEFAULT_STEP,
+    assert frozen.metrics["steps"] == pytest.approx(DEMIAN.duration / DEFAULT_STEP,
                                                     rel=1e-3)
     for name in ("E_drawn", "E_in", "E_copper", "W_link", *(
             f"{bond}_{joint.name}" for bond in metrics.BOND for joint in DEMIAN.joints)):

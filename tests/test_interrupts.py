@@ -21,10 +21,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness import interrupts
+from harness import interrupts, scenarios
 from harness.errors import UserError
 from harness.run import cosim, results
-from harness.run import scenario_files as scenarios
 from tests.conftest import SRB
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -102,7 +101,8 @@ def test_a_sigint_inside_the_fmu_is_the_interrupt_not_an_fmu_failure(
     change: Fatal, 'KeyboardInterrupt()')."""
     scenario = scenarios.load("franchetti2021")
     with pytest.raises(KeyboardInterrupt):
-        cosim.run_all([(scenario, ["self_regulating"])], 1e-3, tmp_path, quiet=True)
+        cosim.run_all([cosim.Plan(scenario, ["self_regulating"], "ideal", tmp_path / "set")],
+                      1e-3, quiet=True)
     assert list(tmp_path.iterdir()) == []
 
 

@@ -18,11 +18,11 @@ from conftest import assert_reproduces_committed_summary
 from fmu_src.mechanisms.active_spring import physics as active_spring
 from fmu_src.mechanisms.self_regulating import design as self_regulating_design
 from fmu_src.mechanisms.self_regulating import physics as self_regulating
-from harness import cli, registry
+from harness import cli, registry, scenarios
 from harness.design import active_spring as active_design
+from harness.engines import fmpy_master
 from harness.errors import UserError
-from harness.run import losses, master
-from harness.run import scenario_files as scenarios
+from harness.scenarios import losses
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "results"
@@ -259,6 +259,6 @@ def test_rerun_reproduces_the_committed_realistic_set(scenario_name: str, varian
     """A fresh realistic run of a variant and its baseline gives the committed rows."""
     scenario = losses.realistic(scenarios.load(scenario_name))
     names = (variant, scenario.baselines[variant])
-    runs = [master.run(scenario, scenario.variant(name)) for name in names]
+    runs = [fmpy_master.run(scenario, scenario.variant(name)) for name in names]
     assert_reproduces_committed_summary(
         scenario, runs, losses.result_folder(RESULTS, scenario, "realistic"))

@@ -288,7 +288,7 @@ def test_in_fmpy_a_refused_initialisation_leaves_the_instance_freeable(srb_fmu: 
 def test_bench_times_each_mechanism_in_the_c_host_and_in_fmpy(tmp_path: Path) -> None:
     """`python -m harness bench --only native_step` (shortened): a row per floor and per
     mechanism FMU with both costs and their ratio, and the ratio to the stock floor."""
-    assert cli.main(["bench", "--steps", "200", "--repeats", "1", "--only", "native_step",
+    assert cli.main(["bench", "--step-count", "200", "--repeats", "1", "--only", "native_step",
                      "--out", str(tmp_path)]) == 0
     table = pd.read_csv(tmp_path / "native_step.csv")
     assert list(table["model"]) == ["BenchFloor", "BenchFloorRuntime",

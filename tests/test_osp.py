@@ -10,9 +10,9 @@ import pytest
 from fmpy import read_model_description
 from lxml import etree
 
+from harness import scenarios
 from harness.fmu import build as fmu_build
 from harness.fmu import osp
-from harness.run import scenario_files as scenarios
 
 SCHEMA = Path(__file__).parent / "data" / "osp" / "OspModelDescription-1.0.1.xsd"
 NS = {"osp": osp.NAMESPACE}

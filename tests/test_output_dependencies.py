@@ -19,11 +19,10 @@ from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 from test_fmu_quality import TableRows
 
-from harness import registry
+from harness import registry, scenarios
+from harness.engines import system as description
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
-from harness.run import scenario_files as scenarios
-from harness.systems import description
 
 # per model: the probe states (parameters and inputs held for a time; its registration's
 # dependency_probes) and the initialisation probes' parameters

@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 
 from harness import registry
-from harness.run import plots, scenario_files
+from harness import scenarios as scenario_files
+from harness.run import plots
 
 MECHANISMS = registry.mechanisms()
 

@@ -22,13 +22,12 @@ from fmpy.validation import validate_fmu
 
 from fmu_src import mechanism
 from fmu_src.mechanisms.prismatic import physics as prismatic
-from harness import registry
+from harness import registry, scenarios
 from harness.bench import steps as bench_steps
+from harness.engines import reference
 from harness.fmu import build as fmu_build
 from harness.fmu import docs as fmu_docs
 from harness.fmu import osp
-from harness.run import reference
-from harness.run import scenario_files as scenarios
 
 HARNESS = Path(registry.__file__).resolve().parent
 # the harness's room of the mechanisms' own design tools, which may name their mechanism
@@ -221,8 +220,9 @@ def test_the_monolithic_reference_runs_the_added_mechanism(scratch_source: Path)
     held) in the monolithic reference: the drive's work on the link is the potential energy
     it gained, m g l (1 - cos theta_end), and it ends at the target."""
     scenario = scenarios.load(SCRATCH / "scratch_swing.toml")
-    result = reference.simulate(scenario, scenario.variant("pendulum"))
-    theta_end = result.positions[0, -1]
+    result = reference.run(scenario, scenario.variant("pendulum"))
+    assert result.series.time.iloc[-1] == pytest.approx(scenario.duration, abs=1e-12)
+    theta_end = result.series[scenario.joints[0].position].iloc[-1]
     assert theta_end == pytest.approx(math.pi / 2, abs=1e-8)
     lifted = 1.0 * 9.81 * 0.5 * (1.0 - math.cos(theta_end))
     assert result.metrics["W_link"] == pytest.approx(lifted, rel=1e-9)

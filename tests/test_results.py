@@ -20,10 +20,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import cli
+from harness import cli, scenarios
+from harness.engines.result import RunResult
 from harness.run import cosim, results
-from harness.run import scenario_files as scenarios
-from harness.run.master import RunResult
 from harness.run.results import RESULTS_DIR, STAGING_PREFIX
 
 VARIANTS = [f"v{index}" for index in range(12)]

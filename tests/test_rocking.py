@@ -23,10 +23,11 @@ from scipy.integrate import quad
 from fmu_src.mechanisms.ciupitu import example as paper_example
 from fmu_src.mechanisms.rocking_counterweight import physics as rocking
 from fmu_src.mechanisms.rocking_counterweight import statics
+from harness import scenarios
 from harness.design import rocking_counterweight as rocking_design
+from harness.engines import fmpy_master
+from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
-from harness.run import master
-from harness.run import scenario_files as scenarios
 
 CYCLE = scenarios.load("ciupitu2018")
 LAWS = rocking_design.VARIANTS
@@ -289,8 +290,8 @@ def test_rocking_design_report_gives_the_translational_eps_like_for_like() -> No
 
 # ---- the ciupitu2018 cycle in co-simulation --------------------------------------------
 @pytest.fixture(scope="module")
-def cycle() -> dict[str, master.RunResult]:
-    return {law: master.run(CYCLE, CYCLE.variant(variant)) for law, variant in LAWS.items()}
+def cycle() -> dict[str, RunResult]:
+    return {law: fmpy_master.run(CYCLE, CYCLE.variant(variant)) for law, variant in LAWS.items()}
 
 
 def stroke_work(law: str, direction: float) -> float:
@@ -321,7 +322,7 @@ def stroke_work(law: str, direction: float) -> float:
 
 
 @pytest.mark.parametrize("law", LAWS)
-def test_cycle_stroke_work_is_the_lagrangian_energy(cycle: dict[str, master.RunResult],
+def test_cycle_stroke_work_is_the_lagrangian_energy(cycle: dict[str, RunResult],
                                                     law: str) -> None:
     run = cycle[law]
     for stroke, direction in (("down", 1.0), ("up", -1.0)):

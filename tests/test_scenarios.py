@@ -24,10 +24,10 @@ from fmpy.validation import validate_fmu
 
 from fmu_src.units.sequencer import scenario as core
 from fmu_src.units.sequencer.ScenarioSequencer import EMBEDDED_MODULE
+from harness import scenarios
+from harness.drive import motor as drive
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
-from harness.run import drive
-from harness.run import scenario_files as scenarios
 
 SHIPPED = [(name, variant) for name in scenarios.available()
            for variant in scenarios.load(name).variants]

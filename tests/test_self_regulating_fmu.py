@@ -464,7 +464,7 @@ def test_bench_writes_the_step_cost_table(tmp_path: Path) -> None:
     step is dearer than the floor's is a timing figure: the bench checks it
     (harness.bench.targets.fmu_step_checks, tests/test_bench.py) and its exit status says
     whether it held, which here only has to agree with checks.csv."""
-    status = cli.main(["bench", "--steps", "2000", "--repeats", "2", "--only", "fmu_step",
+    status = cli.main(["bench", "--step-count", "2000", "--repeats", "2", "--only", "fmu_step",
                        "--out", str(tmp_path)])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["checks.csv", "fmu_step.csv"]
     table = pd.read_csv(tmp_path / "fmu_step.csv")
@@ -475,5 +475,5 @@ def test_bench_writes_the_step_cost_table(tmp_path: Path) -> None:
     checks = pd.read_csv(tmp_path / "checks.csv")
     assert list(checks.figure) == [f"{m} ratio_to_floor" for m in registry.mechanisms()]
     assert status == (0 if checks.passed.all() else 1)
-    assert cli.main(["bench", "--steps", "0", "--out", str(tmp_path)]) == 2
+    assert cli.main(["bench", "--step-count", "0", "--out", str(tmp_path)]) == 2
     assert cli.main(["bench", "--only", "fmu_steps", "--out", str(tmp_path)]) == 2

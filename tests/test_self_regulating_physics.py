@@ -300,6 +300,19 @@ def test_regulation_sweep_slider_settles_at_its_static_equilibrium() -> None:
         assert settled(1.01 * threshold, deg) == p.b_max
 
 
-def test_event_inputs_are_the_inputs_after_tau_drive() -> None:
-    """The ledger's control takes the event inputs as u[1:] (self_regulating._controlled)."""
-    assert physics.Inputs._fields[1:] == physics.EVENT_INPUTS
+def test_the_ledgers_control_gets_the_event_inputs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A step hands the ledger's control (integration.ledger_controlled) the values of
+    EVENT_INPUTS, by name: inputs of distinct values, each found where it belongs."""
+    seen = []
+
+    def control(run, terms, works, s, n, dt, p, events=()):
+        seen.append(events)
+        return run(n)
+
+    monkeypatch.setattr(physics, "ledger_controlled", control)
+    p = physics.Parameters()
+    u = physics.Inputs(tau_drive=0.25, payload=0.5, counterweight_added=0.75,
+                       slider_locked=True, pulley_locked=False)
+    physics.advance(p, u, physics.initial_state(p), 1e-3)
+    assert seen and all(events == tuple(getattr(u, name) for name in physics.EVENT_INPUTS)
+                        for events in seen)

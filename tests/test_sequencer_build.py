@@ -14,10 +14,9 @@ from conftest import play_sequencer
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from harness import cli
+from harness import cli, scenarios
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
-from harness.run import scenario_files as scenarios
 
 STEP = 1.0 / 64.0  # [s], a binary fraction: every phase boundary of demian2022 is a step time
 
@@ -27,7 +26,7 @@ def demian(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The sequencer built for demian2022 into a fresh folder, through the command line."""
     dest = tmp_path_factory.mktemp("sequencer")
     tree = sorted(fmu_build.SOURCE_DIR.rglob("*.py"))
-    assert cli.main(["build-fmus", "--dest", str(dest), "--sequencer-scenario",
+    assert cli.main(["build-fmus", "--out", str(dest), "--sequencer-scenario",
                      "demian2022"]) == 0
     assert sorted(fmu_build.SOURCE_DIR.rglob("*.py")) == tree  # the module is the build's own
     assert sorted(p.name for p in dest.iterdir()) == [
@@ -90,7 +89,7 @@ def test_a_scenario_file_with_an_input_of_unknown_unit_is_refused(
     path.write_text(text.replace("payload = 0.0,", "payload = 0.0, spring_preload = 2.0,", 1))
     assert scenarios.load(path).phases[0].inputs["spring_preload"] == 2.0
     dest = tmp_path / "fmus"
-    assert cli.main(["build-fmus", "--dest", str(dest), "--sequencer-scenario",
+    assert cli.main(["build-fmus", "--out", str(dest), "--sequencer-scenario",
                      str(path)]) == 2
     error = capsys.readouterr().err
     assert "preload.toml: scenario franchetti2021 drives the Real input(s) spring_preload" in error
@@ -109,7 +108,7 @@ def test_a_bad_scenario_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture
             "duration = 3.0", "duration = 0.0", 1))
     if argument.endswith(".toml"):
         argument = str(tmp_path / argument)
-    assert cli.main(["build-fmus", "--dest", str(tmp_path / "fmus"), "--sequencer-scenario",
+    assert cli.main(["build-fmus", "--out", str(tmp_path / "fmus"), "--sequencer-scenario",
                      argument]) == 2
     assert message in capsys.readouterr().err
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from fmu_src.units.sequencer import scenario as core
+from harness import scenarios
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
-from harness.run import scenario_files as scenarios
 
 # [s] decimal and non-binary steps; every phase start of the shipped scenarios is on their grid
 STEPS = (1e-2, 2e-3, 1e-3, 5e-4, 1e-4, 0.1, 1.0 / 30.0, 1.0 / 60.0)

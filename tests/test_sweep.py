@@ -19,12 +19,12 @@ import pandas as pd
 import pytest
 from matplotlib.axes import Axes
 
+from harness import scenarios
 from harness import sweeps as sweep
+from harness.drive.controller import ControllerDesign
+from harness.engines import fmpy_master
 from harness.errors import UserError
-from harness.run import master
-from harness.run import scenario_files as scenarios
-from harness.run.controller import ControllerDesign
-from harness.run.scenario_files import Ramp
+from harness.scenarios import Ramp
 from harness.sweeps import definition, execution, paths, plots
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -145,10 +145,10 @@ def test_sweep_equals_runs_one_by_one_and_records_failures(tmp_path: Path) -> No
             assert row.status == "failed"
             assert "k = -1.0 N/m is outside [0.0, inf)" in row.error
             with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
-                master.run(scenario, scenario.variant(row.variant))
+                fmpy_master.run(scenario, scenario.variant(row.variant))
             continue
         assert row.status == "ok" and row.error == ""
-        expected = master.run(scenario, scenario.variant(row.variant)).metrics
+        expected = fmpy_master.run(scenario, scenario.variant(row.variant)).metrics
         for metric in loaded.metrics:
             assert getattr(row, metric) == expected[metric], (row.run_id, metric)
         assert row.payload_max == pytest.approx(8.2857, abs=1e-4)
@@ -194,14 +194,14 @@ def test_a_defect_in_a_run_propagates_but_a_refused_value_is_a_failed_row(
     def defect(*_args: object, **_kwargs: object) -> None:
         raise TypeError("a bug")
 
-    monkeypatch.setattr(master, "run", defect)
+    monkeypatch.setattr(fmpy_master, "run", defect)
     with pytest.raises(TypeError, match="a bug"):
         execution.run_one(loaded, run)
 
     def refused(*_args: object, **_kwargs: object) -> None:
         raise UserError("k = -1.0 N/m is outside [0.0, inf)")
 
-    monkeypatch.setattr(master, "run", refused)
+    monkeypatch.setattr(fmpy_master, "run", refused)
     row = execution.run_one(loaded, run)
     assert row["status"] == "failed"
     assert row["error"] == "UserError: k = -1.0 N/m is outside [0.0, inf)"

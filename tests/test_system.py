@@ -1,5 +1,6 @@
-"""The franchetti2021 task as a system of FMUs (harness.systems.system): SSP and OSP descriptions,
-runs in libcosim and in FMPy's SSP runner, against the harness's own FMPy loop.
+"""The franchetti2021 task as a system of FMUs (harness.engines.system): SSP and OSP
+descriptions, runs in libcosim and in FMPy's SSP runner (the engines libcosim and fmpy-ssp),
+against the harness's own FMPy loop.
 
 The system's masters step the four FMUs in parallel (Jacobi), which delays the control loop by
 two communication steps more than the harness's sequential loop; at 1 ms that moves the
@@ -20,12 +21,13 @@ import pandas as pd
 import pytest
 from fmpy.ssp.ssd import read_ssd
 
-from harness import cli
+from harness import cli, scenarios
+from harness.drive.motor import motors
+from harness.engines import fmpy_master, libcosim, writers
+from harness.engines import system as description
+from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
-from harness.run import master, results
-from harness.run import scenario_files as scenarios
-from harness.run.drive import motors
-from harness.systems import description, engines, writers
+from harness.run import results
 
 SCENARIO = scenarios.load("franchetti2021")
 VARIANT = "unbalanced"   # the largest drive energies and a non-zero static load at the start
@@ -34,13 +36,13 @@ THETA_TOL = np.radians(0.2)
 
 
 @functools.cache
-def harness_run_of(variant: str) -> master.RunResult:
+def harness_run_of(variant: str) -> RunResult:
     """The harness's own run of the variant (computed once)."""
-    return master.run(SCENARIO, SCENARIO.variant(variant))
+    return fmpy_master.run(SCENARIO, SCENARIO.variant(variant))
 
 
 @pytest.fixture(scope="module")
-def harness_run() -> master.RunResult:
+def harness_run() -> RunResult:
     return harness_run_of(VARIANT)
 
 
@@ -50,7 +52,10 @@ def described() -> description.System:
 
 
 def run_command(engine: str, out: Path, variant: str = VARIANT) -> pd.DataFrame:
-    assert cli.main(["system", "--engine", engine, "--variant", variant, "--out", str(out)]) == 0
+    assert cli.main(["cosim", "--engine", engine, "--scenario", SCENARIO.name, "--variants",
+                     variant, "--losses", "ideal", "--out", str(out), "--workers", "1",
+                     "--quiet"]) == 0
+    out = out / SCENARIO.name
     # the command adds the variant's eps baseline (unbalanced) to the runs
     run_variants = {variant, SCENARIO.baselines[variant]}
     assert {p.name for p in out.iterdir()} == {*(f"{v}.csv" for v in run_variants),
@@ -59,7 +64,7 @@ def run_command(engine: str, out: Path, variant: str = VARIANT) -> pd.DataFrame:
 
 
 def assert_agrees(summary: pd.DataFrame, series: pd.DataFrame,
-                  harness_run: master.RunResult) -> None:
+                  harness_run: RunResult) -> None:
     variant = harness_run.variant
     expected = results.summary([harness_run], SCENARIO.baselines).set_index("variant")
     # the coupling's own error is the master's: Jacobi's delay triples it (tested apart)
@@ -82,7 +87,7 @@ def test_libcosim_runs_the_osp_system_like_the_harness(
         tmp_path: Path, variant: str) -> None:
     harness_run = harness_run_of(variant)
     summary = run_command("libcosim", tmp_path, variant)
-    series = pd.read_csv(tmp_path / f"{variant}.csv")
+    series = pd.read_csv(tmp_path / SCENARIO.name / f"{variant}.csv")
     assert_agrees(summary, series, harness_run)
     # closer than the acceptance band: only the loop's delay differs
     assert summary.loc[variant, "E_drawn"] == pytest.approx(
@@ -95,8 +100,8 @@ def test_libcosim_runs_the_ssp_archive_as_the_osp_file(described: description.Sy
                                                        tmp_path: Path) -> None:
     ssp = writers.write_ssp(described, tmp_path / f"{VARIANT}.ssp")
     osp = writers.write_osp(described, tmp_path / "osp")
-    from_ssp = engines.run_libcosim(described, ssp)
-    from_osp = engines.run_libcosim(described, osp)
+    from_ssp = libcosim.run_libcosim(described, ssp)
+    from_osp = libcosim.run_libcosim(described, osp)
     assert from_ssp.metrics == from_osp.metrics
     pd.testing.assert_frame_equal(from_ssp.series, from_osp.series)
 
@@ -153,17 +158,17 @@ def test_osp_variable_group_connections_give_the_per_variable_numbers(
 
 @pytest.mark.slow   # about 7 s: the whole 35 s task in FMPy's SSP runner
 def test_fmpy_ssp_runner_agrees_despite_its_start(
-        tmp_path: Path, harness_run: master.RunResult) -> None:
+        tmp_path: Path, harness_run: RunResult) -> None:
     """simulate_ssp starts every connected input at 0: the mechanism gets no drive torque in
     the first step although the link needs its static load held. Within the band anyway."""
     summary = run_command("fmpy-ssp", tmp_path)
-    series = pd.read_csv(tmp_path / f"{VARIANT}.csv")
+    series = pd.read_csv(tmp_path / SCENARIO.name / f"{VARIANT}.csv")
     assert_agrees(summary, series, harness_run)
     assert series.tau_drive.iloc[0] == 0.0 != harness_run.series.tau_drive.iloc[0]
 
 
 def test_ssd_is_valid_ssp_with_the_harness_parameters(
-        described: description.System, harness_run: master.RunResult, tmp_path: Path) -> None:
+        described: description.System, harness_run: RunResult, tmp_path: Path) -> None:
     """The archive validates against the SSP 1.0 schemas (FMPy's read_ssd) and binds the
     harness's parameters: the variant, the PID gains, the drive's hold current."""
     ssp = writers.write_ssp(described, tmp_path / "x.ssp")
@@ -197,7 +202,7 @@ def test_libcosim_runs_active_relocation_with_the_variants_own_drive(tmp_path: P
     assert described.parameters["drive_q"]["N"] == pytest.approx(2 * np.pi / 0.002)
     harness_run = harness_run_of("active_relocation")
     summary = run_command("libcosim", tmp_path, "active_relocation")
-    series = pd.read_csv(tmp_path / "active_relocation.csv")
+    series = pd.read_csv(tmp_path / SCENARIO.name / "active_relocation.csv")
     # the energies of both drives; the carriage's tracking error peaks within 1.2 % (the
     # loop's two steps of delay), outside the 1 % band of the other summary metrics
     for name in ("E_drawn", "E_in", "E_copper", "E_mech", "E_drawn_theta", "E_drawn_q",
@@ -231,8 +236,8 @@ def test_libcosim_runs_the_two_drive_demian2022_system_like_the_harness(
     # declared angular, so it meets the prismatic joint variable by variable
     assert (("drive_q1", "shaft"), ("mechanism", "q1")) in groups
     assert not any("drive_q2" in (a[0], b[0]) and "shaft" in (a[1], b[1]) for a, b in groups)
-    run = engines.run_libcosim(described, tmp_path / "osp" / "OspSystemStructure.xml")
-    expected = master.run(demian, variant)
+    run = libcosim.run_libcosim(described, tmp_path / "osp" / "OspSystemStructure.xml")
+    expected = fmpy_master.run(demian, variant)
     assert list(run.series.columns) == list(expected.series.columns)
     for name in ("E_drawn", "E_in", "E_copper", "E_mech", "tau_rms_q1", "F_rms_q2",
                  "i_rms_q1", "i_rms_q2", "V_peak_q1", "V_peak_q2", "track_err_rms_q1",

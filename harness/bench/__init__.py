@@ -27,13 +27,13 @@ real-time factor. The last row is the sum, what `make cosim` spends in simulatio
 core.
 
 `master_share`: per franchetti2021 variant, the CPU time of one closed-loop step (as `cosim`)
-and that of its FMU calls (the master's loop, `harness.run.loop.run_steps`, replaying the run's
+and that of its FMU calls (the master's loop, `harness.fmu.calls.run_steps`, replaying the run's
 efforts with no controller and no motor: the input changes and the recording read included),
 best of repeats each, and their difference, the master's share: its set-up and result
 assembly spread over the steps, and the controller and motor.
 
 `convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
-reference (harness.run.reference): the relative error of each drive energy, which must shrink
+reference (harness.engines.reference): the relative error of each drive energy, which must shrink
 with the step.
 
 `ecco`: the coupling's own energy error (docs/results.md#power-bonds) against the steps
@@ -73,8 +73,8 @@ from harness.errors import UserError
 from harness.io import write_csv
 
 # master_share's run and replay are timed seconds apart, so each needs enough repeats for its
-# best to reach the machine's quiet state: with 3, one bench run in three had a variant's FMU
-# calls 6.7 % above its whole step; with 5, three runs in a row kept them at most 0.93 times it
+# best to reach the machine's quiet state (with 3, one bench run in three measured a variant's
+# FMU calls 6.7 % above its whole step)
 MASTER_SHARE_REPEATS = 5
 
 BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
@@ -101,8 +101,6 @@ PLOTS: dict[str, Callable[[pd.DataFrame, Path], Path]] = {"ecco": ecco_plot}
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step-count", dest="steps", type=int, default=20_000, metavar="N",
                         help="FMU steps per repeat")
-    parser.add_argument("--steps", dest="steps", type=int, default=argparse.SUPPRESS,
-                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
     parser.add_argument("--repeats", type=int, default=3, help="repeats; the best counts")
     parser.add_argument("--out", type=Path, default=BENCH_DIR, help="output folder")
     parser.add_argument("--only", default="all",

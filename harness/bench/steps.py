@@ -3,7 +3,6 @@ co-simulation's steps, and the master's share of a run (see harness.bench)."""
 
 from __future__ import annotations
 
-import ctypes
 import re
 import subprocess
 import sys
@@ -19,13 +18,14 @@ import pandas as pd
 from fmpy import read_model_description
 
 from fmu_src.mechanism import Port
-from harness import registry
+from harness import registry, scenarios
+from harness.engines import fmpy_master
+from harness.engines.fmpy_master import DriveStep, run_steps
+from harness.engines.result import RunResult
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
+from harness.fmu.calls import MasterCalls
 from harness.fmu.loader import CoSimFMU
-from harness.run import master
-from harness.run import scenario_files as scenarios
-from harness.run.loop import DriveStep, FMICalls, input_changes, run_steps
 from harness.run.results import RESULTS_DIR
 
 BENCH_DIR = RESULTS_DIR / "bench"
@@ -38,7 +38,8 @@ NATIVE_HOST_BUILD = fmu_build.DEFAULT_DEST.parent / "native_host" / "fmi2_host"
 
 @dataclass(frozen=True)
 class StepLoop:
-    """A timed FMU and what the master sets and reads at every step (as harness.run.master)."""
+    """A timed FMU and what the master sets and reads at every step (as
+    harness.engines.fmpy_master)."""
 
     fmu_path: Callable[[], Path]  # the built FMU (the floors are built here, the others located)
     input: str
@@ -185,7 +186,7 @@ def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
         scenario = scenarios.load(name)
         for variant in scenario.variants.values():
             start, cpu_start = time.perf_counter(), time.thread_time()
-            run = master.run(scenario, variant, STEP_SIZE)
+            run = fmpy_master.run(scenario, variant, STEP_SIZE)
             wall, cpu = time.perf_counter() - start, time.thread_time() - cpu_start
             n_steps = round(scenario.duration / STEP_SIZE)
             rows.append({"scenario": name, "variant": variant.name, "model": run.model,
@@ -204,17 +205,17 @@ def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
     return pd.concat([table, pd.DataFrame([total])], ignore_index=True)
 
 
-def replay_step(efforts: ctypes.Array, index: int, effort: list[float]) -> DriveStep:
-    """A drive step that puts the recorded effort[k] in efforts[index] at step k: a joint of
-    the master's loop with the PID and motor replaced by a list read."""
-    def step(k: int, _position: float, _speed: float) -> None:
-        efforts[index] = effort[k]
+def replay_step(effort: list[float]) -> DriveStep:
+    """A drive step that gives the recorded effort[k] at step k: a joint of the master's
+    loop with the PID and motor replaced by a list read."""
+    def step(k: int, _position: float, _speed: float) -> float:
+        return effort[k]
     return step
 
 
 def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
-                   run: master.RunResult) -> float:
-    """CPU time [s] of this thread in the master's loop (`harness.run.loop.run_steps`) over a
+                   run: RunResult) -> float:
+    """CPU time [s] of this thread in the master's loop (`fmpy_master.run_steps`) over a
     run made with keep_traces, each joint's drive step replaced by its recorded efforts
     (`replay_step`): the FMU calls (setReal of the efforts, the input changes, doStep, getReal
     of the joints' states, and the recording read every RECORD_INTERVAL) and the loop's own
@@ -226,19 +227,17 @@ def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
     n_steps = round(scenario.duration / step_size)
     times = np.arange(n_steps + 1) * step_size
     inputs = scenario.inputs(times, variant)
-    record_every = max(1, round(master.RECORD_INTERVAL / step_size))
     with CoSimFMU(fmu_build.locate(run.model), f"replay.{scenario.name}") as fmu:
         fmu.set({name: signal[0] for name, signal in inputs.items()})
         fmu.initialize(run.parameters, stop_time=scenario.duration)
-        calls = FMICalls(fmu, [joint.effort for joint in joints],
-                         [name for joint in joints for name in (joint.position, joint.speed)],
-                         fmu.names("output") + list(inputs), len(fmu.messages))
-        changes = input_changes(fmu, inputs)
-        drive_steps = [(replay_step(calls.inputs, j, trace.effort.tolist()), 2 * j)
-                       for j, trace in enumerate(run.traces)]
+        calls = MasterCalls(fmu, [joint.effort for joint in joints],
+                            [name for joint in joints for name in (joint.position, joint.speed)],
+                            fmu.names("output") + list(inputs), inputs, len(fmu.messages))
+        calls.read_states()
+        drive_steps = [replay_step(trace.effort.tolist()) for trace in run.traces]
         step_times = times.tolist()
         start = time.thread_time()
-        run_steps(calls, changes, drive_steps, step_times, step_size, record_every)
+        run_steps(calls, drive_steps, step_times, step_size)
         seconds = time.thread_time() - start
         end = [value for trace in run.traces for value in (trace.position[-1], trace.speed[-1])]
         if calls.states[:] != end:
@@ -260,12 +259,13 @@ def master_share(steps: int = 0, repeats: int = 3,
         run_cost = fmu_cost = float("inf")
         for _ in range(repeats):
             start = time.thread_time()
-            run = master.run(scenario, variant, STEP_SIZE, keep_traces=True)
+            run = fmpy_master.run(scenario, variant, STEP_SIZE, keep_traces=True)
             run_cost = min(run_cost, time.thread_time() - start)
             fmu_cost = min(fmu_cost, replay_seconds(scenario, variant, run))
         n_steps = round(scenario.duration / STEP_SIZE)
         rows.append({"scenario": scenario_name, "variant": variant.name, "model": run.model,
                      "steps": n_steps, "us_per_step": 1e6 * run_cost / n_steps,
                      "fmu_calls_us_per_step": 1e6 * fmu_cost / n_steps,
-                     "master_us_per_step": 1e6 * (run_cost - fmu_cost) / n_steps})
+                     "master_us_per_step": 1e6 * (run_cost - fmu_cost) / n_steps,
+                     "master_share": (run_cost - fmu_cost) / run_cost})
     return pd.DataFrame(rows)

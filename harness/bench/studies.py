@@ -8,13 +8,15 @@ import sys
 import tempfile
 import time
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 
 import pandas as pd
 
+from harness import scenarios
+from harness.drive.metrics import ENERGIES
+from harness.engines import DEFAULT_STEP, fmpy_master, reference
 from harness.fmu import build as fmu_build
-from harness.run import master, reference
-from harness.run import scenario_files as scenarios
 from harness.sweeps import definition as sweep_definition
 from harness.sweeps import execution as sweep_execution
 
@@ -32,14 +34,14 @@ def convergence(steps: int = 0, repeats: int = 0,
     scenario = scenarios.load(scenario_name)
     rows = []
     for variant in scenario.variants.values():
-        if (variant.model or scenario.model) not in reference.PHYSICS:
+        if not reference.supports(variant.model or scenario.model):
             continue  # no monolithic reference (active_relocation's self-locking screw)
-        ref = reference.simulate(scenario, variant).metrics
+        ref = reference.run(scenario, variant, DEFAULT_STEP).metrics
         scale = {name: max(abs(value), ref["E_drawn"]) for name, value in ref.items()}
         for step in CONVERGENCE_STEPS:
-            run = master.run(scenario, variant, step)
+            run = fmpy_master.run(scenario, variant, step)
             errors = {f"err_{name}": abs(run.metrics[name] - ref[name]) / scale[name]
-                      for name in reference.ENERGIES}
+                      for name in ENERGIES}
             rows.append({"scenario": scenario_name, "variant": variant.name, "step_size": step,
                          **errors, "max_rel_err": max(errors.values())})
     return pd.DataFrame(rows)
@@ -57,37 +59,37 @@ def ecco(steps: int = 0, repeats: int = 0,
     """E_drawn's relative error against the monolithic reference and the coupling's energy
     error against the number of steps, per case: libcosim at each fixed step, then ECCO at
     each tolerance (its first step 1 ms, the other settings their defaults)."""
-    from harness.systems import description, engines, writers
+    from harness.engines.libcosim import run as fixed_step
+    from harness.engines.libcosim import run_ecco
+    from harness.engines.system import EccoSettings
 
     rows = []
     for scenario_name, variant_name in cases:
         scenario = scenarios.load(scenario_name)
         variant = scenario.variant(variant_name)
-        ref = reference.simulate(scenario, variant).metrics
+        ref = reference.run(scenario, variant, DEFAULT_STEP).metrics
         drawn = ref["E_drawn"]
-        runs = [("fixed", h, None, description.describe(scenario, variant, h))
+        runs = [("fixed", h, None, partial(fixed_step, scenario, variant, h))
                 for h in step_sizes]
-        runs += [("ecco", master.DEFAULT_STEP, tolerance, description.describe(
-            scenario, variant, master.DEFAULT_STEP,
-            ecco=description.EccoSettings(abs_tolerance=tolerance))) for tolerance in tolerances]
-        with tempfile.TemporaryDirectory() as folder:
-            for algorithm, h, tolerance, described in runs:
-                run = engines.run_libcosim(described, None if tolerance is not None
-                                          else writers.write_osp(described, Path(folder)))
-                bond_errors = [value for name, value in run.metrics.items()
-                               if name.startswith("W_bond_error")]
-                rows.append({
-                    "scenario": scenario_name, "variant": variant_name,
-                    "algorithm": algorithm, "step_size": run.step_size,
-                    "abs_tolerance": tolerance,
-                    "steps": run.metrics.get("steps", round(scenario.duration / h)),
-                    "E_drawn": run.metrics["E_drawn"], "E_drawn_ref": drawn,
-                    "err_E_drawn": abs(run.metrics["E_drawn"] - drawn) / drawn,
-                    # E_in has no rectification: relative to E_drawn, as in convergence
-                    "err_E_in": abs(run.metrics["E_in"] - ref["E_in"]) / drawn,
-                    "bond_error": sum(abs(e) for e in bond_errors),
-                    "rel_bond_error": sum(abs(e) for e in bond_errors) / drawn,
-                    "event_lag_max": run.metrics.get("event_lag_max", 0.0)})
+        runs += [("ecco", DEFAULT_STEP, tolerance, partial(
+            run_ecco, scenario, variant, DEFAULT_STEP, ecco=EccoSettings(abs_tolerance=tolerance)))
+                 for tolerance in tolerances]
+        for algorithm, h, tolerance, make_run in runs:
+            run = make_run()
+            bond_errors = [value for name, value in run.metrics.items()
+                           if name.startswith("W_bond_error")]
+            rows.append({
+                "scenario": scenario_name, "variant": variant_name,
+                "algorithm": algorithm, "step_size": run.step_size,
+                "abs_tolerance": tolerance,
+                "steps": run.metrics.get("steps", round(scenario.duration / h)),
+                "E_drawn": run.metrics["E_drawn"], "E_drawn_ref": drawn,
+                "err_E_drawn": abs(run.metrics["E_drawn"] - drawn) / drawn,
+                # E_in has no rectification: relative to E_drawn, as in convergence
+                "err_E_in": abs(run.metrics["E_in"] - ref["E_in"]) / drawn,
+                "bond_error": sum(abs(e) for e in bond_errors),
+                "rel_bond_error": sum(abs(e) for e in bond_errors) / drawn,
+                "event_lag_max": run.metrics.get("event_lag_max", 0.0)})
     return pd.DataFrame(rows)
 
 

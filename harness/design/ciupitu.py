@@ -43,10 +43,10 @@ from scipy.optimize import minimize, minimize_scalar
 
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from fmu_src.units.drive.dc_motor import armature_voltage, drive_powers
+from harness import scenarios
+from harness.drive.motor import MotorParameters
+from harness.engines import reference
 from harness.errors import UserError
-from harness.run import reference
-from harness.run import scenario_files as scenarios
-from harness.run.drive import MotorParameters
 
 SCENARIO = "franchetti2021"
 VARIANT = "ciupitu"

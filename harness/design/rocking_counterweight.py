@@ -42,7 +42,7 @@ from scipy.stats import qmc
 
 from fmu_src.mechanisms.ciupitu import example as paper_example
 from fmu_src.mechanisms.rocking_counterweight import statics
-from harness.run import scenario_files as scenarios
+from harness import scenarios
 
 SAMPLES = 61                  # arm angles in the least-squares objective
 MU_MIN = math.radians(30.0)   # smallest transmission angle over a full turn [rad]

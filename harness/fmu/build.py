@@ -64,12 +64,11 @@ import fmpy
 from pythonfmu.builder import FmuBuilder
 
 from fmu_src.units.sequencer.ScenarioSequencer import EMBEDDED_MODULE
-from harness import registry
+from harness import registry, scenarios
 from harness.errors import UserError
 from harness.fmu import docs as fmu_docs
 from harness.fmu import osp
 from harness.io import write_atomic
-from harness.run import scenario_files as scenarios
 
 SOURCE_DIR = registry.SOURCE_DIR
 DEFAULT_DEST = SOURCE_DIR.parent / "build" / "fmus"
@@ -399,10 +398,8 @@ def locate(model: str, dest: Path = DEFAULT_DEST) -> Path:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", dest="dest", type=Path, default=DEFAULT_DEST, metavar="DIR",
+    parser.add_argument("--out", type=Path, default=DEFAULT_DEST, metavar="DIR",
                         help="output folder")
-    parser.add_argument("--dest", dest="dest", type=Path, default=argparse.SUPPRESS,
-                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
     parser.add_argument(
         "--sequencer-scenario", metavar="NAME_OR_FILE",
         help=f"build only the {SEQUENCER}, playing this scenario (a name of "
@@ -415,7 +412,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     for model in MODELS if args.sequencer_scenario is None else (SEQUENCER,):
-        built = update(model, args.dest, sequencer_scenario=args.sequencer_scenario,
+        built = update(model, args.out, sequencer_scenario=args.sequencer_scenario,
                        force=args.force)
-        print(f"{'built    ' if built else 'unchanged'} {args.dest / f'{model}.fmu'}")
+        print(f"{'built    ' if built else 'unchanged'} {args.out / f'{model}.fmu'}")
     return 0

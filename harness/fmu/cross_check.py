@@ -153,16 +153,14 @@ def export(model: str, dest: Path) -> Path:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", dest="dest", type=Path, default=DEFAULT_DEST, metavar="DIR",
+    parser.add_argument("--out", type=Path, default=DEFAULT_DEST, metavar="DIR",
                         help="cross-check repository folder (fmus/ is written inside)")
-    parser.add_argument("--dest", dest="dest", type=Path, default=argparse.SUPPRESS,
-                        help=argparse.SUPPRESS)  # hidden alias, for existing scripts
 
 
 def run(args: argparse.Namespace) -> int:
     for model in fmu_build.MODELS:
-        print(export(model, args.dest))
-    fmu_count, _, problems = validate_repo(str(args.dest.resolve()))
+        print(export(model, args.out))
+    fmu_count, _, problems = validate_repo(str(args.out.resolve()))
     print(f"validate_vendor_repo: {len(problems)} problems in {fmu_count} FMUs")
     for problem in problems:
         print(problem)

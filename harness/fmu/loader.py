@@ -2,7 +2,7 @@
 
 `CoSimFMU` extracts an FMU once, instantiates it with a logger that keeps every message
 (so tests and the harness can read warnings), and offers set/get by name, stepping,
-state get/set and reset. The co-simulation master (`harness.run.master`) is built on it.
+state get/set and reset. The FMPy master (`harness.engines.fmpy_master`) is built on it.
 """
 
 from __future__ import annotations

@@ -1,13 +1,19 @@
-"""`python -m harness cosim`: run scenarios and variants, write results/<scenario>/.
+"""`python -m harness cosim`: run scenarios and variants in an engine, write OUT/<scenario>/.
 
-The runs (every selected variant of every selected scenario) are independent: with
-`--workers N` above 1 they run in N worker processes (pythonfmu embeds one interpreter per
-process, so processes, not threads), longest first, and each scenario's files are written
-(by a worker as well: its plots cost as much as a run) as soon as its last run is done. A
-run's numbers do not depend on the process it ran in.
+Every engine (`harness.engines.ENGINES`) writes the same result set (docs/results.md): a CSV
+series per variant, the summary and the plot, into OUT/<scenario>/ for the scenario as
+written and OUT/<scenario>/realistic/ for its realistic loss set. OUT is results/ for the
+FMPy master, whose result sets are the committed ones, and build/results/<engine>/ for the
+others, so that no other engine overwrites them unless asked to.
+
+The runs (every selected variant of every selected scenario and loss set) are independent:
+with `--workers N` above 1 they run in N worker processes (pythonfmu embeds one interpreter
+per process, so processes, not threads), longest first, and each result set is written (by a
+worker as well: its plot costs as much as a run) as soon as its last run is done. A run's
+numbers do not depend on the process it ran in.
 
 Ctrl-C (`harness.interrupts`): the runs stop at their next recorded step (a worker process
-never sees the SIGINT; its parent tells it), a scenario being written is written in full,
+never sees the SIGINT; its parent tells it), a result set being written is written in full,
 and the command exits with 130: what was written is complete, nothing else changed.
 """
 
@@ -18,35 +24,120 @@ import multiprocessing
 import os
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from tqdm import tqdm
 
-from harness import interrupts
+from harness import interrupts, scenarios
+from harness.engines import DEFAULT_STEP, ENGINES, Engine
+from harness.engines.libcosim import SOURCES
+from harness.engines.result import RunResult
+from harness.engines.setup import joint_motors, run_parameters
+from harness.engines.system import EccoSettings
 from harness.errors import UserError
-from harness.run import losses, master, results
-from harness.run import scenario_files as scenarios
+from harness.fmu.models import check_names
+from harness.run import results
+from harness.scenarios import losses
+
+BUILD_RESULTS = Path(__file__).resolve().parents[2] / "build" / "results"
+# the ECCO settings as options: (field of EccoSettings, unit, meaning)
+ECCO_OPTIONS = (
+    ("abs_tolerance", "J", "absolute tolerance on a bond's energy residual per step"),
+    ("rel_tolerance", "", "relative tolerance on it"),
+    ("min_step", "s", "smallest step"),
+    ("max_step", "s", "largest step"),
+    ("safety_factor", "", "safety factor of the step controller"),
+    ("min_change_rate", "", "smallest factor between two steps"),
+    ("max_change_rate", "", "largest factor between two steps"),
+    ("p_gain", "", "proportional gain of the step controller"),
+    ("i_gain", "", "integral gain of the step controller"),
+)
+POLL_INTERVAL = 0.1  # [s] between the parent's looks at an interrupt while workers run
+
+
+def scenario_catalogue() -> str:
+    """The shipped scenarios and their variants, for the command's help."""
+    lines = ["scenarios and their variants (--scenario, --variants):"]
+    for name in scenarios.available():
+        scenario = scenarios.load(name)
+        realistic = " (also a realistic loss set)" if losses.has_realistic(scenario) else ""
+        lines.append(f"  {name}{realistic}:")
+        lines.append(f"    {', '.join(scenario.variants)}")
+    lines.append("engines (--engine):")
+    lines += [f"  {name}: {engine.help}" for name, engine in ENGINES.items()]
+    return "\n".join(lines)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = scenario_catalogue()
     parser.add_argument("--scenario", default="all",
-                        help="scenario name, TOML file, or 'all' (default: all shipped)")
+                        help="a shipped scenario's name, a scenario TOML file, or 'all'")
     parser.add_argument("--variants", default="all",
-                        help="'all' or a comma-separated list of variant names")
-    parser.add_argument("--step", type=float, default=master.DEFAULT_STEP,
-                        help="communication step [s] (default 1e-3)")
-    parser.add_argument("--out", type=Path, default=results.RESULTS_DIR,
-                        help="results folder; files go to OUT/<scenario>/ (default results/)")
+                        help="'all' or a comma-separated list of variant names (their eps "
+                             "baselines are added); with --scenario all, the scenarios that "
+                             "have them")
+    parser.add_argument("--engine", choices=ENGINES, default="fmpy",
+                        help="what runs the variants (see below)")
+    parser.add_argument("--step", type=float, default=DEFAULT_STEP,
+                        help="communication step [s]: the reference's sampling step, ECCO's "
+                             "first step")
+    parser.add_argument("--out", type=Path,
+                        help="results folder: files go to OUT/<scenario>/ and "
+                             "OUT/<scenario>/realistic/ (default: results/ for --engine fmpy, "
+                             "build/results/<engine>/ for the others)")
+    parser.add_argument("--losses", default="all", metavar="{all,ideal,realistic}",
+                        help="'all', or a comma-separated list of ideal (the scenario as "
+                             "written) and realistic (with the losses of real parts, "
+                             "harness/scenarios/realistic/<scenario>.toml); with all, a "
+                             "scenario without a realistic set runs ideal only")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
-                        help="worker processes running the variants in parallel (default: "
-                             "the number of CPUs; 1 runs them one after another in this "
-                             "process)")
-    parser.add_argument("--losses", default="all",
-                        help="'all' (default), 'ideal' or 'realistic': the scenario as written, "
-                             "or with the losses of real parts (harness/losses/<scenario>.toml, "
-                             "into OUT/<scenario>/realistic/; with all, a scenario without one "
-                             "runs ideal only)")
+                        help="worker processes running the variants in parallel (1 runs them "
+                             "one after another in this process)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    options = parser.add_argument_group("engine options")
+    options.add_argument("--source", choices=SOURCES,
+                         help="--engine libcosim: run the OSP description (default) or the "
+                              "SSP archive")
+    defaults = EccoSettings()
+    for name, unit, meaning in ECCO_OPTIONS:
+        options.add_argument(f"--ecco-{name.replace('_', '-')}", dest=f"ecco_{name}",
+                             type=float, metavar="X",
+                             help=f"--engine libcosim-ecco: {meaning} (default "
+                                  f"{getattr(defaults, name)}{' ' + unit if unit else ''})")
+
+
+def engine_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The chosen engine's options from the command line; UserError for an option of
+    another engine."""
+    given = {"source": args.source} if args.source is not None else {}
+    ecco = {name: getattr(args, f"ecco_{name}") for name, _, _ in ECCO_OPTIONS
+            if getattr(args, f"ecco_{name}") is not None}
+    if ecco:
+        given["ecco"] = ecco
+    engine = ENGINES[args.engine]
+    for option in given:
+        if option not in engine.options:
+            flag = (f"--ecco-{next(iter(ecco)).replace('_', '-')}" if option == "ecco"
+                    else f"--{option}")
+            owner = next(name for name, e in ENGINES.items() if option in e.options)
+            raise UserError(f"{flag} applies to --engine {owner} only, not {args.engine}")
+    if "ecco" in engine.options:
+        given["ecco"] = EccoSettings(**given.get("ecco", {}))
+        given["ecco"].check()
+    return given
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A result set to make: the scenario (its loss set applied), the variants to run, the
+    loss set's name and the folder the set goes to."""
+
+    scenario: scenarios.Scenario
+    variants: list[str]
+    loss_set: str
+    folder: Path
 
 
 def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
@@ -58,11 +149,54 @@ def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
     return list(dict.fromkeys(names + baselines))
 
 
-POLL_INTERVAL = 0.1  # [s] between the parent's looks at an interrupt while workers run
+def selected_scenarios(spec: str, variants: str) -> list[scenarios.Scenario]:
+    """The scenarios of --scenario: one by name or file, or every shipped one; with 'all' and
+    named variants, those that have one of them (UserError naming a variant none has)."""
+    if spec != "all":
+        return [scenarios.load(spec)]
+    shipped = [scenarios.load(name) for name in scenarios.available()]
+    if variants == "all":
+        return shipped
+    names = [v.strip() for v in variants.split(",")]
+    missing = [n for n in names if not any(n in s.variants for s in shipped)]
+    if missing:
+        known = ", ".join(f"{s.name}: {', '.join(s.variants)}" for s in shipped)
+        raise UserError(f"--variants: no shipped scenario has {', '.join(missing)} ({known})")
+    return [s for s in shipped if any(n in s.variants for n in names)]
 
 
-def run_variant(scenario: scenarios.Scenario, name: str, step: float,
-                progress: Callable[[int], None] | None = None) -> master.RunResult:
+def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
+    """Every result set the command makes, each scenario, variant, model, option and folder
+    checked before anything runs."""
+    plans = []
+    for loaded in selected_scenarios(args.scenario, args.variants):
+        loaded.check_step(args.step)
+        spec = args.variants
+        if args.scenario == "all" and spec != "all":
+            spec = ",".join(v.strip() for v in spec.split(",") if v.strip() in loaded.variants)
+        variants = selected_variants(loaded, spec)
+        unsupported = [name for name in variants if not engine.supports(
+            loaded.variant(name).model or loaded.model)]
+        if unsupported:
+            raise UserError(f"--engine {args.engine} cannot run {loaded.name} variant(s) "
+                            f"{', '.join(unsupported)} (model "
+                            f"{loaded.variant(unsupported[0]).model or loaded.model}); "
+                            f"choose --variants among the others")
+        for loss_set, scenario in losses.loss_sets(loaded, args.losses):
+            for name in variants:
+                variant = scenario.variant(name)
+                resolved = scenario.for_variant(variant)
+                check_names(scenario, variant, run_parameters(
+                    resolved, variant, joint_motors(resolved)))
+            folder = losses.result_folder(out, scenario, loss_set)
+            results.check_result_set(folder)
+            plans.append(Plan(scenario, variants, loss_set, folder))
+    return plans
+
+
+def run_variant(engine: Engine, scenario: scenarios.Scenario, name: str, step: float,
+                options: dict[str, Any],
+                progress: Callable[[int], None] | None = None) -> RunResult:
     """One run (in a worker process, or here with a progress callback); KeyboardInterrupt
     at its next recorded step once an interrupt is requested."""
     def advance(steps: int) -> None:
@@ -71,47 +205,42 @@ def run_variant(scenario: scenarios.Scenario, name: str, step: float,
             progress(steps)
 
     interrupts.stop_if_requested()
-    return master.run(scenario, scenario.variant(name), step, progress=advance)
+    return engine(scenario, scenario.variant(name), step, advance, **options)
 
 
-Plan = tuple[scenarios.Scenario, list[str]] | tuple[scenarios.Scenario, list[str], Path]
-
-
-def run_all(plans: list[Plan], step: float, out: Path, workers: int = 1,
-            quiet: bool = False) -> None:
-    """Run every planned variant and write each scenario's result files (and print its
+def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = False,
+            engine: str = "fmpy", options: dict[str, Any] | None = None) -> None:
+    """Run every planned variant in the engine and write each result set (and print its
     summary) once its runs are done; with workers above 1 both in that many processes.
-    A plan is (scenario, variants) or (scenario, variants, folder): its result set goes to
-    the folder, by default OUT/<scenario>/.
     A SIGINT stops the runs (none is interrupted midway in its FMU, nor a write) and raises
     KeyboardInterrupt."""
-    folders = [plan[2] if len(plan) > 2 else out / plan[0].name for plan in plans]
-    jobs = [(index, scenario, name) for index, (scenario, names, *_) in enumerate(plans)
-            for name in names]
-    remaining = {index: len(names) for index, (_, names, *_) in enumerate(plans)}
-    runs: dict[tuple[int, str], master.RunResult] = {}
+    runner, options = ENGINES[engine], options or {}
+    jobs = [(index, plan.scenario, name) for index, plan in enumerate(plans)
+            for name in plan.variants]
+    remaining = {index: len(plan.variants) for index, plan in enumerate(plans)}
+    runs: dict[tuple[int, str], RunResult] = {}
     total = sum(round(scenario.duration / step) for _, scenario, _ in jobs)
 
-    def finished(index: int, name: str, run: master.RunResult) -> tuple | None:
-        """Book a run; the arguments of write_scenario when it was its scenario's last."""
+    def finished(index: int, name: str, run: RunResult) -> tuple | None:
+        """Book a run; the arguments of write_result_set when it was its set's last."""
         runs[index, name] = run
         remaining[index] -= 1
         if remaining[index]:
             return None
-        scenario, names, *_ = plans[index]
-        return scenario, [runs.pop((index, n)) for n in names], folders[index]
+        return plans[index], [runs.pop((index, n)) for n in plans[index].variants]
 
     with interrupts.deferred(), tqdm(total=total, unit="step", unit_scale=True,
                                      disable=quiet) as bar:
         if workers == 1 or len(jobs) == 1:
             for index, scenario, name in jobs:
                 bar.set_postfix_str(f"{scenario.name}.{name}")
-                write = finished(index, name, run_variant(scenario, name, step, bar.update))
+                write = finished(index, name, run_variant(runner, scenario, name, step,
+                                                          options, bar.update))
                 if write is not None:
-                    tqdm.write(write_scenario(*write))
+                    tqdm.write(write_result_set(*write))
             return
-        # longest runs first, so that the last ones to start are short; a scenario's files
-        # are written by a worker too, while the others still run
+        # longest runs first, so that the last ones to start are short; a set's files are
+        # written by a worker too, while the others still run
         jobs.sort(key=lambda job: -job[1].duration)
         context = multiprocessing.get_context()
         stop = context.Event()  # the workers' interrupts.requested
@@ -123,14 +252,14 @@ def run_all(plans: list[Plan], step: float, out: Path, workers: int = 1,
                 return pool.submit(*call)
 
         try:
-            pending = {submit(run_variant, scenario, name, step): (index, scenario, name)
-                       for index, scenario, name in jobs}
+            pending = {submit(run_variant, runner, scenario, name, step, options):
+                       (index, scenario, name) for index, scenario, name in jobs}
             while pending:
                 done, _ = wait(pending, POLL_INTERVAL, return_when=FIRST_COMPLETED)
                 interrupts.stop_if_requested()
                 for future in done:
                     job = pending.pop(future)
-                    if job is None:  # a scenario's files written
+                    if job is None:  # a result set written
                         tqdm.write(future.result())
                         continue
                     index, scenario, name = job
@@ -138,35 +267,26 @@ def run_all(plans: list[Plan], step: float, out: Path, workers: int = 1,
                     bar.set_postfix_str(f"{scenario.name}.{name} done")
                     write = finished(index, name, future.result())
                     if write is not None:
-                        pending[submit(write_scenario, *write)] = None
+                        pending[submit(write_result_set, *write)] = None
         finally:  # done, failed or interrupted: the runs still going stop at their next
-            stop.set()  # recorded step, a scenario being written is finished
+            stop.set()  # recorded step, a set being written is finished
             pool.shutdown(cancel_futures=True)
 
 
-def write_scenario(scenario: scenarios.Scenario, runs: list[master.RunResult],
-                   folder: Path) -> str:
-    """Write one scenario's result files into folder; their paths and its summary, to
-    print."""
-    paths = results.write_run(runs, scenario, folder)
-    return "\n".join([*map(str, paths), results.summary_text(folder / "summary.csv", scenario)])
+def write_result_set(plan: Plan, runs: list[RunResult]) -> str:
+    """Write one result set's files into its folder; their paths and its summary, to print."""
+    paths = results.write_run(runs, plan.scenario, plan.folder)
+    return "\n".join([*map(str, paths), results.summary_text(
+        plan.folder / "summary.csv", plan.scenario, plan.loss_set)])
 
 
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise UserError(f"--workers = {args.workers} must be at least 1")
-    names = scenarios.available() if args.scenario == "all" else [args.scenario]
-    plans = []
-    for name in names:  # every scenario, option, output folder and summary checked first
-        loaded = scenarios.load(name)
-        loaded.check_step(args.step)
-        variants = selected_variants(loaded, args.variants)
-        for loss_set, scenario in losses.loss_sets(loaded, args.losses):
-            for name in variants:
-                variant = scenario.variant(name)
-                master.check_names(scenario, variant, scenario.parameters | variant.parameters)
-            folder = losses.result_folder(args.out, scenario, loss_set)
-            results.check_result_set(folder)
-            plans.append((scenario, variants, folder))
-    run_all(plans, args.step, args.out, args.workers, args.quiet)
+    options = engine_options(args)
+    out = args.out or (results.RESULTS_DIR if args.engine == "fmpy"
+                       else BUILD_RESULTS / args.engine)
+    plans = plan(args, ENGINES[args.engine], out)
+    run_all(plans, args.step, args.workers, args.quiet, args.engine, options)
     return 0
+

@@ -25,7 +25,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 
 from harness import registry  # noqa: E402
 from harness.io import save_figure  # noqa: E402
-from harness.run.scenario_files import Joint, Scenario  # noqa: E402
+from harness.scenarios import Joint, Scenario  # noqa: E402
 
 Conversion = Callable[[np.ndarray], np.ndarray] | None
 # a mechanism panel: (title, unit, [(column, conversion), ...]); a column ending in _ref is

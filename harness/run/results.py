@@ -28,12 +28,12 @@ from pathlib import Path
 import pandas as pd
 
 from harness import registry
+from harness.drive.metrics import METRICS, efficaciousness
+from harness.engines.result import RunResult, suffix
 from harness.errors import UserError
 from harness.io import check_target, write_csv
 from harness.run import plots
-from harness.run.master import RunResult, suffix
-from harness.run.metrics import METRICS, efficaciousness
-from harness.run.scenario_files import Scenario
+from harness.scenarios import Scenario
 
 try:
     import fcntl
@@ -54,7 +54,7 @@ def summary_outputs() -> tuple[str, ...]:
 
 def summary_columns(results: list[RunResult]) -> list[str]:
     """Columns of a summary: SUMMARY_COLUMNS for one-joint runs; with several joints the
-    totals, then each drive's metrics (see harness.run.metrics), then eps and the rest. Where the
+    totals, then each drive's metrics (see harness.drive.metrics), then eps and the rest. Where the
     runs differ in their joints, every metric any of them has, in order of appearance; the
     summary_outputs any of them has go before model."""
     metrics = dict.fromkeys(name for r in results for name in r.metrics)
@@ -278,9 +278,9 @@ def _read_csv(path: Path, **options: object) -> pd.DataFrame:
                         "start a new result set") from None
 
 
-def summary_text(path: Path, scenario: Scenario) -> str:
-    """A summary CSV as a readable table: energies in J, efforts in N m or N, tracking errors
-    in deg (revolute joints) or mm (prismatic joints)."""
+def summary_text(path: Path, scenario: Scenario, loss_set: str = "ideal") -> str:
+    """A summary CSV of the scenario's loss set as a readable table: energies in J, efforts
+    in N m or N, tracking errors in deg (revolute joints) or mm (prismatic joints)."""
     table = pd.read_csv(path)
     shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech"]
     per_drive = ["tau_peak", "tau_rms", "F_peak", "F_rms", "i_rms", "V_peak", "track_err_max",
@@ -296,7 +296,6 @@ def summary_text(path: Path, scenario: Scenario) -> str:
             if column in table:
                 table[column] = plots.joint_drawn_in(joint)[1](table[column])
     shown += ["eps", "W_phases", "eps_W", *(c for c in summary_outputs() if c in table)]
-    folder = path.parent.name  # the scenario's, or its loss set's inside it (realistic)
-    title = folder if folder == scenario.name else f"{scenario.name} {folder}"
+    title = scenario.name if loss_set == "ideal" else f"{scenario.name}, {loss_set} losses"
     return (f"{title} (tracking errors in deg, or mm for prismatic joints)\n"
             + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))

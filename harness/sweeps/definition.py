@@ -44,10 +44,11 @@ from typing import Any
 import numpy as np
 
 from fmu_src.units.sequencer.scenario import check_name, finite_number, shown
+from harness import scenarios
+from harness.drive.metrics import METRICS
+from harness.engines import DEFAULT_STEP
 from harness.errors import UserError
-from harness.run import master
-from harness.run import scenario_files as scenarios
-from harness.run.metrics import METRICS
+from harness.fmu.models import check_names
 from harness.sweeps.paths import RefusedValueError, configure
 
 SWEEP_DIR = Path(__file__).resolve().parent  # the sweep files beside this code
@@ -86,7 +87,7 @@ class Sweep:
     variants: tuple[str, ...]
     axes: tuple[Axis, ...]
     metrics: tuple[str, ...]
-    step_size: float = master.DEFAULT_STEP     # [s]
+    step_size: float = DEFAULT_STEP     # [s]
     sample: str = "grid"                       # "grid" or "lhs"
     samples: int = 0                           # LHS points
     seed: int = 0
@@ -231,7 +232,7 @@ def load(path: str | Path) -> Sweep:
         raise UserError(f"{where}: unknown metrics {', '.join(unknown)} "
                         f"(choose from {', '.join(RUN_METRICS)})")
     plots = _plots(data.get("plots", {}), names, variants, metrics, where)
-    step_size = _number(data.get("step_size", master.DEFAULT_STEP), f"{where}: step_size")
+    step_size = _number(data.get("step_size", DEFAULT_STEP), f"{where}: step_size")
     scenario.check_step(step_size, f"{where}: step_size")
     chunk_size = _count(data.get("chunk_size", DEFAULT_CHUNK), f"{where}: chunk_size", 1,
                         MAX_RUNS)
@@ -266,7 +267,7 @@ def _check_first_point(scenario: scenarios.Scenario, variants: Sequence[str],
         return
     for name in variants:
         variant = configured.variant(name)
-        master.check_names(configured, variant, configured.parameters | variant.parameters)
+        check_names(configured, variant, configured.parameters | variant.parameters)
 
 
 def _plots(raw: Any, axes: Sequence[str], variants: Sequence[str], metrics: Sequence[str],

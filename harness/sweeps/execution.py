@@ -39,11 +39,12 @@ from distributed import Client, KilledWorker, LocalCluster, WorkerPlugin, as_com
 from tqdm import tqdm
 
 from harness import interrupts
+from harness.engines import fmpy_master
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU, FMUCallError
 from harness.io import write_atomic, write_csv
-from harness.run import master, results
+from harness.run import results
 from harness.sweeps.definition import RUN_METRICS, Run, Sweep, assignments, plan
 from harness.sweeps.paths import configure
 
@@ -110,7 +111,8 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
         model = variant.model or scenario.model
         fmu = _instance(model)
         fmu.messages.clear()
-        result = master.run(scenario, variant, sweep.step_size, motor, design, fmu=fmu)
+        result = fmpy_master.run(scenario, variant, sweep.step_size, motor=motor, design=design,
+                                 fmu=fmu)
         row.update(status="ok", error="", **result.metrics,
                    **fmu.get(fmu.names("calculatedParameter")),
                    **{name: float(result.series[name].iloc[-1]) if name in result.series

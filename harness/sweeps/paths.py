@@ -11,10 +11,10 @@ from collections.abc import Iterable
 from dataclasses import fields, is_dataclass, replace
 from typing import Any
 
+from harness import scenarios
+from harness.drive.controller import ControllerDesign
+from harness.drive.motor import MotorParameters
 from harness.errors import UserError
-from harness.run import scenario_files as scenarios
-from harness.run.controller import ControllerDesign
-from harness.run.drive import MotorParameters
 
 DEGREE_FIELDS = {"target_deg": "target", "initial_angle_deg": "initial_angle"}
 

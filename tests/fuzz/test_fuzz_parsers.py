@@ -19,8 +19,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fmu_src.units.sequencer import scenario_format
+from harness import scenarios
 from harness.errors import UserError
-from harness.run import scenario_files as scenarios
 from harness.sweeps import definition
 
 BASE = tomllib.loads((scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text())

@@ -33,7 +33,7 @@ STEP_SIZE = 1e-3  # default communication step [s], the harness's
 class ControllerParameters:
     """Gains, output limit and initial integrator state.
 
-    The default gains are harness.run.controller.design_pid (triple closed-loop pole at 25
+    The default gains are harness.drive.controller.design_pid (triple closed-loop pole at 25
     rad/s, derivative filter at 10 times that) for the default motor of
     fmu_src.units.drive.dc_motor driving the SelfRegulatingBalancer's default link: inertia
     J_link + J_rotor N^2 = 0.16 + 0.04127535 kg m^2, friction d_link = 0.01 N m s/rad. V_supply

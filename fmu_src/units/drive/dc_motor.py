@@ -248,7 +248,7 @@ def step_energies(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_sta
 # speed at 24 V against the task's 0.19 m/s. Why so long a lead: the armature's back-EMF
 # damping of the joint, alpha = (N K_t)^2 / (R_a (m2 + J_rotor N^2)), grows with N towards
 # K_t^2 / (R_a J_rotor) = 328 1/s; at 40 mm it is 46 1/s, below the 3 omega_c = 75 1/s that
-# the default PID design places (harness.run.controller), where a short lead (e.g. 5 mm: 299 1/s)
+# the default PID design places (harness.drive.controller), where a short lead (e.g. 5 mm: 299 1/s)
 # would need a negative derivative gain. Efficiency: a ball screw is back-drivable at about
 # 0.9 both ways, but this linear model would make eta < 1 return more than it takes when the
 # drive regenerates (see the module docstring): eta = 1, losses left to the joint's friction.
@@ -273,5 +273,5 @@ LEAD_SCREW_MOTOR = MotorParameters(N=2.0 * math.pi / 0.040)
 # stays where it is put without current; the 2 mm lead is also the reduction the force
 # needs, so no gearhead. The reflected mass dominates the joint (33.1 kg against the 0.5 kg
 # carriage), so the armature's back-EMF damps it at K_t^2 / (R_a J_rotor) = 326 1/s, above
-# 3 omega_c: the PID design then drops the derivative term (harness.run.controller).
+# 3 omega_c: the PID design then drops the derivative term (harness.drive.controller).
 TRAPEZOIDAL_SCREW_MOTOR = MotorParameters(N=2.0 * math.pi / 0.002)

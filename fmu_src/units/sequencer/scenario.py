@@ -1,6 +1,6 @@
 """Task scenarios as data: the one definition of the scenario file format and of its meaning
 (standard library only, so the `ScenarioSequencer` FMU plays a scenario exactly as the
-harness does; `harness.run.scenario_files` finds the files and evaluates them on numpy arrays).
+harness does; `harness.scenarios` finds the files and evaluates them on numpy arrays).
 This module holds the data model; `scenario_format.parse` reads a file's data into it.
 
 A scenario (a TOML file) names the mechanism FMU, its parameters, the joints the drives move
@@ -59,7 +59,7 @@ from fmu_src.parameters import MAGNITUDE_LIMIT
 
 JOINT_KINDS = ("revolute", "prismatic")
 # drives the harness can put on a joint: the default geared DC motor, a DC motor on a lead
-# screw, or on a self-locking trapezoidal screw (harness.run.drive.MOTORS maps these names to motor
+# screw, or on a self-locking trapezoidal screw (harness.drive.motor.MOTORS maps these names to motor
 # parameters)
 MOTORS = ("geared", "lead_screw", "trapezoidal_screw")
 # the one joint of a scenario without a `joints` table: the balancer FMUs' names

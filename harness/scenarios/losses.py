@@ -1,8 +1,8 @@
 """Loss sets: the shipped scenarios run again with the losses of real parts (docs/losses.md).
 
 A scenario's variants as written are the `ideal` set. A scenario with a loss file,
-harness/losses/<scenario>.toml, also has a `realistic` set: the same variants with the loss
-file's parameters. Its tables:
+harness/scenarios/realistic/<scenario>.toml, also has a `realistic` set: the same variants
+with the loss file's parameters. Its tables:
 
 - `[models.<Model>]`: parameters set in every variant that runs that model (joint, slider
   and pulley friction, pulley inertia, spring free length, slider mass);
@@ -24,9 +24,9 @@ from pathlib import Path
 from fmu_src.units.sequencer import scenario as core
 from fmu_src.units.sequencer import scenario_format
 from harness.errors import UserError
-from harness.run.scenario_files import Scenario, read_toml
+from harness.scenarios import Scenario, read_toml
 
-LOSSES_DIR = Path(__file__).resolve().parents[1] / "losses"
+LOSSES_DIR = Path(__file__).resolve().parent / "realistic"
 LOSS_SETS = ("ideal", "realistic")
 REALISTIC_FOLDER = "realistic"   # the realistic set's folder inside results/<scenario>/
 VARIANT_KEYS = ("parameters", "phase_targets")

@@ -1,5 +1,31 @@
-"""The system of a scenario variant as data (`describe`): its FMUs, parameters and connections, and
-the ECCO settings of a run with ECCO (see `harness.systems.system` for the system's shape)."""
+"""The system of a scenario variant as FMUs (`describe`): its FMUs, parameters and
+connections, and the ECCO settings of a run with ECCO; and the RunResult of such a system's
+run from the values of its components (`system_result`), shared by the engines that run it
+(`harness.engines.libcosim`, `harness.engines.fmpy_ssp`).
+
+The system, per joint (a one-joint scenario such as franchetti2021):
+
+    sequencer (ScenarioSequencer) --theta_ref--> controller (PositionController) --V--> drive
+    (DcMotorDrive) --tau_drive--> mechanism (the variant's model) --theta--> controller,
+    --omega--> drive; sequencer --payload, locks, ...--> mechanism.
+
+With several joints (demian2022) each joint has its own controller and drive, named
+`controller_<joint>` and `drive_<joint>`, wired to that joint's position, speed and effort.
+The ScenarioSequencer FMU plays the scenario it was built for: build/fmus' one when it plays
+the scenario (franchetti2021 by default), else one built for the scenario into
+build/system/<scenario>/fmus/.
+
+Its parameters are the harness's (`harness.engines.setup`): the mechanism's scenario and
+variant parameters, the motor parameters, the PID gains designed for the joint and the
+equilibrium start (motor current and integrator holding the static load at t = 0), bound in
+the SSP's SystemStructure.ssd (inline ssv:ParameterSet per component) and as InitialValues in
+OspSystemStructure.xml (`harness.engines.writers`).
+
+The system's masters step every FMU in parallel (Jacobi) at the fixed step: each connection
+passes a value with one step of delay, where the FMPy master's loop (controller, motor,
+mechanism in turn) has none. The loop thus carries two more steps of delay; at 1 ms that
+changes the drive energies by less than the tolerances of tests/test_system.py.
+"""
 
 from __future__ import annotations
 
@@ -7,23 +33,26 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from fmu_src.units.drive.dc_motor import armature_voltage
+from harness import scenarios
+from harness.drive.controller import ControllerDesign, PIDGains
+from harness.drive.motor import start_currents
+from harness.drive.trace import DriveTrace
+from harness.engines import DEFAULT_STEP
+from harness.engines.result import RECORD_INTERVAL, RunResult, assemble, recorded_points, suffix
+from harness.engines.setup import joint_drive, joint_motors, run_parameters
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu import osp
 from harness.fmu.loader import CoSimFMU
-from harness.run import master
-from harness.run import scenario_files as scenarios
-from harness.run.controller import ControllerDesign
-from harness.run.drive import motors
 
 # the component names of the system's FMUs
 SEQUENCER, CONTROLLER, DRIVE, MECHANISM = "sequencer", "controller", "drive", "mechanism"
 Value = float | bool | int
 
 SYSTEM_DIR = fmu_build.DEFAULT_DEST.parent / "system"
-
 
 
 @dataclass(frozen=True)
@@ -95,16 +124,16 @@ class System:
 
 def controller(scenario: scenarios.Scenario, joint: scenarios.Joint) -> str:
     """The component name of a joint's controller: `controller` or `controller_<joint>`."""
-    return CONTROLLER + master.suffix(scenario, joint)
+    return CONTROLLER + suffix(scenario, joint)
 
 
 def drive(scenario: scenarios.Scenario, joint: scenarios.Joint) -> str:
     """The component name of a joint's drive: `drive` or `drive_<joint>`."""
-    return DRIVE + master.suffix(scenario, joint)
+    return DRIVE + suffix(scenario, joint)
 
 
 def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
-             step_size: float = master.DEFAULT_STEP,
+             step_size: float = DEFAULT_STEP,
              design: ControllerDesign = ControllerDesign(),
              ecco: EccoSettings | None = None) -> System:
     """The system of FMUs for a variant, with the harness's parameters and start (the
@@ -112,9 +141,9 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
     own joints get their controllers and drives too (`Scenario.for_variant`). ecco: run it
     with ECCO (step_size is then its first step), else at the fixed step."""
     scenario = scenario.for_variant(variant)
-    drive_motors = [motors()[joint.motor] for joint in scenario.joints]
+    drive_motors = joint_motors(scenario)
     model = variant.model or scenario.model
-    mechanism_parameters = master.run_parameters(scenario, variant, drive_motors)
+    mechanism_parameters = run_parameters(scenario, variant, drive_motors)
     inputs = {name: signal[0] for name, signal in
               scenario.inputs(np.zeros(1), variant).items()}
     # the variant by number: SSP tools read Integer parameters, not all read Strings
@@ -126,7 +155,8 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
         fmu.set(inputs)
         fmu.initialize(mechanism_parameters, stop_time=scenario.duration)
         for joint, motor in zip(scenario.joints, drive_motors, strict=True):
-            gains, hold_current = master.joint_drive(fmu, joint, motor, design)
+            values = fmu.get([joint.inertia, joint.friction, joint.static_output])
+            gains, hold_current = joint_drive(values, joint, motor, design)
             control, power = controller(scenario, joint), drive(scenario, joint)
             models |= {control: "PositionController", power: "DcMotorDrive"}
             parameters[control] = {**gains._asdict(), "V_supply": motor.V_supply,
@@ -163,3 +193,69 @@ def sequencer_fmu(scenario: scenarios.Scenario) -> Path:
     source = scenarios.scenario_file(scenario.name)  # ValueError naming the known scenarios
     return fmu_build.fmu_path(fmu_build.SEQUENCER, SYSTEM_DIR / scenario.name / "fmus",
                               sequencer_scenario=source)
+
+
+def model_variables(system: System) -> dict[str, dict]:
+    """Model variables by component and name, from the built FMUs."""
+    from fmpy import read_model_description
+    return {component: {v.name: v for v in
+                        read_model_description(system.fmus[model]).modelVariables}
+            for component, model in system.models.items()}
+
+
+def recorded_every(system: System) -> int:
+    """The communication points between two recorded rows of a fixed-step run."""
+    return max(1, round(RECORD_INTERVAL / system.step_size))
+
+
+def recorded_variables(system: System, variables: dict[str, dict]) -> dict[str, list[str]]:
+    """Per component, the variables a run reads: as the harness records them (the
+    mechanism's outputs and scenario inputs, the references) plus the drives' signals."""
+    scenario = system.scenario
+    fed = [end for start, _, component, end in system.connections
+           if start == SEQUENCER and component == MECHANISM]
+    mechanism = [n for n, v in variables[MECHANISM].items() if v.causality == "output"]
+    return {SEQUENCER: [f"{joint.position}_ref" for joint in scenario.joints],
+            **{controller(scenario, joint): ["V"] for joint in scenario.joints},
+            **{drive(scenario, joint): ["i", "tau_drive"] for joint in scenario.joints},
+            MECHANISM: mechanism + fed}
+
+
+def system_result(system: System, frame: pd.DataFrame, booleans: pd.DataFrame,
+            messages: list[str], times: np.ndarray | None = None) -> RunResult:
+    """A RunResult from every communication point's values (frame, row k at t_k, columns
+    `component.variable`) and the Boolean values at the recording points; times: the
+    communication points [s] of a run with variable steps (ECCO), whose Booleans are given
+    at every point, None for the fixed step."""
+    scenario = system.scenario
+    variables = model_variables(system)
+    record = recorded_variables(system, variables)
+    step: float | np.ndarray = system.step_size if times is None else np.diff(times)
+    every = recorded_points(
+        np.arange(len(frame)) * system.step_size if times is None else times, step)
+    mechanism_columns = [n for n in record[MECHANISM] if f"{MECHANISM}.{n}" in frame
+                         or n in booleans]
+    rows = frame.iloc[every]
+    if times is not None:
+        booleans = booleans.iloc[every]
+    table = pd.DataFrame({n: (booleans[n].to_numpy()[:len(rows)] if n in booleans
+                              else rows[f"{MECHANISM}.{n}"].to_numpy())
+                          for n in mechanism_columns})
+    # Jacobi: over step k the drive holds the controller's V(t_k) and the speed omega(t_k),
+    # and the mechanism gets the drive's effort of step k - 1, i.e. its output at t_k
+    traces, gains = [], {}
+    for joint, motor in zip(scenario.joints, joint_motors(scenario), strict=True):
+        control, power = controller(scenario, joint), drive(scenario, joint)
+        voltage = frame[f"{control}.V"].to_numpy()
+        speed = frame[f"{MECHANISM}.{joint.speed}"].to_numpy()
+        current = frame[f"{power}.i"].to_numpy()[1:]
+        traces.append(DriveTrace(
+            joint, motor, step, voltage[:-1], current,
+            frame[f"{power}.tau_drive"].to_numpy()[:-1],
+            start_currents(motor, step, voltage[:-1], speed[:-1], current),
+            frame[f"{MECHANISM}.{joint.position}"].to_numpy(), speed,
+            frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy()))
+        gains[joint.name] = PIDGains(*(float(system.parameters[control][n])
+                                       for n in PIDGains._fields))
+    return assemble(scenario, system.variant, system.models[MECHANISM], table, traces,
+                           gains, dict(system.parameters[MECHANISM]), messages)

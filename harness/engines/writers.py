@@ -8,9 +8,9 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from harness.engines.system import System, model_variables
 from harness.fmu import osp
 from harness.io import write_atomic
-from harness.systems.description import System
 
 # OMSimulator matches SSD elements by their qualified names: keep these prefixes
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -21,14 +21,6 @@ NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
 # OMSimulator's fixed-step master ("oms-ma") needs tolerances although it steps no solver
 OMS_TOLERANCE = 1e-4
 OSP_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
-
-def model_variables(system: System) -> dict[str, dict]:
-    """Model variables by component and name, from the built FMUs."""
-    from fmpy import read_model_description
-    return {component: {v.name: v for v in
-                        read_model_description(system.fmus[model]).modelVariables}
-            for component, model in system.models.items()}
-
 
 def _bindings(system: System) -> dict[str, list[tuple[str, str, str]]]:
     """Per component, its parameters as (name, FMI type of the variable, literal)."""

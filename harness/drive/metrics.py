@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from fmu_src.units.drive.dc_motor import DriveEnergies, inductor_energy
-from harness.run.drive import DriveTrace
+from harness.drive.trace import DriveTrace
 
 # by joint kind: the names of the effort's peak and RMS
 EFFORT_METRICS = {"revolute": ("tau_peak", "tau_rms"), "prismatic": ("F_peak", "F_rms")}

@@ -37,8 +37,8 @@ import numpy as np
 from fmu_src.parameters import check_ranges, parameter
 from fmu_src.units.controller.pid import DiscretePID, PIDCoefficients, PIDGains
 from fmu_src.units.drive.dc_motor import steady_current
+from harness.drive.motor import MotorParameters, motor_system
 from harness.errors import UserError
-from harness.run.drive import MotorParameters, motor_system
 
 
 @dataclass(frozen=True)

@@ -1,73 +1,68 @@
-"""Running a system: libcosim (fixed step or ECCO, from the OSP or SSP files) and FMPy's SSP
-runner, with the results in the harness's format (`master.RunResult`)."""
+"""The libcosim engines (DNV's Open Simulation Platform, through libcosimpy): the variant's
+system of FMUs (`harness.engines.system`) written as OspSystemStructure.xml or an .ssp archive
+into build/system/<scenario>/ and run at the fixed step (`run`), or under libcosim's ECCO
+algorithm, whose step adapts to the energy residuals of the power bonds between each drive
+and its joint (`run_ecco`, `EccoSettings`, docs/results.md#variable-steps-ecco)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from harness.run import master
-from harness.run.controller import PIDGains
-from harness.run.drive import DriveTrace, motors, start_currents
-from harness.systems.description import MECHANISM, SEQUENCER, System, controller, drive
-from harness.systems.writers import model_variables
+from harness.engines.result import RunResult
+from harness.engines.system import (
+    SYSTEM_DIR,
+    EccoSettings,
+    System,
+    describe,
+    model_variables,
+    recorded_every,
+    recorded_variables,
+    system_result,
+)
+from harness.engines.writers import write_osp, write_ssp
+from harness.errors import UserError
+from harness.scenarios import Scenario, Variant
 
 ECCO_CHUNK = 1000  # an ECCO run's steps between two reads of its time series
-
-def _recorded(system: System, variables: dict[str, dict]) -> dict[str, list[str]]:
-    """Per component, the variables a run reads: as the harness records them (the
-    mechanism's outputs and scenario inputs, the references) plus the drives' signals."""
-    scenario = system.scenario
-    fed = [end for start, _, component, end in system.connections
-           if start == SEQUENCER and component == MECHANISM]
-    mechanism = [n for n, v in variables[MECHANISM].items() if v.causality == "output"]
-    return {SEQUENCER: [f"{joint.position}_ref" for joint in scenario.joints],
-            **{controller(scenario, joint): ["V"] for joint in scenario.joints},
-            **{drive(scenario, joint): ["i", "tau_drive"] for joint in scenario.joints},
-            MECHANISM: mechanism + fed}
+SOURCES = ("osp", "ssp")  # the fixed-step run's description: OspSystemStructure.xml or .ssp
 
 
-def _result(system: System, frame: pd.DataFrame, booleans: pd.DataFrame,
-            messages: list[str], times: np.ndarray | None = None) -> master.RunResult:
-    """A RunResult from every communication point's values (frame, row k at t_k, columns
-    `component.variable`) and the Boolean values at the recording points; times: the
-    communication points [s] of a run with variable steps (ECCO), whose Booleans are given
-    at every point, None for the fixed step."""
-    scenario = system.scenario
-    variables = model_variables(system)
-    record = _recorded(system, variables)
-    step: float | np.ndarray = system.step_size if times is None else np.diff(times)
-    every = master.recorded_points(
-        np.arange(len(frame)) * system.step_size if times is None else times, step)
-    mechanism_columns = [n for n in record[MECHANISM] if f"{MECHANISM}.{n}" in frame
-                         or n in booleans]
-    rows = frame.iloc[every]
-    if times is not None:
-        booleans = booleans.iloc[every]
-    table = pd.DataFrame({n: (booleans[n].to_numpy()[:len(rows)] if n in booleans
-                              else rows[f"{MECHANISM}.{n}"].to_numpy())
-                          for n in mechanism_columns})
-    # Jacobi: over step k the drive holds the controller's V(t_k) and the speed omega(t_k),
-    # and the mechanism gets the drive's effort of step k - 1, i.e. its output at t_k
-    traces, gains = [], {}
-    for joint in scenario.joints:
-        control, power = controller(scenario, joint), drive(scenario, joint)
-        motor = motors()[joint.motor]
-        voltage = frame[f"{control}.V"].to_numpy()
-        speed = frame[f"{MECHANISM}.{joint.speed}"].to_numpy()
-        current = frame[f"{power}.i"].to_numpy()[1:]
-        traces.append(DriveTrace(
-            joint, motor, step, voltage[:-1], current,
-            frame[f"{power}.tau_drive"].to_numpy()[:-1],
-            start_currents(motor, step, voltage[:-1], speed[:-1], current),
-            frame[f"{MECHANISM}.{joint.position}"].to_numpy(), speed,
-            frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy()))
-        gains[joint.name] = PIDGains(*(float(system.parameters[control][n])
-                                       for n in PIDGains._fields))
-    return master.assemble(scenario, system.variant, system.models[MECHANISM], table, traces,
-                           gains, dict(system.parameters[MECHANISM]), messages)
+def run(scenario: Scenario, variant: Variant, step_size: float,
+        progress: Callable[[int], None] | None = None, source: str = "osp") -> RunResult:
+    """The variant's system run by libcosim at the fixed step, from its OSP description
+    (build/system/<scenario>/osp/<variant>/OspSystemStructure.xml) or its SSP archive
+    (build/system/<scenario>/<variant>.ssp)."""
+    if source not in SOURCES:
+        raise UserError(f"--source = {source!r} must be one of {', '.join(SOURCES)}")
+    system = describe(scenario, variant, step_size)
+    files = SYSTEM_DIR / scenario.name
+    path = (write_osp(system, files / "osp" / variant.name) if source == "osp"
+            else write_ssp(system, files / f"{variant.name}.ssp"))
+    result = run_libcosim(system, path)
+    if progress is not None:
+        progress(round(scenario.duration / step_size))
+    return result
+
+
+def run_ecco(scenario: Scenario, variant: Variant, step_size: float,
+             progress: Callable[[int], None] | None = None,
+             ecco: EccoSettings | None = None) -> RunResult:
+    """The variant's system run by libcosim under ECCO (default EccoSettings), step_size [s]
+    its first step; its OSP description with the ECCO configuration is written to
+    build/system/<scenario>/osp-ecco/<variant>/ for libcosim's own command line, the run is
+    made through libcosimpy's API (`ecco_execution`)."""
+    ecco = ecco or EccoSettings()
+    ecco.check()
+    system = describe(scenario, variant, step_size, ecco=ecco)
+    write_osp(system, SYSTEM_DIR / scenario.name / "osp-ecco" / variant.name)
+    result = run_libcosim(system)
+    if progress is not None:
+        progress(round(scenario.duration / step_size))
+    return result
 
 
 def _time_series(observer, slave: int, reference: int, steps: int, first: int = 0
@@ -179,7 +174,7 @@ def ecco_execution(system: System) -> tuple[object, object]:
     return execution, algorithm
 
 
-def run_libcosim(system: System, source: Path | None = None) -> master.RunResult:
+def run_libcosim(system: System, source: Path | None = None) -> RunResult:
     """Run an OspSystemStructure.xml or an .ssp archive in libcosim at the fixed step, or
     an ECCO system (system.ecco; source None) through libcosimpy's API (`ecco_execution`).
 
@@ -204,7 +199,7 @@ def run_libcosim(system: System, source: Path | None = None) -> master.RunResult
     else:
         execution = CosimExecution.from_osp_config_file(str(source))
     steps = round(system.scenario.duration / system.step_size)
-    every = max(1, round(master.RECORD_INTERVAL / system.step_size))
+    every = recorded_every(system)
     series = CosimObserver.create_time_series(
         buffer_size=steps + 1 if system.ecco is None else ECCO_CHUNK + 2)
     last = CosimObserver.create_last_value()
@@ -213,7 +208,7 @@ def run_libcosim(system: System, source: Path | None = None) -> master.RunResult
     variables = model_variables(system)
     index = {c: execution.slave_index_from_instance_name(c) for c in system.models}
     reals, bools = [], []
-    for component, names in _recorded(system, variables).items():
+    for component, names in recorded_variables(system, variables).items():
         for name in names:
             variable = variables[component][name]
             (reals if variable.type == "Real" else bools).append((component, variable))
@@ -224,7 +219,7 @@ def run_libcosim(system: System, source: Path | None = None) -> master.RunResult
         times, frame, booleans = _ecco_steps(execution, system, series, last, index, reals,
                                              bools)
         del execution, algorithm  # the execution first
-        return _result(system, frame, booleans, [], times)
+        return system_result(system, frame, booleans, [], times)
     boolean_rows = []
     for chunk in range(steps // every):
         if not execution.step(every):
@@ -241,38 +236,4 @@ def run_libcosim(system: System, source: Path | None = None) -> master.RunResult
     frame = pd.DataFrame({f"{c}.{v.name}": _time_series(series, index[c], v.valueReference,
                                                         steps)[0]
                           for c, v in reals})
-    return _result(system, frame, pd.DataFrame([first, *boolean_rows]), [])
-
-
-def run_fmpy_ssp(system: System, ssp: Path) -> master.RunResult:
-    """Run the SSP archive with fmpy.ssp.simulate_ssp, which returns every connector after
-    every step (stamped with the step's start time). It has no row for t = 0: that row is
-    the start the system is built for (the scenario's initial position, inputs and
-    reference; the drive holding i0) and the mechanism's other outputs after the first step.
-    """
-    from fmpy.ssp.simulation import simulate_ssp
-    from fmpy.ssp.ssd import Parameter, ParameterSet
-
-    parameter_set = ParameterSet(name="bindings")
-    for component, values in system.parameters.items():
-        for name, value in values.items():
-            parameter_set.parameters.append(Parameter(name=f"{component}.{name}", value=value))
-    table = simulate_ssp(str(ssp), stop_time=system.scenario.duration,
-                         step_size=system.step_size, parameter_set=parameter_set)
-    frame = pd.DataFrame({name: table[name] for name in table.dtype.names[1:]})
-    scenario = system.scenario
-    start = frame.iloc[[0]].copy()
-    start_inputs = scenario.inputs(np.zeros(1), system.variant)
-    for joint, initial in zip(scenario.joints, scenario.initial_angle, strict=True):
-        start[f"{MECHANISM}.{joint.position}"] = initial
-        start[f"{SEQUENCER}.{joint.position}_ref"] = initial
-        start[f"{controller(scenario, joint)}.V"] = 0.0   # FMPy: connected inputs start at 0
-        start[f"{drive(scenario, joint)}.tau_drive"] = 0.0
-    for name, signal in start_inputs.items():
-        start[f"{MECHANISM}.{name}"] = signal[0]
-    frame = pd.concat([start, frame], ignore_index=True)
-    every = max(1, round(master.RECORD_INTERVAL / system.step_size))
-    booleans = pd.DataFrame({c.split(".", 1)[1]: frame[c].iloc[::every].to_numpy()
-                             for c in frame if c.startswith(f"{MECHANISM}.")
-                             and frame[c].dtype == bool})
-    return _result(system, frame, booleans, [])
+    return system_result(system, frame, pd.DataFrame([first, *boolean_rows]), [])

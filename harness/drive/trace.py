@@ -1,0 +1,112 @@
+"""A joint's drive over a run: `SampledDrive` steps the discrete PID and the sampled motor
+together in a fixed-step master and records every step; `DriveTrace` is that record (or one
+read back from a system of FMUs), from which the metrics and CSV columns are made."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fmu_src.units.controller.pid import DiscretePID
+from fmu_src.units.drive.dc_motor import DriveEnergies, MotorParameters, SampledMotor, step_energies
+from fmu_src.units.sequencer.scenario import Joint
+
+
+class SampledDrive:
+    """One joint's discrete PID (`DiscretePID.update`) and sampled motor (`SampledMotor.step`),
+    the code the PositionController and DcMotorDrive FMUs run, stepped together at each
+    communication step, with a record of each step k: the joint's position and speed at its
+    start (and at the end of the last step, `end`), the voltage [V], the armature current at
+    its start [A] (and at the end of the last step), its step average [A] and the effort
+    [N m or N]."""
+
+    def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: Sequence[float]) -> None:
+        """A drive for a run of len(reference) - 1 steps following reference [rad or m] at
+        each communication point."""
+        n_steps = len(reference) - 1
+        self.pid, self.motor, self.reference = pid, motor, list(reference)
+        self.position, self.speed = [0.0] * (n_steps + 1), [0.0] * (n_steps + 1)
+        self.voltage, self.current, self.effort = [0.0] * n_steps, [0.0] * n_steps, [0.0] * n_steps
+        self.start_current = [motor.current] + [0.0] * n_steps
+
+    def step(self, k: int, position: float, speed: float) -> float:
+        """Step k from the joint's position and speed at its start; the effort over it."""
+        voltage = self.pid.update(self.reference[k] - position)
+        average, effort = self.motor.step(voltage, speed)
+        self.voltage[k], self.current[k], self.effort[k] = voltage, average, effort
+        self.start_current[k + 1] = self.motor.current
+        self.position[k], self.speed[k] = position, speed
+        return effort
+
+    def end(self, position: float, speed: float) -> None:
+        """Record the joint's position and speed at the end of the run."""
+        self.position[-1], self.speed[-1] = position, speed
+
+    def trace(self, joint: Joint, step_size: float) -> DriveTrace:
+        """The drive's record of the run as a `DriveTrace` of steps of step_size [s]."""
+        return DriveTrace(joint, self.motor.motor, step_size, np.array(self.voltage),
+                          np.array(self.current), np.array(self.effort),
+                          np.array(self.start_current), np.array(self.position),
+                          np.array(self.speed), np.array(self.reference))
+
+
+@dataclass(frozen=True)
+class DriveTrace:
+    """One joint's drive over a run of n communication steps of step_size [s] (one for all,
+    or n of them: variable steps): per step k < n what it held and carried (n values), and at
+    each communication point t_k, k = 0..n, the armature current and the joint (n + 1
+    values). Efforts in N m and positions in rad for a revolute joint, N and m for a
+    prismatic one."""
+
+    joint: Joint
+    motor: MotorParameters
+    step_size: float | np.ndarray
+    voltage: np.ndarray        # held over step k [V]
+    current: np.ndarray        # armature current, average over step k [A]
+    effort: np.ndarray         # effort the mechanism received over step k
+    start_current: np.ndarray  # armature current at t_k [A]; the last, at the end of the run
+    position: np.ndarray       # joint position at t_k
+    speed: np.ndarray          # joint speed at t_k, which the drive holds over step k
+    reference: np.ndarray      # position reference at t_k
+
+    @property
+    def final_current(self) -> float:
+        """The armature current at the end of the run [A]."""
+        return float(self.start_current[-1])
+
+    @property
+    def steps(self) -> np.ndarray:
+        """The length of each step [s] (n values)."""
+        return np.broadcast_to(self.step_size, (len(self.voltage),))
+
+    @property
+    def times(self) -> np.ndarray:
+        """The communication points t_k [s], k = 0..n: k step_size, or the steps summed."""
+        if np.ndim(self.step_size) == 0:
+            return np.arange(len(self.position)) * self.step_size
+        return np.concatenate([[0.0], np.cumsum(self.step_size)])
+
+    @property
+    def shaft_effort(self) -> np.ndarray:
+        """The effort the drive applies over each step, eta N K_t i (the step average; it is
+        `effort` when the mechanism gets it without delay) [N m or N]."""
+        return self.motor.torque_per_amp * self.current
+
+    @property
+    def travel(self) -> np.ndarray:
+        """The joint's travel over each step [rad or m]."""
+        return np.diff(self.position)
+
+    def energies(self) -> DriveEnergies:
+        """Each step's energies [J], arrays of n (`fmu_src.units.drive.dc_motor.step_energies`)."""
+        n = len(self.voltage)
+        if np.ndim(self.step_size) == 0:
+            return step_energies(self.motor, self.step_size, self.voltage, self.speed[:n],
+                                 self.start_current[:n], self.current, self.effort, self.travel)
+        steps = [step_energies(self.motor, *values) for values in zip(
+            self.step_size.tolist(), self.voltage.tolist(), self.speed[:n].tolist(),
+            self.start_current[:n].tolist(), self.current.tolist(), self.effort.tolist(),
+            self.travel.tolist(), strict=True)]
+        return DriveEnergies(*(np.array(values) for values in zip(*steps, strict=True)))

@@ -1,0 +1,212 @@
+"""The monolithic reference engine: the co-simulated system as one ODE solved by scipy's
+solve_ivp.
+
+The same equations as the co-simulation, without FMI and without sampling: the
+mechanism's `derivatives` from its physics module, each joint's motor armature equation, and
+the continuous-time PID (filtered derivative) that each discrete controller approximates.
+With the continuous controllers and no zero-order holds, this is the limit the
+co-simulation converges to as the communication step shrinks; `harness bench` and the tests
+measure that.
+
+The drives' energies are integrated as extra states, their rates those of
+`fmu_src.units.drive.dc_motor.drive_powers`, the definition the co-simulation's metrics share,
+so the run's energy metrics are exact to the solver's tolerance. The solution is sampled at
+the communication points k step_size, from which the series (every RECORD_INTERVAL) and the
+effort, current and tracking metrics are read. The run is split at phase boundaries, where
+the discrete inputs (locks) change; within a phase inputs are constant or ramps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import fields
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.integrate import solve_ivp
+
+from fmu_src.units.drive.dc_motor import armature_rate, armature_voltage, drive_powers
+from harness import registry
+from harness.drive.controller import ControllerDesign, design_pid
+from harness.drive.metrics import ENERGIES
+from harness.drive.trace import DriveTrace
+from harness.engines import DEFAULT_STEP
+from harness.engines.result import RECORD_INTERVAL, RunResult, assemble
+from harness.engines.setup import Motors, joint_motors, run_parameters
+from harness.errors import UserError
+from harness.scenarios import Scenario, Variant, ramp
+
+DRIVE_STATES = 3  # per joint: armature current, PID integral, filtered error
+RTOL = 1e-9       # the solver's relative tolerance (its absolute one: ATOL)
+ATOL = 1e-10
+
+
+def supports(model: str) -> bool:
+    """Whether the monolithic reference can solve the model (a mechanism whose registration
+    allows it)."""
+    found = registry.registration(model)
+    return found is not None and found.physics is not None and found.monolithic_reference
+
+
+def physics_module(model: str) -> ModuleType:
+    """The pure physics module of a mechanism the monolithic reference can solve."""
+    if not supports(model):
+        known = [m for m, r in registry.mechanisms().items() if r.monolithic_reference]
+        raise UserError(f"no monolithic reference for model {model}; known: {', '.join(known)}")
+    return registry.registration(model).physics
+
+
+def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,
+               motor: Motors = None) -> Any:
+    """The physics module's validated Parameters of a run: defaults, then the run's
+    parameters (`harness.engines.setup.run_parameters`)."""
+    scenario = scenario.for_variant(variant)
+    values = {f.name: f.default for f in fields(physics.Parameters)}
+    values.update(run_parameters(scenario, variant, joint_motors(scenario, motor)))
+    p = physics.Parameters(**values)
+    physics.validate(p)
+    return p
+
+
+def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
+        progress: Callable[[int], None] | None = None, motor: Motors = None,
+        design: ControllerDesign = ControllerDesign(), rtol: float = RTOL) -> RunResult:
+    """Solve the whole task as one ODE; its series and metrics sampled at step_size [s]."""
+    model = variant.model or scenario.model
+    physics = physics_module(model)
+    scenario = scenario.for_variant(variant)
+    joints = scenario.joints
+    drives = joint_motors(scenario, motor)
+    p = parameters(physics, scenario, variant, motor)
+    gains = [design_pid(m, getattr(p, joint.inertia) + m.J_drive, getattr(p, joint.friction),
+                        design) for joint, m in zip(joints, drives, strict=True)]
+    state_names = physics.State._fields
+    position_index = [state_names.index(joint.position) for joint in joints]
+    speed_index = [state_names.index(joint.speed) for joint in joints]
+    n_mech, n_joints = len(state_names), len(joints)
+    energy_start = n_mech + DRIVE_STATES * n_joints
+
+    def drive_signals(y: np.ndarray, references: list[float]) -> list[tuple[float, ...]]:
+        """Per joint at state y with the given reference positions: (voltage [V], current
+        [A], effort, error)."""
+        signals = []
+        for j, (m, g) in enumerate(zip(drives, gains, strict=True)):
+            current, integral, filtered = y[n_mech + DRIVE_STATES * j:
+                                            n_mech + DRIVE_STATES * (j + 1)]
+            error = references[j] - y[position_index[j]]
+            voltage = g.Kp * error + integral + g.Kd / g.T_f * (error - filtered)
+            voltage = min(max(voltage, -m.V_supply), m.V_supply)
+            signals.append((voltage, current, m.torque_per_amp * current, error))
+        return signals
+
+    # start in equilibrium, as the co-simulation does
+    mech0 = physics.initial_state(p)
+    segments = scenario.input_segments(variant)
+    out0 = physics.outputs(p, _inputs(physics, joints, segments[0], 0.0, [0.0] * n_joints),
+                           mech0)
+    x = [*mech0]
+    for joint, m, i, initial in zip(joints, drives, position_index, scenario.initial_angle,
+                                    strict=True):
+        current = joint.hold_effort(getattr(out0, joint.static_output)) / m.torque_per_amp
+        x += [current, armature_voltage(m, current, 0.0), initial - mech0[i]]
+    x = np.array(x + [0.0] * (len(ENERGIES) * n_joints))
+
+    n_steps = round(scenario.duration / step_size)
+    grid = np.arange(n_steps + 1) * step_size
+    every = max(1, round(RECORD_INTERVAL / step_size))  # the points between recorded rows
+    # the phase of each point: that starting at or before it (to a nanosecond), the last
+    # phase holding the task's end
+    starts = [t0 for _, t0, _ in scenario.phase_times()]
+    phase_of = np.searchsorted(starts, grid + 1e-9, side="right") - 1
+    samples, outputs, signals = [], [], []
+    for k, ((phase, t0, t1), segment) in enumerate(zip(scenario.phase_times(), segments,
+                                                       strict=True)):
+        targets = [scenario.reference_segments(j)[k][2:] for j in range(n_joints)]
+
+        def references_at(s: float, targets=targets) -> list[float]:
+            return [ramp(*target, "quintic", s) for target in targets]
+
+        def rhs(t: float, y: np.ndarray, t0=t0, t1=t1, segment=segment,
+                references_at=references_at) -> np.ndarray:
+            s = (t - t0) / (t1 - t0)
+            mech = y[:n_mech]
+            efforts, d_drive, d_energy = [], [], []
+            for j, (voltage, current, effort, error) in enumerate(
+                    drive_signals(y, references_at(s))):
+                m, g, speed = drives[j], gains[j], mech[speed_index[j]]
+                filtered = y[n_mech + DRIVE_STATES * j + 2]
+                efforts.append(effort)
+                d_drive += [armature_rate(m, voltage, current, speed), g.Ki * error,
+                            (error - filtered) / g.T_f]
+                d_energy += drive_powers(m, voltage, current, effort, speed)
+            u = _inputs(physics, joints, segment, s, efforts)
+            rates = _input_rates(physics, segment, s, t1 - t0)
+            return np.array([*physics.derivatives(p, u, physics.State(*mech), rates),
+                             *d_drive, *d_energy])
+
+        # the communication points of the phase (the last phase's end too), then its end
+        points = np.clip(grid[phase_of == k], t0, t1)
+        solution = solve_ivp(rhs, (t0, t1), x, method="Radau", rtol=rtol, atol=ATOL,
+                             t_eval=np.append(points[points < t1], t1))
+        if not solution.success:
+            raise RuntimeError(f"reference solve failed in phase {phase}: {solution.message}")
+        x = solution.y[:, -1]
+        for t, y in zip(points, solution.y.T, strict=False):  # and the end if it is a point
+            s = (t - t0) / (t1 - t0)
+            drive = drive_signals(y, references_at(s))
+            if len(samples) % every == 0:  # a recorded row: the mechanism's outputs
+                outputs.append(physics.outputs(
+                    p, _inputs(physics, joints, segment, s, [d[2] for d in drive]),
+                    physics.State(*y[:n_mech])))
+            samples.append(y)
+            signals.append(drive)
+    if progress is not None:
+        progress(n_steps)
+
+    states = np.array(samples)
+    signal_table = np.array(signals)  # (point, joint, (voltage, current, effort, error))
+    recorded = pd.DataFrame(outputs, columns=physics.Outputs._fields)
+    for name, signal in scenario.inputs(grid[::every], variant).items():
+        recorded[name] = signal
+    traces, exact = [], []
+    for j, joint in enumerate(joints):
+        voltage, current, effort = (signal_table[:, j, i] for i in range(3))
+        # the drive's values at the communication points, held over each step, for the
+        # series and the effort, current and tracking metrics; its energies are the solve's
+        traces.append(DriveTrace(joint, drives[j], step_size, voltage[:-1], current[:-1],
+                                 effort[:-1], current, states[:, position_index[j]],
+                                 states[:, speed_index[j]], scenario.reference(grid, j)))
+        first = energy_start + len(ENERGIES) * j
+        cumulative = dict(zip(ENERGIES, states[:, first:first + len(ENERGIES)].T, strict=True))
+        exact.append(cumulative | {"W_bond_drive": cumulative["W_link"],
+                                   "W_bond_joint": cumulative["W_link"],
+                                   "W_bond_error": np.zeros(len(grid))})
+    return assemble(scenario, variant, model, recorded, traces,
+                    {joint.name: g for joint, g in zip(joints, gains, strict=True)},
+                    run_parameters(scenario, variant, drives), [], exact)
+
+
+def _input_rates(physics: ModuleType, segment: dict[str, tuple], s: float,
+                 duration: float) -> tuple:
+    """d/dt of the mechanism's ramped Real inputs at fraction s of a phase lasting duration
+    [s] (central difference of the ramp), as its Inputs (0 for the others): masses that
+    change while the mechanism moves join from rest or leave with their speed."""
+    h = 1e-6
+    rates = {name: (ramp(start, end, shape, s + h) - ramp(start, end, shape, s - h))
+             / (2.0 * h * duration)
+             for name, (start, end, shape) in segment.items()
+             if name in physics.Inputs._fields and not isinstance(start, bool)}
+    return physics.Inputs(**{name: rates.get(name, 0.0) for name in physics.Inputs._fields
+                             if not isinstance(getattr(physics.Inputs(), name), bool)})
+
+
+def _inputs(physics: ModuleType, joints: tuple, segment: dict[str, tuple], s: float,
+            efforts: list[float]) -> tuple:
+    """The mechanism's Inputs at fraction s of a phase (see Scenario.input_segments) with the
+    drives' efforts [N m or N]."""
+    values = {name: ramp(start, end, shape, s) for name, (start, end, shape) in segment.items()
+              if name in physics.Inputs._fields}
+    values.update((joint.effort, effort) for joint, effort in zip(joints, efforts, strict=True))
+    return physics.Inputs(**values)
