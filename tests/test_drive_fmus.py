@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,11 +20,12 @@ from fmpy import read_model_description
 
 from fmu_src.mechanisms.self_regulating import physics as self_regulating
 from fmu_src.units.controller.PositionController import ControllerParameters
+from fmu_src.units.drive.dc_motor import step_energies
 from fmu_src.units.sequencer.scenario import Joint
 from harness.drive.controller import design_pid, discrete_pid, discretise
 from harness.drive.metrics import drive_metrics
 from harness.drive.motor import MotorParameters, sampled_motor
-from harness.drive.trace import DriveTrace
+from harness.drive.trace import DriveTrace, SampledDrive
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
 
@@ -91,6 +93,35 @@ def test_motor_fmu_gives_the_harness_sampled_motor(motor_fmu: Path) -> None:
     expected = drive_metrics(trace)
     for column, name in enumerate(("E_in", "E_drawn", "E_copper"), start=2):
         assert out[-1, column] == pytest.approx(expected[name], rel=1e-11), name
+
+
+def test_motor_fmu_with_a_lossy_gear_and_rests_gives_the_harness_sampled_motor(
+        motor_fmu: Path) -> None:
+    """A lossy transmission (eta 0.7, eta_back 0.6) and the drive switched off and on: the
+    FMU's tau_drive and i are the harness's SampledMotor's, and its E_gear and E_copper the
+    sums of step_energies, to rounding."""
+    rng = np.random.default_rng(11)
+    n, i0 = 2000, 1.0
+    lossy = replace(MOTOR, eta=0.7, eta_back=0.6)
+    voltage = rng.uniform(-MOTOR.V_supply, MOTOR.V_supply, n)
+    omega = rng.choice([0.0, 0.002, -0.002, 3.0, -3.0], n)
+    enabled = (np.arange(n) // 150) % 4 != 3
+    drive = sampled_motor(lossy, DT, current=i0)
+    expected, gear, copper = [], 0.0, 0.0
+    for v, w, on in zip(voltage, omega, enabled):
+        start = drive.current
+        current, effort = drive.step(v, w, bool(on))
+        e = step_energies(lossy, DT, v if on else 0.0, w, start, current, effort, 0.0, on)
+        gear, copper = gear + e.E_gear, copper + e.E_copper
+        expected.append((effort, current))
+    with open_fmu(motor_fmu, {"i0": i0, "eta": 0.7, "eta_back": 0.6}) as fmu:
+        out = drive_fmu(fmu, {"V": voltage, "omega": omega, "enable": enabled}, [DT] * n,
+                        ["tau_drive", "i", "E_gear", "E_copper"])
+    torque, current = np.array(expected).T
+    assert (out[~enabled, :2] == 0.0).all() and gear > 0.0
+    np.testing.assert_allclose(out[:, 0], torque, rtol=0, atol=1e-12 * np.abs(torque).max())
+    np.testing.assert_allclose(out[:, 1], current, rtol=0, atol=1e-12 * np.abs(current).max())
+    assert (out[-1, 2], out[-1, 3]) == pytest.approx((gear, copper), rel=1e-11)
 
 
 def test_motor_fmu_recomputes_the_hold_when_the_step_size_changes(motor_fmu: Path) -> None:
@@ -164,6 +195,28 @@ def test_controller_fmu_gives_the_harness_discrete_pid(controller_fmu: Path) -> 
     assert expected[:, 1].any() and not expected[:, 1].all()
     np.testing.assert_allclose(out[:, 0], expected[:, 0], rtol=0, atol=1e-12 * MOTOR.V_supply)
     np.testing.assert_array_equal(out[:, 1], expected[:, 1])
+
+
+def test_controller_fmu_rests_and_restarts_as_the_harness_drive(controller_fmu: Path) -> None:
+    """Switched off for 300 steps and on again: V = 0 while off, and over the whole sequence
+    the voltages of the harness's SampledDrive (which holds, then restarts with the integral
+    reset and no derivative kick), to rounding."""
+    rng = np.random.default_rng(8)
+    n = 1200
+    reference = np.full(n + 1, 0.3)
+    theta = 0.3 + rng.normal(0.0, 2e-3, n)
+    enabled = (np.arange(n) < 400) | (np.arange(n) >= 700)
+    pid = discrete_pid(GAINS, DT, MOTOR.V_supply)
+    pid.reset(reference[0] - theta[0], integral=2.0)
+    drive = SampledDrive(pid, sampled_motor(MOTOR, DT), reference.tolist(), enabled.tolist())
+    for k in range(n):
+        drive.step(k, theta[k], 0.0)
+    start = {"integral0": 2.0, "theta_ref": reference[0], "theta": theta[0]}
+    with open_fmu(controller_fmu, start) as fmu:
+        out = drive_fmu(fmu, {"theta_ref": reference[:n], "theta": theta, "enable": enabled},
+                        [DT] * n, ["V"])[:, 0]
+    assert (out[~enabled] == 0.0).all() and (out[enabled] != 0.0).all()
+    np.testing.assert_allclose(out, drive.voltage, rtol=0, atol=1e-12 * MOTOR.V_supply)
 
 
 def test_controller_fmu_recomputes_its_coefficients_when_the_step_size_changes(

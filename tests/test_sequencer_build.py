@@ -40,9 +40,11 @@ def test_the_built_fmu_declares_the_scenario(demian: Path) -> None:
     scenario = scenarios.load("demian2022")
     assert md.description.startswith("Scenario sequencer: plays scenario demian2022 ")
     variables = {v.name: v for v in md.modelVariables}
-    # demian2022 drives no mechanism inputs: only the two joints' references
-    assert [v.name for v in md.modelVariables if v.causality == "output"] == ["q1_ref",
-                                                                             "q2_ref"]
+    # demian2022 drives no mechanism inputs: only the two joints' references and whether
+    # their drives are on
+    assert [v.name for v in md.modelVariables if v.causality == "output"] == [
+        "q1_ref", "q1_enable", "q2_ref", "q2_enable"]
+    assert variables["q1_enable"].type == "Boolean"
     assert [v.name for v in md.modelVariables if v.causality == "input"] == []
     assert variables["q1_ref"].declaredType.unit == "rad"
     assert variables["q2_ref"].declaredType.unit == "m"
@@ -70,7 +72,8 @@ def test_it_plays_the_references_of_the_scenario(demian: Path, variant: str) -> 
         franchetti = play_sequencer(default, "self_regulating", 64, STEP)
         played = play_sequencer(fmu, variant, steps, STEP)
     assert set(franchetti) == {"theta_ref", "q_ref", "slider_locked", "pulley_locked",
-                               "payload", "counterweight_added"}
+                               "payload", "counterweight_added", "theta_enable", "q_enable"}
+    assert all(played["q1_enable"]) and all(played["q2_enable"])  # no joint rests
     for j, joint in enumerate(scenario.joints):
         np.testing.assert_allclose(played[f"{joint.position}_ref"],
                                    scenario.reference(times, j), rtol=0.0, atol=1e-12)
@@ -116,3 +119,15 @@ def test_a_bad_scenario_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture
 def test_only_the_sequencer_takes_a_scenario(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="for the ScenarioSequencer, not DcMotorDrive"):
         fmu_build.build("DcMotorDrive", tmp_path, sequencer_scenario="demian2022")
+
+
+def test_the_default_sequencer_switches_the_resting_drive_with_the_phases() -> None:
+    """franchetti2021's active_relocation: the carriage q holds by itself, so its drive is
+    on in phase III only (14-17 s, where q moves), from the step that starts at 14 s to the
+    one that starts before 17 s; theta's drive is always on."""
+    with CoSimFMU(fmu_build.fmu_path("ScenarioSequencer"), "relocation") as fmu:
+        played = play_sequencer(fmu, "active_relocation", round(20.0 / STEP), STEP)
+    times = np.arange(round(20.0 / STEP) + 1) * STEP
+    on = np.asarray(played["q_enable"], dtype=bool)
+    assert on.tolist() == ((times > 14.0 - STEP / 2) & (times < 17.0 - STEP / 2)).tolist()
+    assert all(played["theta_enable"])

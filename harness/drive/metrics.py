@@ -18,13 +18,19 @@ from __future__ import annotations
 import numpy as np
 
 from fmu_src.units.drive.dc_motor import DriveEnergies, inductor_energy
+from harness.drive.motor import JointDrive
 from harness.drive.trace import DriveTrace
 
-# by joint kind: the names of the effort's peak and RMS
+# by joint kind: the names of the effort's peak and RMS, and of the joint's peak speed
 EFFORT_METRICS = {"revolute": ("tau_peak", "tau_rms"), "prismatic": ("F_peak", "F_rms")}
+SPEED_METRICS = {"revolute": "omega_peak", "prismatic": "v_peak"}
 ENERGIES = DriveEnergies._fields
+# what the summary reports of a joint's drive (`drive_report`): its parts, gear ratio, the
+# motor's nominal current [A] and rated power [W], and whether its RMS current is within it
+DRIVE = ("drive", "gear_ratio", "I_nom", "P_nom", "drive_ok")
 METRICS = (*ENERGIES, "E_inductor", *(name for names in EFFORT_METRICS.values() for name in names),
-           "i_rms", "V_peak", "track_err_max", "track_err_rms", "eps")
+           "i_rms", "I_rms", "I_peak", *SPEED_METRICS.values(), "V_peak", "track_err_max",
+           "track_err_rms", *DRIVE, "eps")
 TOTALS = (*ENERGIES, "E_inductor")
 # the power bond between drive and joint (docs/results.md#power-bonds): the energy that left
 # the drive, the energy that reached the joint and their difference, the coupling's error
@@ -37,7 +43,9 @@ def drive_metrics(trace: DriveTrace) -> dict[str, float]:
     E_in: net electrical energy (regeneration credited); E_drawn: energy from a supply that
     cannot take energy back; E_copper: armature losses; E_mech: integral of |tau omega|;
     W_link: net mechanical work on the joint; E_inductor: magnetic energy left at the end,
-    so that E_in = E_copper + W_link / eta ... (eta = 1 by default) + E_inductor.
+    so that E_in = E_copper + E_gear + the work the drive passes on + E_inductor;
+    I_peak: the largest step-average current [A]; omega_peak (v_peak): the joint's largest
+    speed [rad/s or m/s].
     """
     n = len(trace.voltage)
     effort, current = trace.effort, trace.current
@@ -52,12 +60,23 @@ def drive_metrics(trace: DriveTrace) -> dict[str, float]:
         peak: float(np.max(np.abs(effort))),
         rms: float(np.sqrt(np.average(effort ** 2, weights=weights))),
         "i_rms": float(np.sqrt(np.average(current ** 2, weights=weights))),
+        "I_peak": float(np.max(np.abs(current))),
+        SPEED_METRICS[trace.joint.kind]: float(np.max(np.abs(trace.speed))),
         "V_peak": float(np.max(np.abs(trace.voltage))),
         "track_err_max": float(np.max(np.abs(error))),
         "track_err_rms": float(np.sqrt(np.average(error ** 2, weights=weights))),
         **{name: float(np.sum(energy)) for name, energy
            in zip(BOND, bond_energies(trace, energies), strict=True)},
     }
+
+
+def drive_report(drive: JointDrive, metrics: dict[str, float]) -> dict[str, object]:
+    """A joint's drive metrics with what the summary reports of its drive (DRIVE): I_rms
+    (the contract's i_rms, beside I_nom for the comparison), and drive_ok, false when the RMS
+    current exceeds the motor's nominal current: a failed design."""
+    return {**metrics, "I_rms": metrics["i_rms"], "drive": drive.label,
+            "gear_ratio": drive.gear_ratio, "I_nom": drive.I_nom, "P_nom": drive.P_nom,
+            "drive_ok": metrics["i_rms"] <= drive.I_nom}
 
 
 def bond_energies(trace: DriveTrace, energies: DriveEnergies | None = None
@@ -82,6 +101,8 @@ def run_metrics(per_joint: dict[str, dict[str, float]]) -> dict[str, float]:
         return dict(first)
     totals = {name: sum(m[name] for m in per_joint.values()) for name in TOTALS
               if name in first}
+    if "drive_ok" in first:  # the run's design fails with any of its drives
+        totals["drive_ok"] = all(m["drive_ok"] for m in per_joint.values())
     return totals | {f"{name}_{joint}": value for joint, m in per_joint.items()
                      for name, value in m.items()}
 

@@ -3,12 +3,16 @@
 The model, its energies and its default parameters are defined once, in
 `fmu_src.units.drive.dc_motor` (standard library only, so the `DcMotorDrive` FMU runs the same
 model); here it becomes a named python-control state-space system and is discretised with
-`control.c2d`. MOTORS names the drives a scenario's joint can declare
-(`fmu_src.units.sequencer.scenario.MOTORS`). """
+`control.c2d`. A run puts a `JointDrive` on each joint: its model and what the summary reports
+of it. LEGACY names the drives of the `legacy` configuration, those a scenario's joint
+declares as its `motor` (`fmu_src.units.sequencer.scenario.MOTORS`): one motor type on every
+joint, lossless; the harness's default configuration takes each joint's drive from the
+catalogue instead (harness.drive.catalogue, harness.drive.sizing). """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import control as ct
 import numpy as np
@@ -24,12 +28,37 @@ from fmu_src.units.drive.dc_motor import (
 )
 from harness.errors import UserError
 
-__all__ = ["MOTORS", "MotorParameters", "SampledMotor", "motor_system", "motors", "sampled_motor",
-           "start_currents"]
+__all__ = ["LEGACY", "MOTORS", "JointDrive", "MotorParameters", "SampledMotor", "motor_system",
+           "motors", "sampled_motor", "start_currents"]
 
 # joint-side units: N m and rad for "geared", N and m for the screws
 MOTORS = {"geared": MotorParameters(), "lead_screw": LEAD_SCREW_MOTOR,
           "trapezoidal_screw": TRAPEZOIDAL_SCREW_MOTOR}
+
+
+@dataclass(frozen=True)
+class JointDrive:
+    """The drive a run puts on a joint: its model, and what the summary reports of it: its
+    parts, the gearhead's ratio (1 without one), the motor's nominal current [A] and its
+    rated power [W]."""
+
+    parameters: MotorParameters
+    label: str
+    gear_ratio: float
+    I_nom: float
+    P_nom: float
+
+
+# the legacy configuration: the maxon RE 30 (3.44 A nominal, 60 W) behind a lossless 111:1
+# gearhead, or directly on a joint's lead screw (fmu_src.units.drive.dc_motor)
+LEGACY = {
+    "geared": JointDrive(MOTORS["geared"], "legacy: maxon RE 30 60 W + lossless 111:1", 111.0,
+                         3.44, 60.0),
+    "lead_screw": JointDrive(LEAD_SCREW_MOTOR, "legacy: maxon RE 30 60 W on a 40 mm lead "
+                             "screw, lossless", 1.0, 3.44, 60.0),
+    "trapezoidal_screw": JointDrive(TRAPEZOIDAL_SCREW_MOTOR, "legacy: maxon RE 30 60 W on "
+                                    "the Tr 10x2 screw", 1.0, 3.44, 60.0),
+}
 
 
 def motors(motor: MotorParameters | Mapping[str, MotorParameters] | None = None
@@ -73,19 +102,27 @@ def sampled_motor(motor: MotorParameters, dt: float, current: float = 0.0) -> Sa
 
 
 def start_currents(motor: MotorParameters, dt: float | np.ndarray, voltage: np.ndarray,
-                   omega: np.ndarray, average: np.ndarray) -> np.ndarray:
+                   omega: np.ndarray, average: np.ndarray,
+                   enabled: np.ndarray | None = None) -> np.ndarray:
     """The armature current [A] at the start of each of n zero-order-hold steps of dt [s]
     (one for all, or one per step) and at the end of the last (n + 1 values), from the
     step-average currents [A] of a drive that held V [V] and omega [rad/s or m/s] over each
-    step (e.g. the `DcMotorDrive` FMU's i)."""
-    if np.ndim(dt) == 0:
-        coefficients = zoh_coefficients(motor, dt)
-        start = coefficients.start_current(average, voltage, omega)
-        last = SampledMotor(motor, coefficients, float(start[-1]))
-    else:
-        start = np.array([zoh_coefficients(motor, h).start_current(i, v, w) for h, i, v, w
-                          in zip(dt.tolist(), average.tolist(), voltage.tolist(),
-                                 omega.tolist(), strict=True)])
-        last = SampledMotor(motor, zoh_coefficients(motor, float(dt[-1])), float(start[-1]))
-    last.step(float(voltage[-1]), float(omega[-1]))
-    return np.append(start, last.current)
+    step (e.g. the `DcMotorDrive` FMU's i); enabled: whether the drive was on over each step
+    (None: always). A step with the drive off starts with the current the step before ended
+    with (0 after one off) and ends with none."""
+    steps = np.broadcast_to(dt, np.shape(average))
+    on = np.ones(len(average), dtype=bool) if enabled is None else np.asarray(enabled)
+    coefficients = [zoh_coefficients(motor, h) for h in
+                    ([float(dt)] if np.ndim(dt) == 0 else steps.tolist())]
+    pick = (lambda k: coefficients[0]) if np.ndim(dt) == 0 else coefficients.__getitem__
+    start, end = np.zeros(len(average) + 1), 0.0
+    for k, (i, v, w) in enumerate(zip(average.tolist(), voltage.tolist(), omega.tolist(),
+                                      strict=True)):
+        if on[k]:
+            c = pick(k)
+            start[k] = c.start_current(i, v, w)
+            end = c.a * start[k] + c.b_v * v + c.b_w * w
+        else:
+            start[k], end = end, 0.0
+    start[-1] = end
+    return start

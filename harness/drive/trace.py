@@ -10,7 +10,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmu_src.units.controller.pid import DiscretePID
-from fmu_src.units.drive.dc_motor import DriveEnergies, MotorParameters, SampledMotor, step_energies
+from fmu_src.units.drive.dc_motor import (
+    DriveEnergies,
+    MotorParameters,
+    SampledMotor,
+    step_energies,
+    transmitted_effort,
+)
 from fmu_src.units.sequencer.scenario import Joint
 
 
@@ -19,22 +25,39 @@ class SampledDrive:
     the code the PositionController and DcMotorDrive FMUs run, stepped together at each
     communication step, with a record of each step k: the joint's position and speed at its
     start (and at the end of the last step, `end`), the voltage [V], the armature current at
-    its start [A] (and at the end of the last step), its step average [A] and the effort
-    [N m or N]."""
+    its start [A] (and at the end of the last step), its step average [A], the effort [N m or
+    N] and whether the drive was on.
 
-    def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: Sequence[float]) -> None:
+    enabled[k]: whether the drive is on over step k. Off, the controller holds its state and
+    the motor carries no current; switched on again, the controller starts from the error then
+    with its integral reset (no derivative kick, no push left over from before: a drive
+    resting while its axis holds by itself has nothing to hold when it comes on)."""
+
+    def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: Sequence[float],
+                 enabled: Sequence[bool] | None = None) -> None:
         """A drive for a run of len(reference) - 1 steps following reference [rad or m] at
-        each communication point."""
+        each communication point; always on unless enabled says otherwise."""
         n_steps = len(reference) - 1
         self.pid, self.motor, self.reference = pid, motor, list(reference)
+        self.enabled = [True] * n_steps if enabled is None else list(enabled)
+        self.on = self.enabled[0] if n_steps else True
         self.position, self.speed = [0.0] * (n_steps + 1), [0.0] * (n_steps + 1)
         self.voltage, self.current, self.effort = [0.0] * n_steps, [0.0] * n_steps, [0.0] * n_steps
         self.start_current = [motor.current] + [0.0] * n_steps
 
     def step(self, k: int, position: float, speed: float) -> float:
         """Step k from the joint's position and speed at its start; the effort over it."""
-        voltage = self.pid.update(self.reference[k] - position)
-        average, effort = self.motor.step(voltage, speed)
+        error = self.reference[k] - position
+        if self.enabled[k]:
+            if not self.on:  # switched on: a bumpless start
+                self.pid.reset(error)
+                self.on = True
+            voltage = self.pid.update(error)
+            average, effort = self.motor.step(voltage, speed)
+        else:
+            self.on = False
+            voltage = 0.0
+            average, effort = self.motor.step(voltage, speed, enabled=False)
         self.voltage[k], self.current[k], self.effort[k] = voltage, average, effort
         self.start_current[k + 1] = self.motor.current
         self.position[k], self.speed[k] = position, speed
@@ -49,7 +72,8 @@ class SampledDrive:
         return DriveTrace(joint, self.motor.motor, step_size, np.array(self.voltage),
                           np.array(self.current), np.array(self.effort),
                           np.array(self.start_current), np.array(self.position),
-                          np.array(self.speed), np.array(self.reference))
+                          np.array(self.speed), np.array(self.reference),
+                          np.array(self.enabled, dtype=bool))
 
 
 @dataclass(frozen=True)
@@ -70,6 +94,7 @@ class DriveTrace:
     position: np.ndarray       # joint position at t_k
     speed: np.ndarray          # joint speed at t_k, which the drive holds over step k
     reference: np.ndarray      # position reference at t_k
+    enabled: np.ndarray | None = None  # whether the drive was on over step k (None: always)
 
     @property
     def final_current(self) -> float:
@@ -90,9 +115,16 @@ class DriveTrace:
 
     @property
     def shaft_effort(self) -> np.ndarray:
-        """The effort the drive applies over each step, eta N K_t i (the step average; it is
-        `effort` when the mechanism gets it without delay) [N m or N]."""
-        return self.motor.torque_per_amp * self.current
+        """The effort the drive applies over each step at the speed it holds
+        (`transmitted_effort` of the step-average current; it is `effort` when the
+        mechanism gets it without delay) [N m or N]."""
+        return transmitted_effort(self.motor, self.current, self.speed[:len(self.current)])
+
+    @property
+    def on(self) -> np.ndarray:
+        """Whether the drive was on over each step (n values)."""
+        return (np.ones(len(self.voltage), dtype=bool) if self.enabled is None
+                else self.enabled)
 
     @property
     def travel(self) -> np.ndarray:
@@ -104,9 +136,10 @@ class DriveTrace:
         n = len(self.voltage)
         if np.ndim(self.step_size) == 0:
             return step_energies(self.motor, self.step_size, self.voltage, self.speed[:n],
-                                 self.start_current[:n], self.current, self.effort, self.travel)
+                                 self.start_current[:n], self.current, self.effort, self.travel,
+                                 self.on)
         steps = [step_energies(self.motor, *values) for values in zip(
             self.step_size.tolist(), self.voltage.tolist(), self.speed[:n].tolist(),
             self.start_current[:n].tolist(), self.current.tolist(), self.effort.tolist(),
-            self.travel.tolist(), strict=True)]
+            self.travel.tolist(), self.on.tolist(), strict=True)]
         return DriveEnergies(*(np.array(values) for values in zip(*steps, strict=True)))

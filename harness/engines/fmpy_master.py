@@ -26,7 +26,14 @@ from harness.drive.motor import sampled_motor
 from harness.drive.trace import SampledDrive
 from harness.engines import DEFAULT_STEP
 from harness.engines.result import RECORD_INTERVAL, RunResult, assemble
-from harness.engines.setup import Motors, joint_drive, joint_motors, run_parameters
+from harness.engines.setup import (
+    Drives,
+    Motors,
+    enabled_steps,
+    joint_drive,
+    joint_drives,
+    run_parameters,
+)
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu.calls import MasterCalls
@@ -40,12 +47,14 @@ DriveStep = Callable[[int, float, float], float]  # (k, position, speed) -> effo
 def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         progress: Callable[[int], None] | None = None, motor: Motors = None,
         design: ControllerDesign = ControllerDesign(), fmu: CoSimFMU | None = None,
-        keep_traces: bool = False) -> RunResult:
+        keep_traces: bool = False, drives: Drives = None) -> RunResult:
     """Co-simulate one variant of a scenario at step_size [s] and return its series and
     metrics; progress(steps) after every recorded block of steps.
 
-    motor: the drives (`harness.engines.setup.joint_motors`). The variant's own joints are
-    driven too (`Scenario.for_variant`). fmu: an instance of the variant's model to reuse (it
+    drives: each joint's drive by name, else motor's legacy drives
+    (`harness.engines.setup.joint_drives`). The variant's own joints are driven too
+    (`Scenario.for_variant`); a joint that rests when holding is switched off in the phases
+    that hold it (`Scenario.drive_enabled`). fmu: an instance of the variant's model to reuse (it
     is reset first and left open), e.g. one per worker in a parameter sweep; by default a new
     instance is made and freed. keep_traces: return each joint's `DriveTrace` of every step
     too (`RunResult.traces`), e.g. to replay the run's efforts.
@@ -54,13 +63,15 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         raise UserError(f"step size = {step_size} s is outside (0, inf)")
     scenario = scenario.for_variant(variant)
     joints = scenario.joints
-    drive_motors = joint_motors(scenario, motor)
+    joint_drive_set = joint_drives(scenario, motor, drives)
+    drive_motors = [drive.parameters for drive in joint_drive_set]
     model = variant.model or scenario.model
     parameters = run_parameters(scenario, variant, drive_motors)
     n_steps = round(scenario.duration / step_size)
     times = np.arange(n_steps + 1) * step_size
     references = [scenario.reference(times, j) for j in range(len(joints))]
     inputs = scenario.inputs(times, variant)
+    enabled = [enabled_steps(scenario, j, times) for j in range(len(joints))]
 
     check_names(scenario, variant, parameters)
     if fmu is None:
@@ -81,24 +92,26 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         state = calls.read_states()
         # per joint: the PID designed for its inertia and friction, and the motor starting in
         # equilibrium (holding the static effort at the initial position)
-        gains, drives = {}, []
+        gains, sampled = {}, []
         for j, (joint, drive_motor) in enumerate(zip(joints, drive_motors, strict=True)):
             values = fmu.get([joint.inertia, joint.friction, joint.static_output])
             gains[joint.name], hold_current = joint_drive(values, joint, drive_motor, design)
+            if not enabled[j][0]:  # off from the start: nothing to hold
+                hold_current = 0.0
             pid = discrete_pid(gains[joint.name], step_size, drive_motor.V_supply)
             pid.reset(references[j][0] - state[2 * j],
                       integral=armature_voltage(drive_motor, hold_current, 0.0))
-            drives.append(SampledDrive(pid, sampled_motor(drive_motor, step_size, hold_current),
-                                       references[j].tolist()))
-        run_steps(calls, [drive.step for drive in drives], times.tolist(), step_size,
+            sampled.append(SampledDrive(pid, sampled_motor(drive_motor, step_size, hold_current),
+                                        references[j].tolist(), enabled[j]))
+        run_steps(calls, [drive.step for drive in sampled], times.tolist(), step_size,
                   progress)
-        for j, drive in enumerate(drives):  # the joints at the end of the run
+        for j, drive in enumerate(sampled):  # the joints at the end of the run
             drive.end(*calls.states[2 * j:2 * j + 2])
         messages = calls.messages()
 
-    traces = [drive.trace(joint, step_size) for drive, joint in zip(drives, joints, strict=True)]
+    traces = [drive.trace(joint, step_size) for drive, joint in zip(sampled, joints, strict=True)]
     result = assemble(scenario, variant, model, calls.recorded(), traces, gains, parameters,
-                      messages)
+                      messages, drives=joint_drive_set)
     if keep_traces:
         result.traces = traces
     return result

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from harness.engines.result import RunResult
+from harness.engines.setup import Drives
 from harness.engines.system import (
     MECHANISM,
     SEQUENCER,
@@ -39,10 +40,10 @@ from harness.scenarios import Scenario, Variant
 
 
 def run(scenario: Scenario, variant: Variant, step_size: float,
-        progress: Callable[[int], None] | None = None) -> RunResult:
+        progress: Callable[[int], None] | None = None, drives: Drives = None) -> RunResult:
     """The variant's system run by FMPy's SSP runner at the fixed step, from its SSP archive
     (build/system/<scenario>/<variant>.ssp)."""
-    system = describe(scenario, variant, step_size)
+    system = describe(scenario, variant, step_size, drives=drives)
     result = run_fmpy_ssp(system, write_ssp(system, SYSTEM_DIR / scenario.name /
                                             f"{variant.name}.ssp"))
     if progress is not None:

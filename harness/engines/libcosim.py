@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from harness.engines.result import RunResult
+from harness.engines.setup import Drives
 from harness.engines.system import (
     SYSTEM_DIR,
     EccoSettings,
@@ -32,13 +33,14 @@ SOURCES = ("osp", "ssp")  # the fixed-step run's description: OspSystemStructure
 
 
 def run(scenario: Scenario, variant: Variant, step_size: float,
-        progress: Callable[[int], None] | None = None, source: str = "osp") -> RunResult:
+        progress: Callable[[int], None] | None = None, source: str = "osp",
+        drives: Drives = None) -> RunResult:
     """The variant's system run by libcosim at the fixed step, from its OSP description
     (build/system/<scenario>/osp/<variant>/OspSystemStructure.xml) or its SSP archive
     (build/system/<scenario>/<variant>.ssp)."""
     if source not in SOURCES:
         raise UserError(f"--source = {source!r} must be one of {', '.join(SOURCES)}")
-    system = describe(scenario, variant, step_size)
+    system = describe(scenario, variant, step_size, drives=drives)
     files = SYSTEM_DIR / scenario.name
     path = (write_osp(system, files / "osp" / variant.name) if source == "osp"
             else write_ssp(system, files / f"{variant.name}.ssp"))
@@ -50,14 +52,14 @@ def run(scenario: Scenario, variant: Variant, step_size: float,
 
 def run_ecco(scenario: Scenario, variant: Variant, step_size: float,
              progress: Callable[[int], None] | None = None,
-             ecco: EccoSettings | None = None) -> RunResult:
+             ecco: EccoSettings | None = None, drives: Drives = None) -> RunResult:
     """The variant's system run by libcosim under ECCO (default EccoSettings), step_size [s]
     its first step; its OSP description with the ECCO configuration is written to
     build/system/<scenario>/osp-ecco/<variant>/ for libcosim's own command line, the run is
     made through libcosimpy's API (`ecco_execution`)."""
     ecco = ecco or EccoSettings()
     ecco.check()
-    system = describe(scenario, variant, step_size, ecco=ecco)
+    system = describe(scenario, variant, step_size, ecco=ecco, drives=drives)
     write_osp(system, SYSTEM_DIR / scenario.name / "osp-ecco" / variant.name)
     result = run_libcosim(system)
     if progress is not None:

@@ -27,14 +27,19 @@ import numpy as np
 import pandas as pd
 from scipy.integrate import solve_ivp
 
-from fmu_src.units.drive.dc_motor import armature_rate, armature_voltage, drive_powers
+from fmu_src.units.drive.dc_motor import (
+    armature_rate,
+    armature_voltage,
+    drive_powers,
+    transmitted_effort,
+)
 from harness import registry
 from harness.drive.controller import ControllerDesign, design_pid
 from harness.drive.metrics import ENERGIES
 from harness.drive.trace import DriveTrace
 from harness.engines import DEFAULT_STEP
 from harness.engines.result import RECORD_INTERVAL, RunResult, assemble
-from harness.engines.setup import Motors, joint_motors, run_parameters
+from harness.engines.setup import Drives, Motors, hold_current, joint_drives, run_parameters
 from harness.errors import UserError
 from harness.scenarios import Scenario, Variant, ramp
 
@@ -59,12 +64,13 @@ def physics_module(model: str) -> ModuleType:
 
 
 def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,
-               motor: Motors = None) -> Any:
+               motor: Motors = None, drives: Drives = None) -> Any:
     """The physics module's validated Parameters of a run: defaults, then the run's
-    parameters (`harness.engines.setup.run_parameters`)."""
+    parameters (`harness.engines.setup.run_parameters`) with its drives."""
     scenario = scenario.for_variant(variant)
     values = {f.name: f.default for f in fields(physics.Parameters)}
-    values.update(run_parameters(scenario, variant, joint_motors(scenario, motor)))
+    values.update(run_parameters(scenario, variant, [
+        drive.parameters for drive in joint_drives(scenario, motor, drives)]))
     p = physics.Parameters(**values)
     physics.validate(p)
     return p
@@ -72,33 +78,45 @@ def parameters(physics: ModuleType, scenario: Scenario, variant: Variant,
 
 def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         progress: Callable[[int], None] | None = None, motor: Motors = None,
-        design: ControllerDesign = ControllerDesign(), rtol: float = RTOL) -> RunResult:
-    """Solve the whole task as one ODE; its series and metrics sampled at step_size [s]."""
+        design: ControllerDesign = ControllerDesign(), rtol: float = RTOL,
+        drives: Drives = None) -> RunResult:
+    """Solve the whole task as one ODE; its series and metrics sampled at step_size [s].
+    drives: each joint's drive by name, else motor's legacy drives
+    (`harness.engines.setup.joint_drives`). A drive switched off for a phase
+    (`Scenario.drive_enabled`) carries no current and its controller holds; switched on, its
+    controller starts with the integral reset and no derivative kick."""
     model = variant.model or scenario.model
     physics = physics_module(model)
     scenario = scenario.for_variant(variant)
     joints = scenario.joints
-    drives = joint_motors(scenario, motor)
-    p = parameters(physics, scenario, variant, motor)
+    p = parameters(physics, scenario, variant, motor, drives)
+    joint_drive_set = joint_drives(scenario, motor, drives)
+    models = [drive.parameters for drive in joint_drive_set]
+    enabled = [scenario.drive_enabled(j) for j in range(len(joints))]
     gains = [design_pid(m, getattr(p, joint.inertia) + m.J_drive, getattr(p, joint.friction),
-                        design) for joint, m in zip(joints, drives, strict=True)]
+                        design) for joint, m in zip(joints, models, strict=True)]
     state_names = physics.State._fields
     position_index = [state_names.index(joint.position) for joint in joints]
     speed_index = [state_names.index(joint.speed) for joint in joints]
     n_mech, n_joints = len(state_names), len(joints)
     energy_start = n_mech + DRIVE_STATES * n_joints
 
-    def drive_signals(y: np.ndarray, references: list[float]) -> list[tuple[float, ...]]:
-        """Per joint at state y with the given reference positions: (voltage [V], current
-        [A], effort, error)."""
+    def drive_signals(y: np.ndarray, references: list[float], phase: int
+                      ) -> list[tuple[float, ...]]:
+        """Per joint at state y in a phase with the given reference positions: (voltage [V],
+        current [A], effort, error); a drive that is off gives 0 V, 0 A and no effort."""
         signals = []
-        for j, (m, g) in enumerate(zip(drives, gains, strict=True)):
+        for j, (m, g) in enumerate(zip(models, gains, strict=True)):
             current, integral, filtered = y[n_mech + DRIVE_STATES * j:
                                             n_mech + DRIVE_STATES * (j + 1)]
             error = references[j] - y[position_index[j]]
+            if not enabled[j][phase]:
+                signals.append((0.0, 0.0, 0.0, error))
+                continue
             voltage = g.Kp * error + integral + g.Kd / g.T_f * (error - filtered)
             voltage = min(max(voltage, -m.V_supply), m.V_supply)
-            signals.append((voltage, current, m.torque_per_amp * current, error))
+            effort = transmitted_effort(m, current, y[speed_index[j]])
+            signals.append((voltage, current, effort, error))
         return signals
 
     # start in equilibrium, as the co-simulation does
@@ -107,9 +125,10 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     out0 = physics.outputs(p, _inputs(physics, joints, segments[0], 0.0, [0.0] * n_joints),
                            mech0)
     x = [*mech0]
-    for joint, m, i, initial in zip(joints, drives, position_index, scenario.initial_angle,
-                                    strict=True):
-        current = joint.hold_effort(getattr(out0, joint.static_output)) / m.torque_per_amp
+    for j, (joint, m, i, initial) in enumerate(zip(joints, models, position_index,
+                                                   scenario.initial_angle, strict=True)):
+        current = (hold_current(m, joint, getattr(out0, joint.static_output))
+                   if enabled[j][0] else 0.0)
         x += [current, armature_voltage(m, current, 0.0), initial - mech0[i]]
     x = np.array(x + [0.0] * (len(ENERGIES) * n_joints))
 
@@ -128,18 +147,22 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         def references_at(s: float, targets=targets) -> list[float]:
             return [ramp(*target, "quintic", s) for target in targets]
 
+        x = _switch_drives(x, k, enabled, models, references_at(0.0), position_index, n_mech,
+                           energy_start)
+
         def rhs(t: float, y: np.ndarray, t0=t0, t1=t1, segment=segment,
-                references_at=references_at) -> np.ndarray:
+                references_at=references_at, k=k) -> np.ndarray:
             s = (t - t0) / (t1 - t0)
             mech = y[:n_mech]
             efforts, d_drive, d_energy = [], [], []
             for j, (voltage, current, effort, error) in enumerate(
-                    drive_signals(y, references_at(s))):
-                m, g, speed = drives[j], gains[j], mech[speed_index[j]]
+                    drive_signals(y, references_at(s), k)):
+                m, g, speed = models[j], gains[j], mech[speed_index[j]]
                 filtered = y[n_mech + DRIVE_STATES * j + 2]
                 efforts.append(effort)
-                d_drive += [armature_rate(m, voltage, current, speed), g.Ki * error,
-                            (error - filtered) / g.T_f]
+                on = enabled[j][k]
+                d_drive += [armature_rate(m, voltage, current, speed) if on else 0.0,
+                            g.Ki * error if on else 0.0, (error - filtered) / g.T_f]
                 d_energy += drive_powers(m, voltage, current, effort, speed)
             u = _inputs(physics, joints, segment, s, efforts)
             rates = _input_rates(physics, segment, s, t1 - t0)
@@ -155,7 +178,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         x = solution.y[:, -1]
         for t, y in zip(points, solution.y.T, strict=False):  # and the end if it is a point
             s = (t - t0) / (t1 - t0)
-            drive = drive_signals(y, references_at(s))
+            drive = drive_signals(y, references_at(s), k)
             if len(samples) % every == 0:  # a recorded row: the mechanism's outputs
                 outputs.append(physics.outputs(
                     p, _inputs(physics, joints, segment, s, [d[2] for d in drive]),
@@ -175,9 +198,10 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         voltage, current, effort = (signal_table[:, j, i] for i in range(3))
         # the drive's values at the communication points, held over each step, for the
         # series and the effort, current and tracking metrics; its energies are the solve's
-        traces.append(DriveTrace(joint, drives[j], step_size, voltage[:-1], current[:-1],
+        traces.append(DriveTrace(joint, models[j], step_size, voltage[:-1], current[:-1],
                                  effort[:-1], current, states[:, position_index[j]],
-                                 states[:, speed_index[j]], scenario.reference(grid, j)))
+                                 states[:, speed_index[j]], scenario.reference(grid, j),
+                                 np.array(enabled[j])[phase_of[:-1]]))
         first = energy_start + len(ENERGIES) * j
         cumulative = dict(zip(ENERGIES, states[:, first:first + len(ENERGIES)].T, strict=True))
         exact.append(cumulative | {"W_bond_drive": cumulative["W_link"],
@@ -185,7 +209,29 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                                    "W_bond_error": np.zeros(len(grid))})
     return assemble(scenario, variant, model, recorded, traces,
                     {joint.name: g for joint, g in zip(joints, gains, strict=True)},
-                    run_parameters(scenario, variant, drives), [], exact)
+                    run_parameters(scenario, variant, models), [], exact, joint_drive_set)
+
+
+def _switch_drives(x: np.ndarray, phase: int, enabled: list[tuple[bool, ...]],
+                   drives: list, references: list[float], position_index: list[int],
+                   n_mech: int, energy_start: int) -> np.ndarray:
+    """The state at the start of a phase with the drives switched as it says: a drive
+    switched off drops its current (the armature's magnetic energy goes to E_copper); one
+    switched on starts its controller with the integral reset and the filtered error at the
+    error (no derivative kick)."""
+    x = x.copy()
+    for j, on in enumerate(enabled):
+        if phase == 0 or on[phase] == on[phase - 1]:
+            continue
+        state = n_mech + DRIVE_STATES * j
+        if on[phase]:
+            x[state + 1] = 0.0
+            x[state + 2] = references[j] - x[position_index[j]]
+        else:
+            copper = energy_start + len(ENERGIES) * j + ENERGIES.index("E_copper")
+            x[copper] += 0.5 * drives[j].L_a * x[state] ** 2
+            x[state] = 0.0
+    return x
 
 
 def _input_rates(physics: ModuleType, segment: dict[str, tuple], s: float,

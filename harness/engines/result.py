@@ -13,6 +13,7 @@ import pandas as pd
 
 from fmu_src.units.controller.pid import PIDGains
 from harness.drive import metrics
+from harness.drive.motor import JointDrive
 from harness.drive.trace import DriveTrace
 from harness.scenarios import Joint, Scenario, Variant
 
@@ -35,6 +36,7 @@ class RunResult:
     joint_phase_work: dict[str, dict[str, float]] = field(default_factory=dict)
     messages: list[str] = field(default_factory=list)
     traces: list[DriveTrace] = field(default_factory=list)  # per joint, if run kept them
+    drives: dict[str, JointDrive] = field(default_factory=dict)  # by joint name
 
     @property
     def phase_work(self) -> dict[str, float]:
@@ -51,14 +53,16 @@ def suffix(scenario: Scenario, joint: Joint) -> str:
 def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.DataFrame,
              traces: list[DriveTrace], gains: dict[str, PIDGains],
              parameters: dict[str, float | bool], messages: list[str],
-             exact: list[dict[str, np.ndarray]] | None = None) -> RunResult:
+             exact: list[dict[str, np.ndarray]] | None = None,
+             drives: list[JointDrive] | None = None) -> RunResult:
     """A RunResult from a run's records, whatever engine produced them.
 
     recorded: the mechanism's variables recorded every RECORD_INTERVAL from t = 0, one row
     each; traces: each joint's drive over the run, in the scenario's joint order. exact: per
     joint, its energies (ENERGIES and BOND of `harness.drive.metrics`) integrated up to every
     communication point by an engine that solves them [J], which replace those the trace's
-    held values give (the monolithic reference's).
+    held values give (the monolithic reference's). drives: each joint's drive, reported
+    with its metrics (`harness.drive.metrics.drive_report`).
     """
     first = traces[0]
     times = first.times
@@ -86,6 +90,8 @@ def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.Data
             joint_phase_work[joint.name] = {
                 name: float(cumulative["W_link"][k1] - cumulative["W_link"][k0])
                 for name, k0, k1 in phases}
+        if drives is not None:
+            per_joint[joint.name] = metrics.drive_report(drives[j], per_joint[joint.name])
         _add_drive_columns(series, trace, cumulative, suffix(scenario, joint), rows)
     if len(scenario.joints) > 1:
         _add_total_columns(series, [suffix(scenario, joint) for joint in scenario.joints])
@@ -99,7 +105,9 @@ def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.Data
                         "event_lag_max": event_lag(times, scenario.phase_times())}
         step_size = float(times[-1] / len(step_size))
     return RunResult(scenario.name, variant.name, model, step_size, series, run_metrics,
-                     gains, parameters, joint_phase_work, messages)
+                     gains, parameters, joint_phase_work, messages,
+                     drives={} if drives is None else dict(zip(
+                         [joint.name for joint in scenario.joints], drives, strict=True)))
 
 
 def recorded_points(times: np.ndarray, step_size: float | np.ndarray) -> np.ndarray:

@@ -10,19 +10,40 @@ error."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
+
+import numpy as np
 
 from harness.drive.controller import ControllerDesign, PIDGains, design_pid
-from harness.drive.motor import MotorParameters, motors
+from harness.drive.motor import LEGACY, JointDrive, MotorParameters, motors
+from harness.errors import UserError
 from harness.scenarios import Joint, Scenario, Variant
 
 Motors = MotorParameters | Mapping[str, MotorParameters] | None
+Drives = Mapping[str, JointDrive] | None
 
 
-def joint_motors(scenario: Scenario, motor: Motors = None) -> list[MotorParameters]:
-    """The motor of each of the scenario's joints (motor as in `harness.drive.motor.motors`:
-    None for MOTORS, one MotorParameters replacing the geared motor, or a mapping by name)."""
-    drives = motors(motor)
-    return [drives[joint.motor] for joint in scenario.joints]
+def joint_drives(scenario: Scenario, motor: Motors = None, drives: Drives = None
+                 ) -> list[JointDrive]:
+    """The drive of each of the scenario's joints: drives by joint name, or the legacy drive
+    each joint names (`harness.drive.motor.LEGACY`) with motor's parameters (as in
+    `harness.drive.motor.motors`: None, one MotorParameters replacing the geared motor, or a
+    mapping by name)."""
+    if drives is not None:
+        missing = [joint.name for joint in scenario.joints if joint.name not in drives]
+        if missing:
+            raise UserError(f"scenario {scenario.name}: no drive for joint(s) "
+                            f"{', '.join(missing)}")
+        return [drives[joint.name] for joint in scenario.joints]
+    legacy = motors(motor)
+    return [replace(LEGACY[joint.motor], parameters=legacy[joint.motor])
+            for joint in scenario.joints]
+
+
+def joint_motors(scenario: Scenario, motor: Motors = None, drives: Drives = None
+                 ) -> list[MotorParameters]:
+    """The model of each of the scenario's joints' drives (`joint_drives`)."""
+    return [drive.parameters for drive in joint_drives(scenario, motor, drives)]
 
 
 def run_parameters(scenario: Scenario, variant: Variant,
@@ -44,5 +65,17 @@ def joint_drive(values: Mapping[str, float], joint: Joint, drive_motor: MotorPar
     start."""
     gains = design_pid(drive_motor, values[joint.inertia] + drive_motor.J_drive,
                        values[joint.friction], design)
-    return gains, joint.hold_effort(values[joint.static_output]) / drive_motor.torque_per_amp
+    return gains, hold_current(drive_motor, joint, values[joint.static_output])
 
+
+def hold_current(drive_motor: MotorParameters, joint: Joint, static_output: float) -> float:
+    """The motor current [A] that holds the joint's static output at standstill."""
+    return joint.hold_effort(static_output) / drive_motor.standstill_torque_per_amp
+
+
+def enabled_steps(scenario: Scenario, joint: int, times: np.ndarray) -> list[bool]:
+    """Whether the joint's drive is on over each step from times[k] (len(times) - 1 values):
+    that of the phase holding the step's start (`Scenario.drive_enabled`)."""
+    per_phase = np.array(scenario.drive_enabled(joint), dtype=bool)
+    phase = np.clip(scenario.phase_indices(times[:-1]), 0, len(per_phase) - 1)
+    return per_phase[phase].tolist()

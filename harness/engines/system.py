@@ -38,11 +38,11 @@ import pandas as pd
 from fmu_src.units.drive.dc_motor import armature_voltage
 from harness import scenarios
 from harness.drive.controller import ControllerDesign, PIDGains
-from harness.drive.motor import start_currents
+from harness.drive.motor import JointDrive, start_currents
 from harness.drive.trace import DriveTrace
 from harness.engines import DEFAULT_STEP
 from harness.engines.result import RECORD_INTERVAL, RunResult, assemble, recorded_points, suffix
-from harness.engines.setup import joint_drive, joint_motors, run_parameters
+from harness.engines.setup import Drives, enabled_steps, joint_drive, joint_drives, run_parameters
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu import osp
@@ -111,6 +111,7 @@ class System:
     connections: tuple[tuple[str, str, str, str], ...]
     fmus: dict[str, Path]
     ecco: EccoSettings | None = None   # None: libcosim's fixed step
+    drives: tuple[JointDrive, ...] = ()  # each joint's drive, in the scenario's joint order
 
     @property
     def name(self) -> str:
@@ -135,13 +136,16 @@ def drive(scenario: scenarios.Scenario, joint: scenarios.Joint) -> str:
 def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
              step_size: float = DEFAULT_STEP,
              design: ControllerDesign = ControllerDesign(),
-             ecco: EccoSettings | None = None) -> System:
+             ecco: EccoSettings | None = None, drives: Drives = None) -> System:
     """The system of FMUs for a variant, with the harness's parameters and start (the
     ScenarioSequencer built for the scenario if build/fmus' one plays another). A variant's
-    own joints get their controllers and drives too (`Scenario.for_variant`). ecco: run it
-    with ECCO (step_size is then its first step), else at the fixed step."""
+    own joints get their controllers and drives too (`Scenario.for_variant`), each drive
+    switched on and off by the sequencer (`<position>_enable`). ecco: run it with ECCO
+    (step_size is then its first step), else at the fixed step. drives: each joint's drive by
+    name, else the legacy drives (`harness.engines.setup.joint_drives`)."""
     scenario = scenario.for_variant(variant)
-    drive_motors = joint_motors(scenario)
+    joint_drive_set = joint_drives(scenario, drives=drives)
+    drive_motors = [drive.parameters for drive in joint_drive_set]
     model = variant.model or scenario.model
     mechanism_parameters = run_parameters(scenario, variant, drive_motors)
     inputs = {name: signal[0] for name, signal in
@@ -154,9 +158,11 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
     with CoSimFMU(fmu_build.locate(model), f"{scenario.name}.{variant.name}.design") as fmu:
         fmu.set(inputs)
         fmu.initialize(mechanism_parameters, stop_time=scenario.duration)
-        for joint, motor in zip(scenario.joints, drive_motors, strict=True):
+        for j, (joint, motor) in enumerate(zip(scenario.joints, drive_motors, strict=True)):
             values = fmu.get([joint.inertia, joint.friction, joint.static_output])
             gains, hold_current = joint_drive(values, joint, motor, design)
+            if not scenario.drive_enabled(j)[0]:  # off from the start: nothing to hold
+                hold_current = 0.0
             control, power = controller(scenario, joint), drive(scenario, joint)
             models |= {control: "PositionController", power: "DcMotorDrive"}
             parameters[control] = {**gains._asdict(), "V_supply": motor.V_supply,
@@ -166,14 +172,16 @@ def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
                             (MECHANISM, joint.position, control, "theta"),
                             (control, "V", power, "V"),
                             (MECHANISM, joint.speed, power, "omega"),
-                            (power, "tau_drive", MECHANISM, joint.effort)]
+                            (power, "tau_drive", MECHANISM, joint.effort),
+                            (SEQUENCER, f"{joint.position}_enable", control, "enable"),
+                            (SEQUENCER, f"{joint.position}_enable", power, "enable")]
     models[MECHANISM] = model
     parameters[MECHANISM] = mechanism_parameters
     connections += [(SEQUENCER, name, MECHANISM, name) for name in inputs]
     fmus = {m: fmu_build.locate(m) for m in set(models.values()) - {fmu_build.SEQUENCER}}
     fmus[fmu_build.SEQUENCER] = sequencer_fmu(scenario)
     return System(scenario, variant, step_size, models, parameters, tuple(connections), fmus,
-                  ecco)
+                  ecco, tuple(joint_drive_set))
 
 
 def _plays(fmu: Path, scenario: scenarios.Scenario) -> bool:
@@ -244,18 +252,22 @@ def system_result(system: System, frame: pd.DataFrame, booleans: pd.DataFrame,
     # Jacobi: over step k the drive holds the controller's V(t_k) and the speed omega(t_k),
     # and the mechanism gets the drive's effort of step k - 1, i.e. its output at t_k
     traces, gains = [], {}
-    for joint, motor in zip(scenario.joints, joint_motors(scenario), strict=True):
+    point_times = np.arange(len(frame)) * system.step_size if times is None else times
+    for j, (joint, joint_drive_) in enumerate(zip(scenario.joints, system.drives, strict=True)):
+        motor = joint_drive_.parameters
         control, power = controller(scenario, joint), drive(scenario, joint)
         voltage = frame[f"{control}.V"].to_numpy()
         speed = frame[f"{MECHANISM}.{joint.speed}"].to_numpy()
         current = frame[f"{power}.i"].to_numpy()[1:]
+        enabled = np.array(enabled_steps(scenario, j, point_times))
         traces.append(DriveTrace(
             joint, motor, step, voltage[:-1], current,
             frame[f"{power}.tau_drive"].to_numpy()[:-1],
-            start_currents(motor, step, voltage[:-1], speed[:-1], current),
+            start_currents(motor, step, voltage[:-1], speed[:-1], current, enabled),
             frame[f"{MECHANISM}.{joint.position}"].to_numpy(), speed,
-            frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy()))
+            frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy(), enabled))
         gains[joint.name] = PIDGains(*(float(system.parameters[control][n])
                                        for n in PIDGains._fields))
     return assemble(scenario, system.variant, system.models[MECHANISM], table, traces,
-                           gains, dict(system.parameters[MECHANISM]), messages)
+                    gains, dict(system.parameters[MECHANISM]), messages,
+                    drives=list(system.drives))

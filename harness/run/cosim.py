@@ -28,9 +28,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 from tqdm import tqdm
 
 from harness import interrupts, scenarios
+from harness.drive.motor import JointDrive
+from harness.drive.sizing import Sizing
 from harness.engines import DEFAULT_STEP, ENGINES, Engine
 from harness.engines.libcosim import SOURCES
 from harness.engines.result import RunResult
@@ -38,7 +41,8 @@ from harness.engines.setup import joint_motors, run_parameters
 from harness.engines.system import EccoSettings
 from harness.errors import UserError
 from harness.fmu.models import check_names
-from harness.run import results
+from harness.io import write_csv
+from harness.run import results, sizing
 from harness.scenarios import losses
 
 BUILD_RESULTS = Path(__file__).resolve().parents[2] / "build" / "results"
@@ -54,6 +58,7 @@ ECCO_OPTIONS = (
     ("p_gain", "", "proportional gain of the step controller"),
     ("i_gain", "", "integral gain of the step controller"),
 )
+DRIVE_CONFIGURATIONS = ("sized", "legacy")
 POLL_INTERVAL = 0.1  # [s] between the parent's looks at an interrupt while workers run
 
 
@@ -87,6 +92,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="results folder: files go to OUT/<scenario>/ and "
                              "OUT/<scenario>/realistic/ (default: results/ for --engine fmpy, "
                              "build/results/<engine>/ for the others)")
+    parser.add_argument("--drives", choices=DRIVE_CONFIGURATIONS, default="sized",
+                        help="sized: each joint's drive from the catalogue by the sizing rule "
+                             "(docs/drives.md), resting while a self-locking axis holds; "
+                             "legacy: one lossless maxon RE 30 drive type on every joint, "
+                             "always on (the tables before the fair protocol)")
     parser.add_argument("--losses", default="all", metavar="{all,ideal,realistic}",
                         help="'all', or a comma-separated list of ideal (the scenario as "
                              "written) and realistic (with the losses of real parts, "
@@ -132,12 +142,19 @@ def engine_options(args: argparse.Namespace) -> dict[str, Any]:
 @dataclass(frozen=True)
 class Plan:
     """A result set to make: the scenario (its loss set applied), the variants to run, the
-    loss set's name and the folder the set goes to."""
+    loss set's name and the folder the set goes to; loaded: the scenario as loaded, whose
+    loss sets the variants' drives are sized for (None: the legacy drives)."""
 
     scenario: scenarios.Scenario
     variants: list[str]
     loss_set: str
     folder: Path
+    loaded: scenarios.Scenario | None = None
+
+    @property
+    def scenario_folder(self) -> Path:
+        """The scenario's folder, OUT/<scenario>/ (the ideal set's)."""
+        return self.folder if self.loss_set == "ideal" else self.folder.parent
 
 
 def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
@@ -171,6 +188,8 @@ def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
     plans = []
     for loaded in selected_scenarios(args.scenario, args.variants):
         loaded.check_step(args.step)
+        sized = args.drives == "sized"
+        base = loaded if sized else loaded.drives_always_on()
         spec = args.variants
         if args.scenario == "all" and spec != "all":
             spec = ",".join(v.strip() for v in spec.split(",") if v.strip() in loaded.variants)
@@ -182,7 +201,7 @@ def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
                             f"{', '.join(unsupported)} (model "
                             f"{loaded.variant(unsupported[0]).model or loaded.model}); "
                             f"choose --variants among the others")
-        for loss_set, scenario in losses.loss_sets(loaded, args.losses):
+        for loss_set, scenario in losses.loss_sets(base, args.losses):
             for name in variants:
                 variant = scenario.variant(name)
                 resolved = scenario.for_variant(variant)
@@ -190,36 +209,67 @@ def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
                     resolved, variant, joint_motors(resolved)))
             folder = losses.result_folder(out, scenario, loss_set)
             results.check_result_set(folder)
-            plans.append(Plan(scenario, variants, loss_set, folder))
+            plans.append(Plan(scenario, variants, loss_set, folder, loaded if sized else None))
     return plans
 
 
 def run_variant(engine: Engine, scenario: scenarios.Scenario, name: str, step: float,
-                options: dict[str, Any],
+                options: dict[str, Any], drives: dict[str, JointDrive] | None = None,
                 progress: Callable[[int], None] | None = None) -> RunResult:
-    """One run (in a worker process, or here with a progress callback); KeyboardInterrupt
-    at its next recorded step once an interrupt is requested."""
+    """One run (in a worker process, or here with a progress callback) with the given drives
+    (None: the legacy ones); KeyboardInterrupt at its next recorded step once an interrupt is
+    requested."""
     def advance(steps: int) -> None:
         interrupts.stop_if_requested()
         if progress is not None:
             progress(steps)
 
     interrupts.stop_if_requested()
+    if drives is not None:
+        options = options | {"drives": drives}
     return engine(scenario, scenario.variant(name), step, advance, **options)
+
+
+def size_variant(loaded: scenarios.Scenario, name: str, step: float) -> dict[str, Sizing]:
+    """A variant's sizing (harness.run.sizing) for every loss set of its scenario."""
+    interrupts.stop_if_requested()
+    return sizing.size_variant([s for _, s in losses.loss_sets(loaded, "all")], name, step)
 
 
 def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = False,
             engine: str = "fmpy", options: dict[str, Any] | None = None) -> None:
-    """Run every planned variant in the engine and write each result set (and print its
-    summary) once its runs are done; with workers above 1 both in that many processes.
+    """Size the drives of every planned variant that needs it (once per variant, for all its
+    loss sets), run every planned variant in the engine with them and write each result set
+    (and print its summary) once its runs are done, and each scenario's drives.csv once its
+    variants are sized; with workers above 1 all in that many processes.
     A SIGINT stops the runs (none is interrupted midway in its FMU, nor a write) and raises
     KeyboardInterrupt."""
     runner, options = ENGINES[engine], options or {}
-    jobs = [(index, plan.scenario, name) for index, plan in enumerate(plans)
-            for name in plan.variants]
+    sizings = list(dict.fromkeys((plan.loaded.name, name) for plan in plans
+                                 if plan.loaded is not None for name in plan.variants))
+    loaded = {plan.loaded.name: plan for plan in plans if plan.loaded is not None}
+    sized: dict[tuple[str, str], dict[str, Sizing]] = {}
     remaining = {index: len(plan.variants) for index, plan in enumerate(plans)}
     runs: dict[tuple[int, str], RunResult] = {}
-    total = sum(round(scenario.duration / step) for _, scenario, _ in jobs)
+    total = (sum(round(plan.scenario.duration / step) for plan in plans for _ in plan.variants)
+             + sum(len(losses.loss_sets(loaded[key[0]].loaded, "all"))
+                   * round(loaded[key[0]].loaded.duration / step) for key in sizings))
+
+    def ready(key: tuple[str, str] | None) -> list[tuple]:
+        """The run jobs a finished sizing (None: none needed) makes ready: (index, plan,
+        variant, drives)."""
+        return [(index, plan, name, None if key is None else sizing.joint_drives(
+            sized[key], plan.loss_set)) for index, plan in enumerate(plans)
+            for name in plan.variants
+            if (key is None and plan.loaded is None)
+            or (plan.loaded is not None and (plan.loaded.name, name) == key)]
+
+    def sizing_done(key: tuple[str, str], result: dict[str, Sizing]) -> Plan | None:
+        """Book a sizing; the plan whose scenario's drives.csv it completes, if it does."""
+        sized[key] = result
+        if all((key[0], name) in sized for k, name in sizings if k == key[0]):
+            return loaded[key[0]]
+        return None
 
     def finished(index: int, name: str, run: RunResult) -> tuple | None:
         """Book a run; the arguments of write_result_set when it was its set's last."""
@@ -231,46 +281,77 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
 
     with interrupts.deferred(), tqdm(total=total, unit="step", unit_scale=True,
                                      disable=quiet) as bar:
-        if workers == 1 or len(jobs) == 1:
-            for index, scenario, name in jobs:
-                bar.set_postfix_str(f"{scenario.name}.{name}")
-                write = finished(index, name, run_variant(runner, scenario, name, step,
-                                                          options, bar.update))
+        if workers == 1 or len(sizings) + sum(remaining.values()) == 1:
+            jobs = ready(None)
+            for key in sizings:
+                bar.set_postfix_str(f"sizing {key[0]}.{key[1]}")
+                complete = sizing_done(key, size_variant(loaded[key[0]].loaded, key[1], step))
+                bar.update(len(losses.loss_sets(loaded[key[0]].loaded, "all"))
+                           * round(loaded[key[0]].loaded.duration / step))
+                if complete is not None:
+                    tqdm.write(str(write_drives(complete, sized)))
+                jobs += ready(key)
+            for index, plan, name, drives in jobs:
+                bar.set_postfix_str(f"{plan.scenario.name}.{name}")
+                write = finished(index, name, run_variant(runner, plan.scenario, name, step,
+                                                          options, drives, bar.update))
                 if write is not None:
                     tqdm.write(write_result_set(*write))
             return
-        # longest runs first, so that the last ones to start are short; a set's files are
-        # written by a worker too, while the others still run
-        jobs.sort(key=lambda job: -job[1].duration)
         context = multiprocessing.get_context()
         stop = context.Event()  # the workers' interrupts.requested
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context,
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                    initializer=interrupts.ignore_in_worker, initargs=(stop,))
 
         def submit(*call: object) -> Future:
             with interrupts.blocked():  # the workers (started here) and the pool's threads
                 return pool.submit(*call)
 
+        def submit_runs(jobs: list[tuple]) -> None:
+            # longest runs first, so that the last ones to start are short
+            for index, plan, name, drives in sorted(jobs, key=lambda j: -j[1].scenario.duration):
+                pending[submit(run_variant, runner, plan.scenario, name, step, options,
+                               drives)] = ("run", index, plan.scenario, name)
+
         try:
-            pending = {submit(run_variant, runner, scenario, name, step, options):
-                       (index, scenario, name) for index, scenario, name in jobs}
+            pending: dict[Future, tuple] = {}
+            for key in sizings:
+                pending[submit(size_variant, loaded[key[0]].loaded, key[1], step)] = (
+                    "size", key)
+            submit_runs(ready(None))
             while pending:
                 done, _ = wait(pending, POLL_INTERVAL, return_when=FIRST_COMPLETED)
                 interrupts.stop_if_requested()
                 for future in done:
                     job = pending.pop(future)
-                    if job is None:  # a result set written
+                    if job[0] == "write":  # a result set written
                         tqdm.write(future.result())
-                        continue
-                    index, scenario, name = job
-                    bar.update(round(scenario.duration / step))
-                    bar.set_postfix_str(f"{scenario.name}.{name} done")
-                    write = finished(index, name, future.result())
-                    if write is not None:
-                        pending[submit(write_result_set, *write)] = None
+                    elif job[0] == "size":
+                        key = job[1]
+                        bar.update(len(losses.loss_sets(loaded[key[0]].loaded, "all"))
+                                   * round(loaded[key[0]].loaded.duration / step))
+                        complete = sizing_done(key, future.result())
+                        if complete is not None:
+                            tqdm.write(str(write_drives(complete, sized)))
+                        submit_runs(ready(key))
+                    else:
+                        _, index, scenario, name = job
+                        bar.update(round(scenario.duration / step))
+                        bar.set_postfix_str(f"{scenario.name}.{name} done")
+                        write = finished(index, name, future.result())
+                        if write is not None:
+                            pending[submit(write_result_set, *write)] = ("write",)
         finally:  # done, failed or interrupted: the runs still going stop at their next
             stop.set()  # recorded step, a set being written is finished
             pool.shutdown(cancel_futures=True)
+
+
+def write_drives(plan: Plan, sized: dict[tuple[str, str], dict[str, Sizing]]) -> Path:
+    """The scenario's drives.csv: per variant and joint, the drive the sizing rule picked
+    and its figures over the tasks (harness.drive.sizing)."""
+    rows = [sizing.table_row(variant, joint, s) for (name, variant), joints in sized.items()
+            if name == plan.loaded.name for joint, s in joints.items()]
+    return write_csv(pd.DataFrame(rows), plan.scenario_folder / "drives.csv")
 
 
 def write_result_set(plan: Plan, runs: list[RunResult]) -> str:

@@ -282,9 +282,10 @@ def summary_text(path: Path, scenario: Scenario, loss_set: str = "ideal") -> str
     """A summary CSV of the scenario's loss set as a readable table: energies in J, efforts
     in N m or N, tracking errors in deg (revolute joints) or mm (prismatic joints)."""
     table = pd.read_csv(path)
-    shown = ["variant", "E_drawn", "E_in", "E_copper", "E_mech"]
-    per_drive = ["tau_peak", "tau_rms", "F_peak", "F_rms", "i_rms", "V_peak", "track_err_max",
-                 "track_err_rms"]
+    shown = ["variant", "E_drawn", "E_in", "E_copper", "E_gear", "E_mech"]
+    shown = [c for c in shown if c in table]
+    per_drive = ["tau_peak", "tau_rms", "F_peak", "F_rms", "i_rms", "I_nom", "V_peak",
+                 "track_err_max", "track_err_rms"]
     suffixes = {}
     for variant in scenario.variants.values():  # the joints of every variant
         resolved = scenario.for_variant(variant)
@@ -297,5 +298,20 @@ def summary_text(path: Path, scenario: Scenario, loss_set: str = "ideal") -> str
                 table[column] = plots.joint_drawn_in(joint)[1](table[column])
     shown += ["eps", "W_phases", "eps_W", *(c for c in summary_outputs() if c in table)]
     title = scenario.name if loss_set == "ideal" else f"{scenario.name}, {loss_set} losses"
-    return (f"{title} (tracking errors in deg, or mm for prismatic joints)\n"
-            + table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    return "\n".join([f"{title} (tracking errors in deg, or mm for prismatic joints)",
+                      table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"),
+                      *failed_designs(table, suffixes)])
+
+
+def failed_designs(table: pd.DataFrame, suffixes: Mapping[str, object]) -> list[str]:
+    """A line per drive of the summary whose RMS current exceeds its motor's nominal
+    current (drive_ok false): a failed design."""
+    lines = []
+    for s in suffixes:
+        if f"drive_ok{s}" not in table:
+            continue
+        failed = table[table[f"drive_ok{s}"].astype(str) == "False"]
+        lines += [f"FAILED DESIGN: {row.variant}{s and ' joint ' + s[1:]}: drive "
+                  f"{row[f'drive{s}']} runs at I_rms {row[f'I_rms{s}']:.3g} A, above its "
+                  f"nominal {row[f'I_nom{s}']:.3g} A" for _, row in failed.iterrows()]
+    return lines

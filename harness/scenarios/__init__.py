@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import pprint
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +41,16 @@ class Scenario(core.Scenario):
                             f"{self.duration:g}] (the scenario's duration in 1 to "
                             f"{MAX_STEPS:,} steps)")
 
-    def _phase_indices(self, times: np.ndarray) -> np.ndarray:
+    def drives_always_on(self) -> Scenario:
+        """The scenario with no joint resting when holding (the legacy drive configuration:
+        every drive on from start to end)."""
+        def on(joints: tuple[Joint, ...]) -> tuple[Joint, ...]:
+            return tuple(replace(joint, rest_when_holding=False) for joint in joints)
+        return replace(self, joints=on(self.joints), variants={
+            name: replace(variant, joints=on(variant.joints))
+            for name, variant in self.variants.items()})
+
+    def phase_indices(self, times: np.ndarray) -> np.ndarray:
         """Index of the phase holding each time (phases hold [start, end)); -1 before 0."""
         return np.searchsorted(np.array(self._phase_starts), times, side="right") - 1
 
@@ -48,7 +58,7 @@ class Scenario(core.Scenario):
         """Reference position of one joint (default the first) [rad or m]: quintic segments
         (the last one holds its end time too), in time linear in the phases and times."""
         t0, t1, start, end = np.array(self.reference_segments(joint)).T
-        k = self._phase_indices(times)
+        k = self.phase_indices(times)
         inside = (k >= 0) & (times <= self.duration)
         ref = np.where(k < 0, start[0], end[-1])
         i = k[inside]
@@ -68,7 +78,7 @@ class Scenario(core.Scenario):
         """Input signals at the given times (a phase's changes apply from its start; 0 or
         false before 0), in time linear in the phases and times."""
         segments = self.input_segments(variant)
-        k = self._phase_indices(times)
+        k = self.phase_indices(times)
         inside = k >= 0
         i = k[inside]
         t0, t1 = np.array(self._phase_spans).T

@@ -12,6 +12,10 @@ limited.
 The controller starts at rest with the error of its inputs at initialisation (no derivative
 kick) and the integrator at `integral0`: R_a times the current that holds the static load
 starts the drive in equilibrium, as the harness does.
+
+With `enable` false over a step the drive is switched off: V is 0 and the controller holds
+its state; switched on again it starts from the error then with its integral reset (no
+derivative kick), as the harness's drive does (harness.drive.trace.SampledDrive).
 """
 
 from __future__ import annotations
@@ -64,6 +68,8 @@ class PositionController(ModelSlave):
                             "output limit and anti-windup (Tustin at the communication step)")
         self.add_input("theta_ref", 0.0, "rad", "Reference joint angle")
         self.add_input("theta", 0.0, "rad", "Measured joint angle")
+        self.add_input("enable", True, None, "The drive is on; off (false), V is 0 and the "
+                       "controller holds (switched on, it restarts with its integral reset)")
         # V is held over the last step, so of no input now; at the start it is the output at
         # rest for the error of the inputs then
         at_start = ("theta_ref", "theta")
@@ -89,6 +95,7 @@ class PositionController(ModelSlave):
         self.pid = self.new_pid()
         error = self.error()
         self.pid.reset(error, params.integral0)
+        self.on = True  # the drive was on before the first step
         at_rest = params.Kp * error + params.integral0
         self.V = min(max(at_rest, -params.V_supply), params.V_supply)
         self.saturated = self.V != at_rest
@@ -97,16 +104,24 @@ class PositionController(ModelSlave):
         if dt != self.step_size:
             self.pid.coefficients = tustin_coefficients(self.pid.gains, dt)
             self.step_size = dt
-        self.V = self.pid.update(self.error())
+        error = self.error()
+        if not self.enable:
+            self.on, self.V, self.saturated = False, 0.0, False
+            return
+        if not self.on:  # switched on: a bumpless start
+            self.pid.reset(error)
+            self.on = True
+        self.V = self.pid.update(error)
         self.saturated = self.pid.saturated
 
     @property
-    def controller(self) -> tuple[PIDState, float]:
-        """Hidden state: the PID's state after the last sample, its step size [s]."""
-        return self.pid.state(), self.step_size
+    def controller(self) -> tuple[PIDState, float, bool]:
+        """Hidden state: the PID's state after the last sample, its step size [s], whether
+        the drive was on over the last step."""
+        return self.pid.state(), self.step_size, self.on
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
-        state, self.step_size = hidden["controller"]
+        state, self.step_size, self.on = hidden["controller"]
         self.pid = self.new_pid()
         self.pid.restore(PIDState(*state))
 

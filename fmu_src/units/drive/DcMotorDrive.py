@@ -6,16 +6,21 @@ armature current advances by the exact zero-order hold of that step (`zoh_coeffi
 recomputed when the step size changes), exactly as the harness's `SampledMotor` does.
 
 Outputs after fmi2DoStep(t, h) belong to the step just taken: i is the average armature
-current over [t, t + h], tau_drive = eta N K_t i the effort the drive applies over that step
-and P_elec = V i its average electrical power (so P_elec h is the step's exact electrical
-energy). A master that steps this FMU before the mechanism over the same interval and
-passes tau_drive on (Gauss-Seidel) reproduces the harness's co-simulation.
+current over [t, t + h], tau_drive the effort the drive applies over that step (N K_t i through
+the lossy transmission: times eta where the motor drives the joint, over eta_back where the
+joint drives the motor, `transmitted_effort`) and P_elec = V i its average electrical power
+(so P_elec h is the step's exact electrical energy). With `enable` false over a step the
+drive is switched off: no current, no effort. A master that steps this FMU before the
+mechanism over the same interval and passes tau_drive on (Gauss-Seidel) reproduces the
+harness's co-simulation.
 
 Energies from the start, summed over the steps as the harness's metrics sum them (both take
 each step's energies from `fmu_src.units.drive.dc_motor.step_energies`): E_in = integral of V i dt
 (regeneration credited); E_drawn, the energy from a supply that cannot take energy back,
 max(P_elec, 0) h per step (exact while the current keeps its sign within a step); E_copper =
-R_a integral of i^2 dt, exact.
+R_a integral of i^2 dt, exact (and the armature's magnetic energy when the drive is switched
+off); E_gear, the transmission's loss. The drive's own account closes: E_in = E_copper + E_gear
++ the work it passes on at the speed it holds + the armature's magnetic energy's change.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from fmu_src.units.drive.dc_motor import (
     MotorParameters,
     SampledMotor,
     step_energies,
+    transmitted_effort,
     zoh_coefficients,
 )
 
@@ -48,7 +54,7 @@ class DriveParameters(MotorParameters):
 
 class DcMotorDrive(ModelSlave):
     """DC motor with gearbox: armature L_a di/dt = V - R_a i - K_e N omega, joint-side effort
-    tau_drive = eta N K_t i."""
+    tau_drive = N K_t i through the lossy transmission."""
 
     parameters_type = DriveParameters
     hidden_state = ("armature",)
@@ -64,10 +70,12 @@ class DcMotorDrive(ModelSlave):
         self.add_input("V", 0.0, "V", "Armature voltage command; saturated to [-V_supply, "
                        "V_supply] before it reaches the armature")
         self.add_input("omega", 0.0, "rad/s", "Joint speed (back-EMF K_t N omega)")
+        self.add_input("enable", True, None, "The drive is on; off (false), its amplifier "
+                       "is open: no current, no effort")
         for name, unit, description in OUTPUTS:
             # outputs of the last step, so of no input now; P_elec = V i0 at the start
             self.add_output(name, unit, description,
-                            initial_depends_on=("V",) if name == "P_elec" else ())
+                            initial_depends_on=INITIAL_DEPENDENCIES.get(name, ()))
         self.motor: SampledMotor | None = None
         self.step_size = 0.0  # the step size the motor's coefficients are for [s]
 
@@ -80,23 +88,26 @@ class DcMotorDrive(ModelSlave):
         self.step_size = STEP_SIZE
         self.motor = SampledMotor(params, zoh_coefficients(params, self.step_size), params.i0)
         self.i = params.i0
-        self.tau_drive = params.torque_per_amp * params.i0
+        self.tau_drive = transmitted_effort(params, params.i0, float(self.omega))
         self.P_elec = self.voltage() * params.i0
-        self.E_in = self.E_drawn = self.E_copper = 0.0
+        self.E_in = self.E_drawn = self.E_copper = self.E_gear = 0.0
 
     def step(self, dt: float) -> None:
         p, motor = self.params, self.motor
         if dt != self.step_size:
             motor.coefficients = zoh_coefficients(p, dt)
             self.step_size = dt
-        voltage, omega, i_start = self.voltage(), float(self.omega), motor.current
-        self.i, self.tau_drive = motor.step(voltage, omega)
+        enabled, omega, i_start = bool(self.enable), float(self.omega), motor.current
+        voltage = self.voltage() if enabled else 0.0
+        self.i, self.tau_drive = motor.step(voltage, omega, enabled)
         self.P_elec = voltage * self.i
         # the drive does not see the joint's travel: its mechanical work is not an output
-        energies = step_energies(p, dt, voltage, omega, i_start, self.i, self.tau_drive, 0.0)
+        energies = step_energies(p, dt, voltage, omega, i_start, self.i, self.tau_drive, 0.0,
+                                 enabled)
         self.E_in += energies.E_in
         self.E_drawn += energies.E_drawn
         self.E_copper += energies.E_copper
+        self.E_gear += energies.E_gear
 
     @property
     def armature(self) -> tuple[float, float]:
@@ -110,15 +121,23 @@ class DcMotorDrive(ModelSlave):
 
 
 OUTPUTS = (
-    ("tau_drive", "N.m", "Joint-side drive torque eta N K_t i over the last step (its average)"),
+    ("tau_drive", "N.m", "Joint-side drive torque over the last step (its average): N K_t i "
+                         "times eta where the motor drives the joint, over eta_back where the "
+                         "joint drives it"),
     ("i", "A", "Armature current, average over the last step"),
     ("P_elec", "W", "Electrical power V i into the armature, average over the last step"),
     ("E_in", "J", "Net electrical energy since the start, integral of V i dt (regeneration "
                   "credited)"),
     ("E_drawn", "J", "Energy drawn from a supply that cannot take energy back since the "
                      "start: max(P_elec, 0) times the step size, summed over the steps"),
-    ("E_copper", "J", "Armature copper loss since the start, R_a integral of i^2 dt"),
+    ("E_copper", "J", "Armature copper loss since the start, R_a integral of i^2 dt (and "
+                      "the armature's magnetic energy when switched off)"),
+    ("E_gear", "J", "Transmission loss since the start, integral of (N K_t i - tau_drive) "
+                    "omega dt"),
 )
+# what an output depends on at the start, before any step: the start current's power and
+# the transmission's direction
+INITIAL_DEPENDENCIES = {"P_elec": ("V",), "tau_drive": ("omega",)}
 
 
 REGISTRATION = Registration(
@@ -132,6 +151,8 @@ REGISTRATION = Registration(
         ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 3.0, 0.0), (0.5, 3.0, 0.0),
          (1.0, 3.0, 2.0), (1.25, 3.0, 2.0), (1.25, 0.0, 2.0), (1.5, 0.0, 2.0))),
     moving_run=Run({}, {"V": 12.0, "omega": 1.0}, 2.0),
-    dependency_probes=(Run({}, {"V": 5.0, "omega": 1.0}, 0.05),),
-    initial_parameters={"i0": 0.5},
+    # a joint speed inside the transmission's blend at standstill (STUCK_SPEED / N), where the
+    # start effort depends on it
+    dependency_probes=(Run({}, {"V": 5.0, "omega": 0.001}, 0.05),),
+    initial_parameters={"i0": 0.5, "eta": 0.7, "eta_back": 0.6},
 )

@@ -1,31 +1,37 @@
 """DC motor with gearbox: the one definition of the drive model (standard library only).
 
-Armature: L_a di/dt = V - R_a i - K_e N omega; joint-side effort tau_drive = eta N K_t i
-(docs/drive_and_controller.md), written once in `armature_voltage` and `armature_rate`, from
-which the state-space matrices, the zero-order-hold step and the steady state derive. The
-drive's energies (E_in, E_drawn, E_copper, E_mech, W_link) are defined once too, as powers in
-`drive_powers` and over a zero-order-hold step in `step_energies`, for the FMU, the harness's
-metrics and CSV columns and the monolithic reference alike; both work elementwise on floats
-and on numpy arrays. Inputs (V, omega), outputs (tau_drive, i), state i. N is the
-transmission ratio, motor radians per joint radian (a gearbox) or per joint metre (a lead
-screw, N = 2 pi / lead): the same equations then give a force and a reflected mass.
+Armature: L_a di/dt = V - R_a i - K_e N omega, written once in `armature_voltage` and
+`armature_rate`, from which the state-space matrices, the zero-order-hold step and the
+steady state derive. Joint-side effort (`transmitted_effort`, docs/drive_and_controller.md):
+N K_t i passed on by a lossy transmission, eta N K_t i when the motor drives the joint (i
+omega > 0), N K_t i / eta_back when the joint drives the motor (i omega < 0), as Modelica's
+LossyGear does, blended to N K_t i at standstill (`STUCK_SPEED`). The drive's energies
+(E_in, E_drawn, E_copper, E_gear, E_mech, W_link) are defined once too, as powers in
+`drive_powers` and over a zero-order-hold step in `step_energies`, for the FMU, the
+harness's metrics and CSV columns and the monolithic reference alike; both work elementwise
+on floats and on numpy arrays. The drive's own energy account closes: E_in = E_copper +
+E_gear + the work it passes to the joint + the change of the armature's magnetic energy.
+Inputs (V, omega), outputs (tau_drive, i), state i. N is the transmission ratio, motor
+radians per joint radian (a gearbox) or per joint metre (a lead screw, N = 2 pi / lead): the
+same equations then give a force and a reflected mass.
 
 Used by the harness (which builds the python-control model from `armature_matrices` and
 discretises it with c2d) and by the `DcMotorDrive` FMU (which uses the closed-form zero-order
 hold of `zoh_coefficients`); the tests check that both discretisations agree.
 
-Default motor: one coherent small geared DC motor, a 60 W class 24 V graphite-brush motor
-with a 3-stage planetary gearhead (the data of the maxon RE 30 / 24 V datasheet, #310007:
-R_a = 0.611 Ohm, L = 0.119 mH, K_t = 25.9 mN m/A, rotor inertia 33.5 g cm^2, nominal
-current 3.44 A; gear ratio 111:1). At the link that gives 2.87 N m/A, 9.9 N m at the motor's
-nominal current (the unbalanced Franchetti link with 1 kg needs up to 9.3 N m), a no-load
-speed of 8.3 rad/s at 24 V (the task peaks at 0.4 rad/s), and J_drive = J_rotor N^2 =
-0.0413 kg m^2.
+Default motor (the `legacy` drive configuration; the harness picks each joint's drive from
+its catalogue, harness/drive/catalogue.toml): one coherent small geared DC motor, a 60 W
+class 24 V graphite-brush motor with a 3-stage planetary gearhead (the data of the maxon RE
+30 / 24 V datasheet, #310007: R_a = 0.611 Ohm, L = 0.119 mH, K_t = 25.9 mN m/A, rotor
+inertia 33.5 g cm^2, nominal current 3.44 A; gear ratio 111:1). At the link that gives 2.87
+N m/A, 9.9 N m at the motor's nominal current (the unbalanced Franchetti link with 1 kg
+needs up to 9.3 N m), a no-load speed of 8.3 rad/s at 24 V (the task peaks at 0.4 rad/s),
+and J_drive = J_rotor N^2 = 0.0413 kg m^2.
 
-Gear efficiency: eta multiplies the torque both ways in this linear model, so eta < 1 would
-make a back-driven gearbox return more energy than it receives. The default is eta = 1 and
-the gearbox's losses are left to the joint's viscous friction; set eta < 1 only for studies
-where the drive never regenerates.
+Enable: a drive switched off (`enabled` false: its amplifier's bridge open) carries no
+current and applies no effort; the magnetic energy its armature held when it was switched off
+is dissipated (booked in E_copper, the armature's losses). The default transmission is
+lossless (eta = eta_back = 1).
 """
 
 from __future__ import annotations
@@ -49,8 +55,10 @@ class MotorParameters:
     J_rotor: float = parameter(33.5e-7, "kg.m2", "Rotor inertia", min=0.0)
     N: float = parameter(111.0, "1", "Transmission ratio, motor rad per joint rad (or per m)",
                          min=0.0, min_exclusive=True)
-    eta: float = parameter(1.0, "1", "Transmission torque efficiency (see module docstring)",
-                           min=0.0, max=1.0, min_exclusive=True)
+    eta: float = parameter(1.0, "1", "Transmission efficiency when the motor drives the joint "
+                           "(i omega > 0)", min=0.0, max=1.0, min_exclusive=True)
+    eta_back: float = parameter(1.0, "1", "Transmission efficiency when the joint drives the "
+                                "motor (i omega < 0)", min=0.0, max=1.0, min_exclusive=True)
     V_supply: float = parameter(24.0, "V", "Supply voltage: |V| <= V_supply", min=0.0,
                                 min_exclusive=True)
 
@@ -64,8 +72,15 @@ class MotorParameters:
 
     @property
     def torque_per_amp(self) -> float:
-        """Joint-side effort per armature ampere, eta N K_t [N m/A]."""
+        """Joint-side effort per armature ampere while the motor drives the joint, eta N K_t
+        [N m/A or N/A]: the plant gain the controller is designed for."""
         return self.eta * self.N * self.K_t
+
+    @property
+    def standstill_torque_per_amp(self) -> float:
+        """Joint-side effort per armature ampere at standstill, N K_t [N m/A or N/A]: what
+        holds a static load."""
+        return self.N * self.K_t
 
     @property
     def back_emf_per_link_speed(self) -> float:
@@ -77,6 +92,33 @@ def armature_voltage(p: MotorParameters, current: Any, omega: Any) -> Any:
     """The armature's resistive drop plus its back-EMF, R_a i + K_e N omega [V], at current
     i [A] and joint speed omega [rad/s or m/s]: the voltage that holds i steady."""
     return p.R_a * current + p.back_emf_per_link_speed * omega
+
+
+# The motor speed [rad/s] above which the transmission's efficiency applies in full: below
+# it the efficiency blends linearly to lossless at standstill, a regularised stuck mode
+# (docs/drive_and_controller.md). A lossy gear at standstill passes any torque between its
+# two efficiencies' values, set by the load; a co-simulation step hands the mechanism one
+# held value, so a sharp switch at zero speed would make a holding joint chatter between the
+# two. 1 rad/s is about 10 rpm, a thousandth of the catalogue motors' speeds.
+STUCK_SPEED = 1.0
+
+
+def transmission_factor(p: MotorParameters, current: Any, omega: Any) -> Any:
+    """The effort the transmission passes on per N K_t i [1]: eta where the motor drives the
+    joint (i omega > 0), 1 / eta_back where the joint drives the motor (i omega < 0), blended
+    linearly to 1 below the motor speed STUCK_SPEED. Elementwise on floats and numpy arrays."""
+    sign = (current > 0.0) * 1.0 - (current < 0.0) * 1.0
+    drive = sign * omega * p.N / STUCK_SPEED   # > 0: the motor drives; full at 1
+    forward, backward = positive_part(drive), positive_part(-drive)
+    forward = forward - positive_part(forward - 1.0)
+    backward = backward - positive_part(backward - 1.0)
+    return 1.0 + forward * (p.eta - 1.0) + backward * (1.0 / p.eta_back - 1.0)
+
+
+def transmitted_effort(p: MotorParameters, current: Any, omega: Any) -> Any:
+    """The effort [N m or N] the transmission applies to the joint at armature current i [A]
+    and joint speed omega [rad/s or m/s]: N K_t i times `transmission_factor`."""
+    return p.N * p.K_t * current * transmission_factor(p, current, omega)
 
 
 def armature_rate(p: MotorParameters, voltage: Any, current: Any, omega: Any) -> Any:
@@ -165,13 +207,18 @@ class SampledMotor:
         self.coefficients = coefficients
         self.current = current
 
-    def step(self, voltage: float, omega: float) -> tuple[float, float]:
-        """Advance one step with V [V] and omega held; returns (average current [A], effort)."""
+    def step(self, voltage: float, omega: float, enabled: bool = True) -> tuple[float, float]:
+        """Advance one step with V [V] and omega held; returns (average current [A], effort).
+        Switched off (enabled false), the armature carries no current from the step's start
+        and the effort is 0."""
+        if not enabled:
+            self.current = 0.0
+            return 0.0, 0.0
         a, b_v, b_w, avg_a, avg_b_v, avg_b_w = self.coefficients
         i0 = self.current
         average = avg_a * i0 + avg_b_v * voltage + avg_b_w * omega
         self.current = a * i0 + b_v * voltage + b_w * omega
-        return average, self.motor.torque_per_amp * average
+        return average, transmitted_effort(self.motor, average, omega)
 
 
 def copper_energy(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_start: Any) -> Any:
@@ -207,6 +254,7 @@ class DriveEnergies(NamedTuple):
     E_in: Any       # net electrical energy, V i (regeneration credited)
     E_drawn: Any    # from a supply that cannot take energy back, max(V i, 0)
     E_copper: Any   # armature copper loss, R_a i^2
+    E_gear: Any     # transmission loss, (N K_t i - tau) omega
     E_mech: Any     # mechanical work in either direction, |tau omega|
     W_link: Any     # net mechanical work of the drive on the joint, tau omega
 
@@ -215,27 +263,35 @@ def drive_powers(p: MotorParameters, voltage: Any, current: Any, effort: Any,
                  speed: Any) -> DriveEnergies:
     """The definition of the drive's energies, as their rates [W]: at voltage V [V], armature
     current i [A], effort tau [N m or N] and joint speed omega [rad/s or m/s], V i,
-    max(V i, 0), R_a i^2, |tau omega| and tau omega."""
+    max(V i, 0), R_a i^2, (N K_t i - tau) omega, |tau omega| and tau omega."""
     electrical, mechanical = voltage * current, effort * speed
     return DriveEnergies(electrical, positive_part(electrical), p.R_a * current * current,
+                         (p.standstill_torque_per_amp * current - effort) * speed,
                          abs(mechanical), mechanical)
 
 
 def step_energies(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_start: Any,
-                  i_average: Any, effort: Any, travel: Any) -> DriveEnergies:
+                  i_average: Any, effort: Any, travel: Any, enabled: Any = True) -> DriveEnergies:
     """The energies [J] of zero-order-hold steps of dt [s]: `drive_powers` integrated over
     each step in which V [V], omega [rad/s or m/s] and the effort [N m or N] are held, the
     armature current starts at i_start [A] and averages i_average [A], and the joint travels
     `travel` [rad or m].
 
     V i and tau omega are linear in the step's averages, so their integrals E_in and W_link
-    are exact; E_copper, quadratic in the current, is the exact `copper_energy`; E_drawn and
-    E_mech are exact while V i and tau omega keep their signs within the step.
+    are exact; E_copper, quadratic in the current, is the exact `copper_energy`; E_gear is the
+    motor's shaft work K_t N omega i_average dt less what the transmission passes on at the
+    held speed, exact as both are linear in the current; E_drawn and E_mech are exact while
+    V i and tau omega keep their signs within the step. A step with the drive switched off
+    (enabled false: no current, no effort) dissipates the armature's magnetic energy at its
+    start, L_a i_start^2 / 2, in E_copper.
     """
+    on = enabled * 1.0
     powers = drive_powers(p, voltage, i_average, effort, travel / dt)
-    return DriveEnergies(powers.E_in * dt, powers.E_drawn * dt,
-                         copper_energy(p, dt, voltage, omega, i_start), powers.E_mech * dt,
-                         powers.W_link * dt)
+    copper = (on * copper_energy(p, dt, voltage, omega, i_start)
+              + (1.0 - on) * inductor_energy(p, i_start))
+    gear = (p.standstill_torque_per_amp * i_average - effort) * omega * dt
+    return DriveEnergies(powers.E_in * dt, powers.E_drawn * dt, copper, gear,
+                         powers.E_mech * dt, powers.W_link * dt)
 
 
 # The drive of a prismatic joint: the default motor (same RE 30 data, one motor type for both

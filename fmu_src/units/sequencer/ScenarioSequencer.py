@@ -21,6 +21,9 @@ initialisation), with t on the scenario's clock (t = 0 is its start):
 - `<position>_ref` per joint of any variant [rad or m]: the quintic reference
   (`Scenario.reference_at` of the scenario resolved for the variant, `Scenario.for_variant`);
   0 for a variant's own joint when another variant is played;
+- `<position>_enable` per joint of any variant: whether the joint's drive is on over the step
+  from t (`Scenario.drive_enabled`: a joint that rests when holding is off in the phases
+  that hold it); true for a joint the variant played does not drive;
 - every input that a phase or a variant of the scenario sets (`Scenario.inputs_at`), Real or
   Boolean as in the file; an input the chosen variant drops stays at 0 or false.
 A t less than `scenario.STEP_TIME_TOLERANCE` h before a phase start counts as that start, so
@@ -113,9 +116,12 @@ class ScenarioSequencer(ModelSlave):
         joints = {j.name: j for v in scenario.variants.values()
                   for j in scenario.for_variant(v).joints}
         self.reference_names = {name: f"{j.position}_ref" for name, j in joints.items()}
+        self.enable_names = {name: f"{j.position}_enable" for name, j in joints.items()}
         for name, joint in joints.items():
             self.add_output(self.reference_names[name], joint.unit, "Reference position of "
                             f"joint {name} (quintic between the phases' targets)")
+            self.add_output(self.enable_names[name], None, f"The drive of joint {name} is on "
+                            "over the next step (off while a joint that holds by itself holds)")
         self.played = scenario                # resolved for the variant played
         self.defaults = scenario_inputs(scenario)
         for name, unit in input_units(scenario, units).items():
@@ -165,6 +171,11 @@ class ScenarioSequencer(ModelSlave):
                               played.reference_at(time, tolerance)))
         self.__dict__.update({output: references.get(name, 0.0)
                               for name, output in self.reference_names.items()})
+        phase = min(max(played._phase_at(time, tolerance), 0), len(played.phases) - 1)
+        enabled = {joint.name: played.drive_enabled(j)[phase]
+                   for j, joint in enumerate(played.joints)}
+        self.__dict__.update({output: enabled.get(name, True)
+                              for name, output in self.enable_names.items()})
         self.__dict__.update({**self.defaults,
                               **played.inputs_at(time, self.segments, tolerance)})
 

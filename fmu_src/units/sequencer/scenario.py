@@ -20,7 +20,13 @@ parameter [kg m2 or kg], friction parameter and drive-inertia parameter (where t
 puts J_rotor N^2 of the joint's motor), the output reporting the static effort at t = 0 (either
 `static_effort`, the effort the drive supplies to hold the mechanism, or `static_load`, the
 effort gravity and springs exert on the joint, which the drive holds with the opposite sign),
-`initial` (its position at t = 0), and optionally `kind` (JOINT_KINDS) and `motor` (MOTORS).
+`initial` (its position at t = 0), and optionally `kind` (JOINT_KINDS), `motor` (MOTORS, the
+joint's drive in the `legacy` drive configuration), `screw` (the lead screw of a prismatic
+joint, by its name in the harness's drive catalogue), `drive` (a table pinning the joint's
+catalogue drive, `{ motor = ..., gearhead = ..., ratio = ... }`, instead of the one the sizing
+rule picks) and `rest_when_holding` (true: the joint's axis holds by itself, e.g. through a
+self-locking screw, so its drive is switched off in every phase where the joint holds its
+position, and on again from the start of a phase that moves it; `Scenario.drive_enabled`).
 Phases then give `targets = { <joint> = value, ... }` in SI units: rad for a revolute joint,
 m for a prismatic one (`target_deg` remains for scenarios with one revolute joint).
 
@@ -58,9 +64,9 @@ from typing import Any
 from fmu_src.parameters import MAGNITUDE_LIMIT
 
 JOINT_KINDS = ("revolute", "prismatic")
-# drives the harness can put on a joint: the default geared DC motor, a DC motor on a lead
-# screw, or on a self-locking trapezoidal screw (harness.drive.motor.MOTORS maps these names to motor
-# parameters)
+# the legacy drives the harness can put on a joint: the default geared DC motor, a DC motor
+# on a lead screw, or on a self-locking trapezoidal screw (harness.drive.motor.LEGACY maps
+# these names to drives)
 MOTORS = ("geared", "lead_screw", "trapezoidal_screw")
 # the one joint of a scenario without a `joints` table: the balancer FMUs' names
 DEFAULT_JOINT = {"position": "theta", "speed": "omega", "effort": "tau_drive",
@@ -68,7 +74,8 @@ DEFAULT_JOINT = {"position": "theta", "speed": "omega", "effort": "tau_drive",
                  "drive_inertia": "J_drive", "static_load": "tau_gravity"}
 JOINT_KEYS = ("position", "speed", "effort", "start_parameter", "inertia", "friction",
               "drive_inertia", "initial")
-OPTIONAL_JOINT_KEYS = ("kind", "motor", "static_effort", "static_load")
+OPTIONAL_JOINT_KEYS = ("kind", "motor", "static_effort", "static_load", "screw", "drive",
+                       "rest_when_holding")
 PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs")
 # Tolerance of phase start times, as a fraction of the communication step: a host that adds up
 # its time (t += h) reaches a phase start a little early or late (13.99999999999768 for 14 s
@@ -221,6 +228,9 @@ class Joint:
     static_is_load: bool            # True: the output is the load on the joint (drive: -it)
     kind: str = "revolute"
     motor: str = "geared"
+    screw: str | None = None        # the lead screw of a prismatic joint (catalogue name)
+    drive: tuple[tuple[str, Any], ...] = ()   # a pinned catalogue drive, as (key, value)s
+    rest_when_holding: bool = False  # its drive is off where the joint holds its position
 
     def __post_init__(self) -> None:
         if self.kind not in JOINT_KINDS:
@@ -358,6 +368,13 @@ class Scenario:
         if not 0 <= joint < len(names):
             raise ValueError(f"joint index {joint} is outside [0, {len(names) - 1}]")
         return joint
+
+    def drive_enabled(self, joint: int | str = 0) -> tuple[bool, ...]:
+        """Per phase, whether the joint's drive is on: always, unless the joint rests when
+        holding (`Joint.rest_when_holding`) and the phase holds its position."""
+        j = self.joint_index(joint)
+        rests = self.joints[j].rest_when_holding
+        return tuple(not (rests and start == end) for _, _, start, end in self._joint_segments[j])
 
     def reference_segments(self, joint: int | str = 0) -> list[tuple[float, float, float, float]]:
         """(start time, end time [s], start, end position [rad or m]) of one joint per phase."""

@@ -73,9 +73,15 @@ def _joint(name: str, raw: dict[str, Any]) -> Joint:
         raise ValueError(f"joint {name} needs {', '.join(JOINT_KEYS)} and one of "
                          "static_effort, static_load (missing or doubled: "
                          f"{', '.join(missing) or ', '.join(statics) or 'static_effort'})")
+    rests = raw.get("rest_when_holding", False)
+    if not isinstance(rests, bool):
+        raise ValueError(f"joint {name}: rest_when_holding = {rests!r} is not true or false")
+    drive = table(raw.get("drive", {}), f"joint {name}: drive")
     return Joint(name, **{key: str(raw[key]) for key in JOINT_KEYS if key != "initial"},
                  static_output=str(raw[statics[0]]), static_is_load=statics[0] == "static_load",
-                 kind=str(raw.get("kind", "revolute")), motor=str(raw.get("motor", "geared")))
+                 kind=str(raw.get("kind", "revolute")), motor=str(raw.get("motor", "geared")),
+                 screw=None if raw.get("screw") is None else str(raw["screw"]),
+                 drive=tuple(sorted(drive.items())), rest_when_holding=rests)
 
 
 def _initial_positions(joints: tuple[Joint, ...], tables: dict[str, Any]) -> tuple[float, ...]:
