@@ -10,12 +10,17 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
+from harness import interrupts
 from harness.errors import UserError
+
+NAME_MAX = 255  # bytes in a file or folder name on Linux, macOS and Windows file systems
 
 
 class Command(NamedTuple):
@@ -112,10 +117,17 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 
 def check_out_folder(args: argparse.Namespace) -> None:
-    """UserError if --out (every command's folder for its files) names something that exists
-    and is not a folder: found before the command does any work."""
+    """UserError if --out (every command's folder for its files) has a name longer than a
+    file system allows, or names something that exists and is not a folder: found before the
+    command does any work."""
     folder = getattr(args, "out", None)
-    if isinstance(folder, Path) and folder.exists() and not folder.is_dir():
+    if not isinstance(folder, Path):
+        return
+    longest = max((len(os.fsencode(part)) for part in folder.parts), default=0)
+    if longest > NAME_MAX:
+        raise UserError(f"output folder --out has a name of {longest} bytes, more than the "
+                        f"{NAME_MAX} a file system allows")
+    if folder.exists() and not folder.is_dir():
         raise UserError(f"output folder --out = {folder} is not writable (it is a file, "
                         "not a folder)")
 
@@ -130,5 +142,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        if interrupts.received == signal.SIGTERM:
+            print("terminated", file=sys.stderr)
+            return 143
         print("interrupted", file=sys.stderr)
         return 130

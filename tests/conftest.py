@@ -4,7 +4,7 @@ regression checks against the committed results."""
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -14,11 +14,13 @@ import pytest
 
 from fmu_src import integration
 from harness import registry
+from harness.engines import fmpy_master
 from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU, FMICallException
 from harness.run import results
 from harness.run.compare import compare, read_result, report
+from harness.run.sizing import stored_drives
 from harness.scenarios import Scenario
 
 # fmi2Status codes (FMI 2.0 standard, section 2.1.3)
@@ -136,6 +138,17 @@ def failed_initialisation(model: str, parameters: Mapping[str, float]) -> str:
         fmu.close()
 
 
+def fair_run(scenario: Scenario, variant: str, loss_set: str = "ideal",
+             engine: Callable[..., RunResult] | None = None, **options: Any) -> RunResult:
+    """A run of the variant (scenario: the loss set's) with the drives its committed result
+    set ran with (results/<scenario>/drives.csv), by the FMPy master or engine."""
+    folder = results.RESULTS_DIR / scenario.name
+    drives = stored_drives(folder if loss_set == "ideal" else folder / "realistic", variant,
+                           loss_set)
+    return (engine or fmpy_master.run)(scenario, scenario.variant(variant), drives=drives,
+                                       **options)
+
+
 def assert_reproduces_committed_summary(scenario: Scenario, runs: Iterable[RunResult],
                                         folder: Path | None = None) -> None:
     """The summary rows of these runs equal those of results/<scenario>/summary.csv (or of
@@ -153,10 +166,16 @@ def assert_reproduces_committed_summary(scenario: Scenario, runs: Iterable[RunRe
             continue
         metric = column.rsplit("_", 1)[0]
         assert metric in fresh.columns, column
+        if column.startswith("drive"):  # the drive's parts, or whether it does the task
+            assert (committed.loc[filled, column].astype(str)
+                    == fresh.loc[filled, metric].astype(str)).all(), column
+            continue
         np.testing.assert_allclose(committed.loc[filled, column].to_numpy(float),
                                    fresh.loc[filled, metric].to_numpy(float), rtol=1e-6,
                                    atol=1e-9, err_msg=column)
-    numeric = [c for c in fresh.columns if c != "model"]
+    text = [c for c in fresh.columns if c == "model" or c.startswith("drive")]
+    assert fresh[text].fillna("").astype(str).equals(committed[text].fillna("").astype(str))
+    numeric = [c for c in fresh.columns if c not in text]
     # the loop is deterministic; 1e-6 allows for another CPU's floating-point library
     np.testing.assert_allclose(fresh[numeric].to_numpy(float),
                                committed[numeric].to_numpy(float), rtol=1e-6, atol=1e-9)

@@ -185,7 +185,7 @@ def test_worker_processes_write_what_one_process_writes(tmp_path: Path) -> None:
         assert cli.main(["cosim", "--scenario", str(path), "--workers", workers, "--out",
                          str(tmp_path / workers), "--quiet"]) == 0
     csvs = sorted(p.name for p in (tmp_path / "1" / "short").glob("*.csv"))
-    assert csvs == ["balanced.csv", "summary.csv", "unbalanced.csv"]
+    assert csvs == ["balanced.csv", "drives.csv", "summary.csv", "unbalanced.csv"]
     for name in csvs:
         assert ((tmp_path / "1" / "short" / name).read_bytes()
                 == (tmp_path / "2" / "short" / name).read_bytes()), name
@@ -474,6 +474,8 @@ CASES: dict[str, tuple[Any, list[str], tuple[str, ...]]] = {
     "system-step=inf": ({}, SYSTEM + ["--step", "inf"], ("--step = inf s is outside",)),
     "system-out-is-a-file": ({}, ["cosim", "--engine", "fmpy-ssp", "--out", "{file}"],
                              ("a_file is not writable",)),
+    "out-name-of-300-bytes": ({}, ["cosim", "--out", "{out}/" + "x" * 300],
+                              ("a name of 300 bytes, more than the 255",)),
     "losses-unknown": ({}, COSIM + ["--losses", "real"],
                        ("--losses = 'real'", "all", "ideal", "realistic")),
     "build-fmus-out-is-a-file": ({}, ["build-fmus", "--out", "{file}"],

@@ -139,3 +139,52 @@ def test_plot_to_a_folder_or_a_read_only_place_is_one_line(
     err = capsys.readouterr().err.strip()
     assert err == f"error: cannot write {plot}: Read-only file system"
     assert not plot.exists()
+
+
+def refused(argv: list[str], capsys: pytest.CaptureFixture) -> str:
+    """The one error line of a refused compare (exit 2)."""
+    assert cli.main(["compare", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0, err
+    return err
+
+
+def test_a_result_lacking_a_reference_signal_is_refused_naming_it(
+        tmp_path: Path, reference: Path, capsys: pytest.CaptureFixture) -> None:
+    """It exited 0 on a result holding only one of the reference's signals."""
+    only_e = write(tmp_path / "only_e.csv", pd.read_csv(reference)[["time", "E"]])
+    assert "lacks the reference's signal(s) theta" in refused(
+        [str(reference), str(only_e)], capsys)
+    assert cli.main(["compare", str(reference), str(only_e), "--signals", "E"]) == 0
+
+
+@pytest.mark.parametrize("names", [("theta", "theta "), ("theta", "Theta"), ("theta", "theta")])
+def test_near_duplicate_columns_are_refused_naming_them(
+        tmp_path: Path, reference: Path, capsys: pytest.CaptureFixture,
+        names: tuple[str, str]) -> None:
+    """A second, wrong theta column (equal, or but for case or blanks) was skipped or read as
+    theta.1, and the comparison passed."""
+    frame = pd.read_csv(reference)
+    path = tmp_path / "twice.csv"
+    path.write_text(f'"time","{names[0]}","E","{names[1]}"\n' + "".join(
+        f"{t},{y},{e},{-y}\n" for t, y, e in zip(frame.time, frame.theta, frame.E)))
+    err = refused([str(reference), str(path)], capsys)
+    assert repr(names[0]) in err and repr(names[1]) in err
+
+
+def test_a_fifo_or_an_endless_device_is_refused_before_reading(
+        tmp_path: Path, reference: Path, capsys: pytest.CaptureFixture) -> None:
+    """A FIFO as the reference waited for ever; /dev/zero read without end."""
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    assert "not a regular file" in refused([str(fifo), str(reference)], capsys)
+    assert "not a regular file" in refused([str(reference), "/dev/zero"], capsys)
+
+
+def test_a_file_beyond_the_size_bound_is_refused(tmp_path: Path, reference: Path,
+                                                 capsys: pytest.CaptureFixture,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from harness.run import compare as compare_module
+    monkeypatch.setattr(compare_module, "MAX_BYTES", 100)
+    assert "more than the 100 a result file may have" in refused(
+        [str(reference), str(reference)], capsys)

@@ -13,7 +13,11 @@ import math
 
 import numpy as np
 import pytest
-from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
+from conftest import (
+    assert_reproduces_committed_series,
+    assert_reproduces_committed_summary,
+    fair_run,
+)
 from scipy.integrate import quad
 
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
@@ -47,14 +51,14 @@ def test_cycle_holds_the_paper_data() -> None:
 
 @pytest.fixture(scope="module")
 def cycle() -> dict[str, RunResult]:
-    return {v: fmpy_master.run(CYCLE, CYCLE.variant(v)) for v in CYCLE_VARIANTS}
+    return {v: fair_run(CYCLE, v) for v in CYCLE_VARIANTS}
 
 
 @pytest.fixture(scope="module")
 def monolithic() -> dict[str, RunResult]:
     """The monolithic reference of each cycle variant (rtol 1e-6: E_drawn to 1e-7 of the
     rtol 1e-9 result, in a fifth of the time)."""
-    return {v: reference.run(CYCLE, CYCLE.variant(v), rtol=1e-6) for v in CYCLE_VARIANTS}
+    return {v: fair_run(CYCLE, v, engine=reference.run, rtol=1e-6) for v in CYCLE_VARIANTS}
 
 
 def stroke_work(variant: str, direction: float) -> float:
@@ -130,8 +134,10 @@ def test_cycle_tracking_without_saturation(cycle: dict[str, RunResult],
                                            variant: str) -> None:
     m = cycle[variant].metrics
     # the design's loop (triple pole at omega_c = 25 rad/s) alone leaves 0.0011 deg rms on
-    # these 4 s strokes; the payload's changing mass and gravity bring it to 0.0017-0.0024 deg
-    assert math.degrees(m["track_err_rms"]) < 0.005
+    # these 4 s strokes; the payload's changing mass and gravity bring it to 0.0017-0.0024 deg,
+    # 0.0059 deg on the unbalanced arm's 285:1 drive, whose back-EMF damps its large rotor
+    # beyond 3 omega_c (the design then drops the derivative term)
+    assert math.degrees(m["track_err_rms"]) < 0.01
     assert m["V_peak"] < MOTOR.V_supply
 
 
@@ -217,16 +223,19 @@ def test_design_is_the_global_optimum(chosen: ciupitu_design.Design,
 
 @pytest.fixture(scope="module")
 def franchetti() -> dict[str, RunResult]:
-    return {v: fmpy_master.run(FRANCHETTI, FRANCHETTI.variant(v))
-            for v in ("ciupitu", "unbalanced")}
+    return {v: fair_run(FRANCHETTI, v) for v in ("ciupitu", "unbalanced")}
 
 
 def test_ciupitu_saves_drive_energy(franchetti: dict[str, RunResult],
                                     chosen: ciupitu_design.Design) -> None:
     m = franchetti["ciupitu"].metrics
-    assert m["E_drawn"] < 0.2 * franchetti["unbalanced"].metrics["E_drawn"]
-    # the design's prediction (perfect tracking, no inductance) is what the drive draws
-    assert m["E_drawn"] == pytest.approx(chosen.E_drawn, rel=0.005)
+    # each on the drive sized for it: 8.4 J against 20.0 J
+    assert m["E_drawn"] < 0.5 * franchetti["unbalanced"].metrics["E_drawn"]
+    # the design's prediction (perfect tracking, no inductance) is what its drive, the legacy
+    # one it is made for, draws
+    legacy = FRANCHETTI.drives_always_on()
+    assert fmpy_master.run(legacy, legacy.variant("ciupitu")).metrics["E_drawn"] == (
+        pytest.approx(chosen.E_drawn, rel=0.005))
     # 0.023 deg rms measured: the design's loop alone leaves 0.019 deg on this reference
     # (test_cosim_franchetti), the counterweight's small unbalance the rest
     assert math.degrees(m["track_err_rms"]) < 0.05
@@ -236,7 +245,7 @@ def test_ciupitu_saves_drive_energy(franchetti: dict[str, RunResult],
 def test_franchetti_ciupitu_matches_monolithic_reference(
         franchetti: dict[str, RunResult]) -> None:
     assert_matches_reference(franchetti["ciupitu"],
-                             reference.run(FRANCHETTI, FRANCHETTI.variant("ciupitu")))
+                             fair_run(FRANCHETTI, "ciupitu", engine=reference.run))
 
 
 def test_rerun_reproduces_committed_results(cycle: dict[str, RunResult],

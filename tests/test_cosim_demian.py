@@ -9,11 +9,15 @@ import math
 
 import numpy as np
 import pytest
-from conftest import assert_reproduces_committed_series, assert_reproduces_committed_summary
+from conftest import (
+    assert_reproduces_committed_series,
+    assert_reproduces_committed_summary,
+    fair_run,
+)
 
 from harness import scenarios
 from harness.drive.motor import MOTORS
-from harness.engines import fmpy_master, reference
+from harness.engines import reference
 from harness.engines.result import RunResult
 
 SCENARIO = scenarios.load("demian2022")
@@ -27,7 +31,7 @@ TRAVEL = {"q1": Q1, "q2": Q2}
 
 @pytest.fixture(scope="module")
 def runs() -> dict[str, RunResult]:
-    return {v: fmpy_master.run(SCENARIO, SCENARIO.variant(v)) for v in VARIANTS}
+    return {v: fair_run(SCENARIO, v) for v in VARIANTS}
 
 
 def test_variants_cover_the_worm_modes() -> None:
@@ -54,7 +58,8 @@ def test_drives_start_holding_the_static_efforts(runs: dict[str, RunResult],
     first = runs[variant].series.iloc[0]
     assert first.tau1 == pytest.approx(tau1, abs=1e-9)
     assert first.f2 == pytest.approx(f2, abs=1e-9)
-    assert first.i_q2 == pytest.approx(f2 / MOTORS["lead_screw"].torque_per_amp, abs=1e-12)
+    drive = runs[variant].drives["q2"].parameters
+    assert first.i_q2 == pytest.approx(f2 / drive.standstill_torque_per_amp, abs=1e-12)
 
 
 def potential_and_worm_work(variant: str) -> tuple[float, float]:
@@ -121,22 +126,27 @@ def test_electrical_energy_balance(runs: dict[str, RunResult], variant: str) -> 
 
 
 def test_compensation_saves_the_drive_energy(runs: dict[str, RunResult]) -> None:
-    """Without springs the revolute drive holds about 6 N m for the whole task (0.15 J drawn
-    with the compensator, 23.7 J without); the back-drivable worm lets spring k3 load q2."""
+    """Without springs the revolute drive holds about 6 N m for the whole task (0.16 J drawn
+    with the compensator, 5.7 J without, each with the drive sized for it); the back-drivable
+    worm lets spring k3 load q2."""
     drawn = {v: runs[v].metrics["E_drawn"] for v in VARIANTS}
-    assert drawn["compensated"] < 0.01 * drawn["uncompensated"]
+    assert drawn["compensated"] < 0.05 * drawn["uncompensated"]
     assert drawn["compensated"] < drawn["compensated_backdrivable"] < drawn["uncompensated"]
     uncompensated = runs["uncompensated"].metrics
     # the static efforts dominate the peaks: (m1 lc1 + m2 lc2) g cos q1 <= 6.13 N m plus
-    # about 0.4 N m of acceleration and speed terms; m2 g sin 0.7 = 3.16 N plus about 0.1 N
-    assert 6.13 < uncompensated["tau_peak_q1"] < 6.6
+    # about 0.4 N m of the arm's acceleration and speed terms and the drive's reflected rotor
+    # at the quintic's largest acceleration, 10/sqrt(3) Q1/T^2 (the mechanism carries J_drive);
+    # m2 g sin 0.7 = 3.16 N plus about 0.1 N
+    rotor = (runs["uncompensated"].drives["q1"].parameters.J_drive
+             * 10.0 / math.sqrt(3.0) * Q1 / 3.0 ** 2)   # the move lasts 3 s
+    assert 6.13 < uncompensated["tau_peak_q1"] < 6.6 + rotor
     assert M2 * G * math.sin(Q1) < uncompensated["F_peak_q2"] < M2 * G * math.sin(Q1) + 0.2
     assert runs["compensated"].metrics["F_peak_q2"] < 0.3  # no static load on q2
 
 
 @pytest.fixture(scope="module")
 def monolithic() -> dict[str, RunResult]:
-    return {v: reference.run(SCENARIO, SCENARIO.variant(v)) for v in VARIANTS}
+    return {v: fair_run(SCENARIO, v, engine=reference.run) for v in VARIANTS}
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
@@ -144,6 +154,9 @@ def test_cosimulation_matches_monolithic_reference(
         runs: dict[str, RunResult], monolithic: dict[str, RunResult],
         variant: str) -> None:
     for name, ref in monolithic[variant].metrics.items():
+        if isinstance(ref, (str, bool)):  # the drive's parts and rating: the same drives
+            assert runs[variant].metrics[name] == ref, name
+            continue
         # 0.5 % of the metric, or of this variant's drawn energy when the metric is small
         tolerance = 0.005 * max(abs(ref), runs[variant].metrics["E_drawn"])
         assert runs[variant].metrics[name] == pytest.approx(ref, abs=tolerance), name

@@ -179,3 +179,56 @@ def test_ctrl_c_on_a_sweep_exits_130_and_keeps_its_parts(seed: int, tmp_path: Pa
     assert hidden_files(tmp_path) == []
 
 
+
+
+def our_processes(marker: str) -> list[int]:
+    """The pids whose command line holds marker (the workers of a command share their
+    parent's)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                cmdline = (entry / "cmdline").read_bytes()
+            except OSError:
+                continue
+            if marker.encode() in cmdline:
+                found.append(int(entry.name))
+    return found
+
+
+def snapshot(folder: Path) -> dict[str, int]:
+    return {str(p): p.stat().st_mtime_ns for p in sorted(folder.rglob("*"))}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(2))
+def test_sigterm_to_the_parent_alone_stops_its_workers_and_renames_nothing_after(
+        seed: int, tmp_path: Path) -> None:
+    """`cosim --workers 2` sent SIGTERM (to the parent process only, as a service manager
+    or `kill PID` does): exit 143 with one line; when it has exited no worker of it lives on,
+    nothing in the result folder changes afterwards, and every result set is whole. (The
+    parent used to exit on -15 and leave both workers running, and an orphan renamed a full
+    result set into place after the kill.)"""
+    committed = results.RESULTS_DIR / "franchetti2021"
+    shutil.copytree(committed, tmp_path / "franchetti2021")
+    delay = random.Random(seed).uniform(3.0, 10.0)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "harness", "cosim", "--scenario", "franchetti2021",
+         "--workers", "2", "--quiet", "--drives", "legacy", "--out", str(tmp_path)],
+        cwd=ROOT, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        start_new_session=True)
+    time.sleep(delay)
+    assert process.poll() is None, f"finished before the SIGTERM at {delay:.2f} s"
+    process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 143, err
+    assert err.splitlines() == ["terminated"], err
+    assert our_processes(str(tmp_path)) == []
+    before = snapshot(tmp_path)
+    time.sleep(2.0)
+    assert snapshot(tmp_path) == before
+    for folder in (tmp_path / "franchetti2021", tmp_path / "franchetti2021" / "realistic"):
+        kept = pd.read_csv(folder / "summary.csv")
+        for variant in kept.variant:
+            assert len(pd.read_csv(folder / f"{variant}.csv")) == 3501
+    assert hidden_files(tmp_path) == []

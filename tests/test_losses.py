@@ -13,14 +13,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import assert_reproduces_committed_summary
+from conftest import assert_reproduces_committed_summary, fair_run
 
 from fmu_src.mechanisms.active_spring import physics as active_spring
 from fmu_src.mechanisms.self_regulating import design as self_regulating_design
 from fmu_src.mechanisms.self_regulating import physics as self_regulating
 from harness import cli, registry, scenarios
 from harness.design import active_spring as active_design
-from harness.engines import fmpy_master
 from harness.errors import UserError
 from harness.scenarios import losses
 
@@ -165,12 +164,13 @@ def test_the_drive_pays_what_the_ledger_stores_and_dissipates(scenario: str, los
                                                               run: tuple) -> None:
     """Energy ledger (docs/energy_ledger.md): the drives' mechanical work W = W_drive
     (+ W_adjust) = change of stored energy + E_loss - E_added (- W_worm). The drives' summed
-    W_link is that W, and E_drawn >= E_in = E_copper + W + change of E_inductor, the drive's
-    own balance, which holds to the first-order step error of its back-EMF (it sees the held
-    speed: docs/results.md, 2.3e-4 J of 10.3 J), an error that grows with the energy the drive
-    converts: 5e-4 J + 5e-5 E_in bounds it (at most 0.6 of that in these runs: 3.1e-4 J of
-    0.37 J; 2.1e-3 J of 120 J on the friction screw); the inductor ends with 1e-9 J at most.
-    So E_drawn >= E_copper + stored change + E_loss - E_added - W_worm."""
+    W_link is that W, and E_drawn >= E_in = E_copper + E_gear + W + change of E_inductor, the
+    drive's own balance, which holds to the first-order step error of its back-EMF and its
+    gear's loss (both see the held speed: docs/results.md, 2.3e-4 J of 10.3 J), an error that
+    grows with the energy the drive converts and with its transmission ratio: 5e-4 J +
+    2e-4 E_in bounds it (the largest, the unbalanced link on its 285:1 drive, 1.4e-3 J of
+    11.9 J: 0.5 of the bound); the inductor ends with 1e-9 J at most. So E_drawn >= E_copper + E_gear + stored change +
+    E_loss - E_added - W_worm."""
     _, model, row, first, last = run
     ledger = registry.registration(model).ledger
     drives = [k for k in ("W_drive", "W_adjust") if k in ledger]
@@ -179,10 +179,10 @@ def test_the_drive_pays_what_the_ledger_stores_and_dissipates(scenario: str, los
     others = sum(sign * (last[k] - first[k]) for k, sign in ledger.items()
                  if k not in drives)   # stored, E_loss, -E_added, -W_worm
     assert work == pytest.approx(others, abs=1e-8)
-    tolerance = 5e-4 + 5e-5 * row.E_in  # [J] the drive's balance (docstring)
+    tolerance = 5e-4 + 2e-4 * row.E_in  # [J] the drive's balance (docstring)
     assert row.E_drawn >= row.E_in - 1e-12
-    assert row.E_in == pytest.approx(row.E_copper + work, abs=tolerance)
-    assert row.E_drawn >= row.E_copper + others - tolerance
+    assert row.E_in == pytest.approx(row.E_copper + row.E_gear + work, abs=tolerance)
+    assert row.E_drawn >= row.E_copper + row.E_gear + others - tolerance
 
 
 def dissipation_only(scenario: scenarios.Scenario) -> list[str]:
@@ -259,6 +259,6 @@ def test_rerun_reproduces_the_committed_realistic_set(scenario_name: str, varian
     """A fresh realistic run of a variant and its baseline gives the committed rows."""
     scenario = losses.realistic(scenarios.load(scenario_name))
     names = (variant, scenario.baselines[variant])
-    runs = [fmpy_master.run(scenario, scenario.variant(name)) for name in names]
+    runs = [fair_run(scenario, name, "realistic") for name in names]
     assert_reproduces_committed_summary(
         scenario, runs, losses.result_folder(RESULTS, scenario, "realistic"))

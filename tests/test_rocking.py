@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import LEDGER, failed_initialisation, ledger_residual, open_fmu
+from conftest import LEDGER, failed_initialisation, fair_run, ledger_residual, open_fmu
 from scipy.integrate import quad
 
 from fmu_src.mechanisms.ciupitu import example as paper_example
@@ -25,7 +25,6 @@ from fmu_src.mechanisms.rocking_counterweight import physics as rocking
 from fmu_src.mechanisms.rocking_counterweight import statics
 from harness import scenarios
 from harness.design import rocking_counterweight as rocking_design
-from harness.engines import fmpy_master
 from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
 
@@ -291,7 +290,7 @@ def test_rocking_design_report_gives_the_translational_eps_like_for_like() -> No
 # ---- the ciupitu2018 cycle in co-simulation --------------------------------------------
 @pytest.fixture(scope="module")
 def cycle() -> dict[str, RunResult]:
-    return {law: fmpy_master.run(CYCLE, CYCLE.variant(variant)) for law, variant in LAWS.items()}
+    return {law: fair_run(CYCLE, variant) for law, variant in LAWS.items()}
 
 
 def stroke_work(law: str, direction: float) -> float:

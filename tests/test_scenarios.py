@@ -26,6 +26,7 @@ from fmu_src.units.sequencer import scenario as core
 from fmu_src.units.sequencer.ScenarioSequencer import EMBEDDED_MODULE
 from harness import scenarios
 from harness.drive import motor as drive
+from harness.engines.setup import enabled_steps
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
 
@@ -312,8 +313,8 @@ def test_sequencer_model_description(sequencer: Path) -> None:
                                                                 "self_regulating")
     # the references of every variant's joints (active_relocation's carriage q too)
     assert [v.name for v in md.modelVariables if v.causality == "output"] == [
-        "theta_ref", "q_ref", "slider_locked", "pulley_locked", "payload",
-        "counterweight_added"]
+        "theta_ref", "theta_enable", "q_ref", "q_enable", "slider_locked", "pulley_locked",
+        "payload", "counterweight_added"]
     assert variables["theta_ref"].declaredType.unit == "rad"
     assert variables["q_ref"].declaredType.unit == "m"
     assert variables["slider_locked"].type == "Boolean"
@@ -338,8 +339,13 @@ def test_sequencer_plays_the_scenario_as_the_harness(sequencer: Path, variant: s
     # the carriage's reference where the variant drives it, else 0
     q = resolved.reference(times, "q") if len(resolved.joints) > 1 else np.zeros(n + 1)
     np.testing.assert_allclose(played["q_ref"], q, rtol=0.0, atol=1e-12)
+    # whether each joint's drive is on over the step from each time, else on
+    for j, joint in enumerate(scenario.for_variant(scenario.variant("active_relocation")).joints):
+        on = (np.array(enabled_steps(resolved, j, np.append(times, times[-1] + SEQUENCER_STEP)))
+              if joint.name in [jt.name for jt in resolved.joints] else np.ones(n + 1, bool))
+        assert np.array_equal(played[f"{joint.position}_enable"], on), joint.name
     inputs = scenario.inputs(times, scenario.variant(variant))
-    for name in list(played)[2:]:
+    for name in [n for n in list(played) if not n.endswith(("_ref", "_enable"))]:
         if name not in inputs:  # dropped by the variant: stays at its default
             assert not played[name].any(), name
         elif inputs[name].dtype == bool:

@@ -19,6 +19,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import fair_run
 from fmpy.ssp.ssd import read_ssd
 
 from harness import cli, scenarios
@@ -37,8 +38,9 @@ THETA_TOL = np.radians(0.2)
 
 @functools.cache
 def harness_run_of(variant: str) -> RunResult:
-    """The harness's own run of the variant (computed once)."""
-    return fmpy_master.run(SCENARIO, SCENARIO.variant(variant))
+    """The harness's own run of the variant with its committed drives, those the command
+    sizes (computed once)."""
+    return fair_run(SCENARIO, variant)
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,14 @@
 """`python -m harness compare REFERENCE.csv RESULT.csv`: signal-by-signal comparison.
 
-The result must cover the reference's time range (to within half a sample of each end),
-share at least one signal with it and hold only finite values (no NaN, no +-inf: one infinite
-reference sample would make the allowed deviation infinite) in `time` and the compared
-signals; otherwise the comparison is refused with a message saying what is missing, or naming
-the file, the column and the row (counted from 1 after the header) of the first bad value.
+Both files must be regular files of at most MAX_BYTES (a FIFO, a device or a folder is
+refused before anything is read), with one column per name: a name given twice, or two names
+that differ only in case or surrounding blanks (`theta`, `Theta `), is refused. The result
+must cover the reference's time range (to within half a sample of each end), hold every
+signal of the reference (or every one named with --signals) and only finite values (no NaN,
+no +-inf: one infinite reference sample would make the allowed deviation infinite) in `time`
+and the compared signals; otherwise the comparison is refused with a message saying what is
+missing, or naming the file, the column and the row (counted from 1 after the header) of the
+first bad value.
 
 Two checks per signal, both on the result interpolated to the reference's time points:
 - tolerance: |result - reference| <= atol + rtol * max |reference| at every point;
@@ -16,6 +20,8 @@ A signal passes when both hold. The files follow the FMI cross-check CSV convent
 from __future__ import annotations
 
 import argparse
+import csv
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,13 +47,30 @@ class SignalComparison:
         return self.outside_tolerance == 0 and self.outside_band == 0
 
 
+MAX_BYTES = 1 << 30  # a result CSV larger than 1 GiB is refused, not read
+
+
 def read_result(path: Path) -> pd.DataFrame:
-    """A result CSV, checked: `time` first, strictly increasing, numeric columns."""
+    """A result CSV, checked: a regular file of at most MAX_BYTES, distinct column names,
+    `time` first, strictly increasing, numeric columns."""
     try:
+        mode = path.stat()
+    except OSError as error:
+        raise UserError(f"{path}: cannot read ({error.strerror or error})") from None
+    if not stat.S_ISREG(mode.st_mode):
+        raise UserError(f"{path}: not a regular file (a folder, FIFO or device); give a CSV "
+                        "file")
+    if mode.st_size > MAX_BYTES:
+        raise UserError(f"{path}: {mode.st_size:,} bytes, more than the {MAX_BYTES:,} a "
+                        "result file may have")
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            header = next(csv.reader(f), [])
         frame = pd.read_csv(path)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError,
+    except (OSError, UnicodeDecodeError, csv.Error, pd.errors.ParserError,
             pd.errors.EmptyDataError) as error:
         raise UserError(f"{path}: cannot read as CSV ({error})") from None
+    _check_names(header, path)
     if frame.columns.empty or frame.columns[0] != "time":
         raise UserError(f"{path}: the first column must be 'time'")
     if len(frame) < 2:
@@ -59,6 +82,18 @@ def read_result(path: Path) -> pd.DataFrame:
     if not np.all(np.diff(frame.time.to_numpy()) > 0):
         raise UserError(f"{path}: time is not strictly increasing")
     return frame
+
+
+def _check_names(header: list[str], path: Path) -> None:
+    """UserError naming the columns whose names are equal once blanks around them and case
+    are ignored (pandas would read a second `theta` as `theta.1`)."""
+    seen: dict[str, str] = {}
+    for name in header:
+        key = name.strip().casefold()
+        if key in seen:
+            raise UserError(f"{path}: columns {seen[key]!r} and {name!r} name one signal "
+                            "(equal but for case or blanks); give each signal once")
+        seen[key] = name
 
 
 def _check_finite(frame: pd.DataFrame, columns: list[str], source: str) -> None:
@@ -79,8 +114,8 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
             rtol: float = 1e-3, atol: float = 1e-9,
             sources: tuple[str, str] = ("the reference", "the result")
             ) -> list[SignalComparison]:
-    """Compare the named signals (default: every signal the two tables share); sources name
-    the two tables in messages (their files)."""
+    """Compare the named signals (default: every signal of the reference, which the result
+    must all have); sources name the two tables in messages (their files)."""
     if not (rtol >= 0 and atol >= 0):
         raise UserError(f"rtol = {rtol} and atol = {atol} must be in [0, inf)")
     shared = [c for c in reference.columns[1:] if c in result.columns]
@@ -88,6 +123,10 @@ def compare(reference: pd.DataFrame, result: pd.DataFrame, signals: list[str] | 
         raise UserError(f"no signal in common: the reference has {', '.join(reference.columns[1:])}"
                         f"; the result has {', '.join(result.columns[1:])}")
     if signals is None:
+        missing = [c for c in reference.columns[1:] if c not in result.columns]
+        if missing:
+            raise UserError(f"{sources[1]} lacks the reference's signal(s) "
+                            f"{', '.join(missing)}; compare a subset with --signals")
         signals = shared
     unknown = [s for s in signals if s not in shared]
     if unknown:

@@ -12,9 +12,11 @@ per process, so processes, not threads), longest first, and each result set is w
 worker as well: its plot costs as much as a run) as soon as its last run is done. A run's
 numbers do not depend on the process it ran in.
 
-Ctrl-C (`harness.interrupts`): the runs stop at their next recorded step (a worker process
-never sees the SIGINT; its parent tells it), a result set being written is written in full,
-and the command exits with 130: what was written is complete, nothing else changed.
+Ctrl-C or SIGTERM (`harness.interrupts`): the runs stop at their next recorded step (a worker
+process never sees the signal; its parent tells it at once through a shared flag, and waits
+for it to end), a result set not yet renamed into place is left as it was (one being renamed
+is renamed in full), and the command exits with 130 (143 after SIGTERM): what was written is
+complete, nothing else changed.
 """
 
 from __future__ import annotations
@@ -41,7 +43,6 @@ from harness.engines.setup import joint_motors, run_parameters
 from harness.engines.system import EccoSettings
 from harness.errors import UserError
 from harness.fmu.models import check_names
-from harness.io import write_csv
 from harness.run import results, sizing
 from harness.scenarios import losses
 
@@ -151,10 +152,6 @@ class Plan:
     folder: Path
     loaded: scenarios.Scenario | None = None
 
-    @property
-    def scenario_folder(self) -> Path:
-        """The scenario's folder, OUT/<scenario>/ (the ideal set's)."""
-        return self.folder if self.loss_set == "ideal" else self.folder.parent
 
 
 def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
@@ -240,9 +237,10 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
             engine: str = "fmpy", options: dict[str, Any] | None = None) -> None:
     """Size the drives of every planned variant that needs it (once per variant, for all its
     loss sets), run every planned variant in the engine with them and write each result set
-    (and print its summary) once its runs are done, and each scenario's drives.csv once its
-    variants are sized; with workers above 1 all in that many processes.
-    A SIGINT stops the runs (none is interrupted midway in its FMU, nor a write) and raises
+    with its drives.csv (and print its summary) once its runs are done; with workers above 1
+    all in that many processes.
+    A SIGINT or SIGTERM stops the runs (none is interrupted midway in its FMU, nor a write)
+    and raises
     KeyboardInterrupt."""
     runner, options = ENGINES[engine], options or {}
     sizings = list(dict.fromkeys((plan.loaded.name, name) for plan in plans
@@ -264,12 +262,6 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
             if (key is None and plan.loaded is None)
             or (plan.loaded is not None and (plan.loaded.name, name) == key)]
 
-    def sizing_done(key: tuple[str, str], result: dict[str, Sizing]) -> Plan | None:
-        """Book a sizing; the plan whose scenario's drives.csv it completes, if it does."""
-        sized[key] = result
-        if all((key[0], name) in sized for k, name in sizings if k == key[0]):
-            return loaded[key[0]]
-        return None
 
     def finished(index: int, name: str, run: RunResult) -> tuple | None:
         """Book a run; the arguments of write_result_set when it was its set's last."""
@@ -277,7 +269,11 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
         remaining[index] -= 1
         if remaining[index]:
             return None
-        return plans[index], [runs.pop((index, n)) for n in plans[index].variants]
+        plan = plans[index]
+        rows = None if plan.loaded is None else pd.DataFrame([
+            sizing.table_row(variant, joint, s) for variant in plan.variants
+            for joint, s in sized[plan.loaded.name, variant].items()])
+        return plan, [runs.pop((index, n)) for n in plan.variants], rows
 
     with interrupts.deferred(), tqdm(total=total, unit="step", unit_scale=True,
                                      disable=quiet) as bar:
@@ -285,11 +281,9 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
             jobs = ready(None)
             for key in sizings:
                 bar.set_postfix_str(f"sizing {key[0]}.{key[1]}")
-                complete = sizing_done(key, size_variant(loaded[key[0]].loaded, key[1], step))
+                sized[key] = size_variant(loaded[key[0]].loaded, key[1], step)
                 bar.update(len(losses.loss_sets(loaded[key[0]].loaded, "all"))
                            * round(loaded[key[0]].loaded.duration / step))
-                if complete is not None:
-                    tqdm.write(str(write_drives(complete, sized)))
                 jobs += ready(key)
             for index, plan, name, drives in jobs:
                 bar.set_postfix_str(f"{plan.scenario.name}.{name}")
@@ -300,63 +294,57 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
             return
         context = multiprocessing.get_context()
         stop = context.Event()  # the workers' interrupts.requested
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                   initializer=interrupts.ignore_in_worker, initargs=(stop,))
+        # a signal sets the workers' flag at once
+        with interrupts.shared(stop):
+            pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                       initializer=interrupts.ignore_in_worker, initargs=(stop,))
 
-        def submit(*call: object) -> Future:
-            with interrupts.blocked():  # the workers (started here) and the pool's threads
-                return pool.submit(*call)
+            def submit(*call: object) -> Future:
+                with interrupts.blocked():  # the workers (started here) and the pool's threads
+                    return pool.submit(*call)
 
-        def submit_runs(jobs: list[tuple]) -> None:
-            # longest runs first, so that the last ones to start are short
-            for index, plan, name, drives in sorted(jobs, key=lambda j: -j[1].scenario.duration):
-                pending[submit(run_variant, runner, plan.scenario, name, step, options,
-                               drives)] = ("run", index, plan.scenario, name)
+            def submit_runs(jobs: list[tuple]) -> None:
+                # longest runs first, so that the last ones to start are short
+                for index, plan, name, drives in sorted(
+                        jobs, key=lambda job: -job[1].scenario.duration):
+                    pending[submit(run_variant, runner, plan.scenario, name, step, options,
+                                   drives)] = ("run", index, plan.scenario, name)
 
-        try:
-            pending: dict[Future, tuple] = {}
-            for key in sizings:
-                pending[submit(size_variant, loaded[key[0]].loaded, key[1], step)] = (
-                    "size", key)
-            submit_runs(ready(None))
-            while pending:
-                done, _ = wait(pending, POLL_INTERVAL, return_when=FIRST_COMPLETED)
-                interrupts.stop_if_requested()
-                for future in done:
-                    job = pending.pop(future)
-                    if job[0] == "write":  # a result set written
-                        tqdm.write(future.result())
-                    elif job[0] == "size":
-                        key = job[1]
-                        bar.update(len(losses.loss_sets(loaded[key[0]].loaded, "all"))
-                                   * round(loaded[key[0]].loaded.duration / step))
-                        complete = sizing_done(key, future.result())
-                        if complete is not None:
-                            tqdm.write(str(write_drives(complete, sized)))
-                        submit_runs(ready(key))
-                    else:
-                        _, index, scenario, name = job
-                        bar.update(round(scenario.duration / step))
-                        bar.set_postfix_str(f"{scenario.name}.{name} done")
-                        write = finished(index, name, future.result())
-                        if write is not None:
-                            pending[submit(write_result_set, *write)] = ("write",)
-        finally:  # done, failed or interrupted: the runs still going stop at their next
-            stop.set()  # recorded step, a set being written is finished
-            pool.shutdown(cancel_futures=True)
-
-
-def write_drives(plan: Plan, sized: dict[tuple[str, str], dict[str, Sizing]]) -> Path:
-    """The scenario's drives.csv: per variant and joint, the drive the sizing rule picked
-    and its figures over the tasks (harness.drive.sizing)."""
-    rows = [sizing.table_row(variant, joint, s) for (name, variant), joints in sized.items()
-            if name == plan.loaded.name for joint, s in joints.items()]
-    return write_csv(pd.DataFrame(rows), plan.scenario_folder / "drives.csv")
+            try:
+                pending: dict[Future, tuple] = {}
+                for key in sizings:
+                    pending[submit(size_variant, loaded[key[0]].loaded, key[1], step)] = (
+                        "size", key)
+                submit_runs(ready(None))
+                while pending:
+                    done, _ = wait(pending, POLL_INTERVAL, return_when=FIRST_COMPLETED)
+                    interrupts.stop_if_requested()
+                    for future in done:
+                        job = pending.pop(future)
+                        if job[0] == "write":  # a result set written
+                            tqdm.write(future.result())
+                        elif job[0] == "size":
+                            key = job[1]
+                            bar.update(len(losses.loss_sets(loaded[key[0]].loaded, "all"))
+                                       * round(loaded[key[0]].loaded.duration / step))
+                            sized[key] = future.result()
+                            submit_runs(ready(key))
+                        else:
+                            _, index, scenario, name = job
+                            bar.update(round(scenario.duration / step))
+                            bar.set_postfix_str(f"{scenario.name}.{name} done")
+                            write = finished(index, name, future.result())
+                            if write is not None:
+                                pending[submit(write_result_set, *write)] = ("write",)
+            finally:  # done, failed or interrupted: the runs still going stop at their next
+                stop.set()  # recorded step, a set not yet renamed into place is dropped; the
+                pool.shutdown(cancel_futures=True)  # workers are waited for
 
 
-def write_result_set(plan: Plan, runs: list[RunResult]) -> str:
-    """Write one result set's files into its folder; their paths and its summary, to print."""
-    paths = results.write_run(runs, plan.scenario, plan.folder)
+def write_result_set(plan: Plan, runs: list[RunResult], drives: pd.DataFrame | None) -> str:
+    """Write one result set's files into its folder (with the sizing rows of its drives);
+    their paths and its summary, to print."""
+    paths = results.write_run(runs, plan.scenario, plan.folder, drives)
     return "\n".join([*map(str, paths), results.summary_text(
         plan.folder / "summary.csv", plan.scenario, plan.loss_set)])
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness import registry
+from harness import interrupts, registry
 from harness.drive.metrics import METRICS, efficaciousness
 from harness.engines.result import RunResult, suffix
 from harness.errors import UserError
@@ -222,20 +222,28 @@ def remove_stale_staging(out_dir: Path) -> list[Path]:
     return removed
 
 
-def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path) -> list[Path]:
+def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path,
+              drives: pd.DataFrame | None = None) -> list[Path]:
     """Write <variant>.csv for each run, then the plot and summary.csv of the whole result set
     in out_dir: every row of an earlier summary is kept (with the union of the columns) but
     the variants run now, eps is recomputed over all rows. A failure before the renames
     (a full disk) is a UserError naming the file and leaves the old set untouched; the
-    summary is renamed last: it lists what the set holds."""
+    summary is renamed last: it lists what the set holds. drives: the sizing rows of the
+    variants run (harness.run.sizing.table_row), merged into the set's drives.csv. A stop
+    asked for before the renames (`harness.interrupts`) renames nothing and raises
+    KeyboardInterrupt."""
     with locked(out_dir):
         remove_stale_staging(out_dir)
         old = read_summary(out_dir / "summary.csv")
         try:
             with staging(out_dir) as folder:  # every file made here, then renamed in a burst
                 staged = _stage(results, scenario, out_dir, old, folder)
+                if drives is not None:
+                    staged.insert(-1, _stage_drives(drives, scenario, out_dir, folder))
                 for path in staged:
                     check_target(out_dir / path.name)
+                # a stop asked for meanwhile (SIGINT, SIGTERM) leaves the set as it was
+                interrupts.stop_if_requested()
                 return [path.replace(out_dir / path.name) for path in staged]
         except OSError as error:
             raise UserError(f"cannot write the result set in {out_dir}: "
@@ -264,6 +272,19 @@ def _stage(results: list[RunResult], scenario: Scenario, out_dir: Path,
     staged.append(plots.plot(runs, scenario, folder / f"{scenario.name}.png"))
     staged.append(write_csv(table, folder / "summary.csv"))
     return staged
+
+
+def _stage_drives(drives: pd.DataFrame, scenario: Scenario, out_dir: Path,
+                  folder: Path) -> Path:
+    """drives.csv of the set into folder: the rows of the variants run, and every other row
+    of the set's drives.csv, in the scenario's variant order."""
+    old = out_dir / "drives.csv"
+    kept = _read_csv(old) if old.exists() else drives.iloc[:0]
+    table = pd.concat([drives, kept[~kept.variant.isin(drives.variant)]], ignore_index=True)
+    rank = {name: index for index, name in enumerate(scenario.variants)}
+    table = table.sort_values("variant", key=lambda v: v.map(lambda n: rank.get(n, len(rank))),
+                              kind="stable")
+    return write_csv(table.reset_index(drop=True), folder / "drives.csv")
 
 
 def _read_csv(path: Path, **options: object) -> pd.DataFrame:

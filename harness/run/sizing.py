@@ -14,7 +14,10 @@ sized all the same so that the summary can say whether it does the task.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pandas as pd
 
 from harness import scenarios
 from harness.drive import catalogue
@@ -77,9 +80,34 @@ def table_row(variant: str, joint: str, sized: Sizing) -> dict[str, object]:
     its transmission, and its figures over the tasks with the worst figure-to-limit ratio."""
     drive = sized.drive
     return {"variant": variant, "joint": joint, "drive": drive.label,
-            "motor": drive.motor.name, "gear_ratio": drive.gear_ratio, "N": drive.N,
+            "motor": drive.motor.name,
+            "gearhead": "" if drive.gearhead is None else drive.gearhead.name,
+            "screw": "" if drive.screw is None else drive.screw.name,
+            "gear_ratio": drive.gear_ratio, "N": drive.N,
             "eta": drive.eta, "eta_back": drive.eta_back, "I_nom": drive.motor.I_nom,
             "P_nom": drive.motor.P_nom, "I_rms": sized.I_rms, "I_peak": sized.I_peak,
             "omega_motor_peak": sized.omega_motor_peak, "V_peak": sized.V_peak,
             "T_rms": sized.T_rms, "T_peak": sized.T_peak, "E_drawn": sized.E_drawn,
             "worst_load": sized.worst, "feasible": sized.feasible}
+
+
+def stored_drives(folder: Path, variant: str, loss_set: str) -> dict[str, JointDrive]:
+    """The drives a variant ran with in a written result set, from its folder's drives.csv
+    (`table_row`), as the set's loss set runs them; UserError naming the file when it has
+    none for the variant."""
+    path = folder / "drives.csv"
+    try:
+        table = pd.read_csv(path, keep_default_na=False)
+    except OSError as error:
+        raise UserError(f"{path}: cannot be read ({error.strerror or error}); run cosim "
+                        "with --drives sized") from None
+    rows = table[table.variant == variant]
+    if rows.empty:
+        raise UserError(f"{path} has no drive of variant {variant}")
+    drives = {}
+    for row in rows.itertuples():
+        spec = {"motor": row.motor} | ({"gearhead": row.gearhead, "ratio": float(row.gear_ratio)}
+                                       if row.gearhead else {})
+        drive = catalogue.pinned(spec, row.screw or None, f"{path} {variant} {row.joint}")
+        drives[row.joint] = drive.joint_drive(lossless=loss_set == "ideal")
+    return drives

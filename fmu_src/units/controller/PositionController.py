@@ -131,9 +131,12 @@ REGISTRATION = Registration(
     reference_run=DocumentedRun(
         "Reference step 0 -> 0.5 rad at 0.1 s; the measured angle follows as a ramp over "
         "0.1-0.6 s (the output saturates while the error is large, the integrator holds; "
-        "near the limit `saturated` toggles from step to step, so every step is recorded).",
-        ("theta_ref", "theta"),
-        ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 0.5, 0.0), (0.6, 0.5, 0.5), (1.0, 0.5, 0.5)),
+        "near the limit `saturated` toggles from step to step, so every step is recorded); "
+        "the drive switched off over 0.7-0.8 s (V = 0) and on again (integral reset).",
+        ("theta_ref", "theta", "enable"),
+        ((0.0, 0.0, 0.0, 1), (0.1, 0.0, 0.0, 1), (0.1, 0.5, 0.0, 1), (0.6, 0.5, 0.5, 1),
+         (0.7, 0.5, 0.5, 1), (0.7, 0.5, 0.5, 0), (0.8, 0.5, 0.5, 0), (0.8, 0.5, 0.5, 1),
+         (1.0, 0.5, 0.5, 1)),
         output_interval=1e-3),
     moving_run=Run({}, {"theta_ref": 0.002}, 2.0),  # unsaturated
     dependency_probes=(Run({}, {"theta_ref": 0.05, "theta": 0.01}, 0.05),),  # unsaturated

@@ -146,10 +146,12 @@ REGISTRATION = Registration(
     reference_run=DocumentedRun(
         "Voltage step 0 -> 3 V at 0.1 s on the standing drive (4.9 A); the joint speed then "
         "ramps 0 -> 2 rad/s over 0.5-1.0 s (the back-EMF, 5.7 V, exceeds the voltage: the "
-        "drive regenerates); voltage 0 from 1.25 s (braking).",
-        ("V", "omega"),
-        ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.1, 3.0, 0.0), (0.5, 3.0, 0.0),
-         (1.0, 3.0, 2.0), (1.25, 3.0, 2.0), (1.25, 0.0, 2.0), (1.5, 0.0, 2.0))),
+        "drive regenerates); voltage 0 from 1.25 s (braking); the drive switched off over "
+        "1.35-1.4 s (no current, no effort) and on again.",
+        ("V", "omega", "enable"),
+        ((0.0, 0.0, 0.0, 1), (0.1, 0.0, 0.0, 1), (0.1, 3.0, 0.0, 1), (0.5, 3.0, 0.0, 1),
+         (1.0, 3.0, 2.0, 1), (1.25, 3.0, 2.0, 1), (1.25, 0.0, 2.0, 1), (1.35, 0.0, 2.0, 1),
+         (1.35, 0.0, 2.0, 0), (1.4, 0.0, 2.0, 0), (1.4, 0.0, 2.0, 1), (1.5, 0.0, 2.0, 1))),
     moving_run=Run({}, {"V": 12.0, "omega": 1.0}, 2.0),
     # a joint speed inside the transmission's blend at standstill (STUCK_SPEED / N), where the
     # start effort depends on it
