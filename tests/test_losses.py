@@ -169,8 +169,8 @@ def test_the_drive_pays_what_the_ledger_stores_and_dissipates(scenario: str, los
     gear's loss (both see the held speed: docs/results.md, 2.3e-4 J of 10.3 J), an error that
     grows with the energy the drive converts and with its transmission ratio: 5e-4 J +
     2e-4 E_in bounds it (the largest, the unbalanced link on its 285:1 drive, 1.4e-3 J of
-    11.9 J: 0.5 of the bound); the inductor ends with 1e-9 J at most. So E_drawn >= E_copper + E_gear + stored change +
-    E_loss - E_added - W_worm."""
+    11.9 J: 0.5 of the bound); the inductor ends with 1e-9 J at most. So E_drawn >= E_copper
+    + E_gear + stored change + E_loss - E_added - W_worm."""
     _, model, row, first, last = run
     ledger = registry.registration(model).ledger
     drives = [k for k in ("W_drive", "W_adjust") if k in ledger]
