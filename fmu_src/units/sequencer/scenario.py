@@ -59,8 +59,8 @@ from fmu_src.parameters import MAGNITUDE_LIMIT
 
 JOINT_KINDS = ("revolute", "prismatic")
 # drives the harness can put on a joint: the default geared DC motor, a DC motor on a lead
-# screw, or on a self-locking trapezoidal screw (harness.drive.motor.MOTORS maps these names to motor
-# parameters)
+# screw, or on a self-locking trapezoidal screw (harness.drive.motor.MOTORS maps these names to
+# motor parameters)
 MOTORS = ("geared", "lead_screw", "trapezoidal_screw")
 # the one joint of a scenario without a `joints` table: the balancer FMUs' names
 DEFAULT_JOINT = {"position": "theta", "speed": "omega", "effort": "tau_drive",
