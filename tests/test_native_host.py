@@ -1,4 +1,4 @@
-"""The FMUs in a host that is not a Python process (README, "Importing the FMUs").
+"""The FMUs in a host that is not a Python process (docs/using_the_fmus.md).
 
 harness/fmu/host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
 CLI, fmuCheck or OMSimulator is. It runs here with an empty environment (no LD_PRELOAD,
