@@ -22,11 +22,17 @@
  * Status:
  * - a Python exception gives fmi2Error and one log line "<function>: <type>: <message>";
  *   MemoryError and SystemExit give fmi2Fatal; do_step returning False gives fmi2Discard;
+ * - the FMI 2.0 state machine (fmi2_states.h, the standard's tables) decides which calls an
+ *   instance takes: any other is refused with fmi2Error and a message, and after fmi2Error
+ *   the instance is in the error state (reads, FMU states, fmi2Reset and fmi2FreeInstance
+ *   only), after fmi2Discard of a step in stepFailed; fmi2SetFMUstate takes it back to the
+ *   state machine state and time its FMU state was taken in;
+ * - fmi2DoStep's currentCommunicationPoint must be the FMU's time (the start time, or where
+ *   the last step ended) within TIME_TOLERANCE: otherwise fmi2Error;
  * - after fmi2Fatal every call returns fmi2Fatal without entering Python (fmi2FreeInstance
  *   still releases the instance);
  * - refused without entering Python, with a message: Model Exchange, a GUID other than the
- *   FMU's, a NULL name, GUID or resource location, an unusable resource location, and
- *   stepping, setting or initialising after fmi2Terminate.
+ *   FMU's, a NULL name, GUID or resource location, an unusable resource location.
  *
  * Logging: the slave's log queue is passed on after every call, and the runtime's own
  * messages with it; each literal % reaches the host's logger as %% (its message is a printf
@@ -53,15 +59,23 @@
 #include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
+#include <math.h>
 #include "fmi2Functions.h"
+#include "fmi2_states.h"
 
 #define OVERRIDE_VARIABLE "BALANCER_FMU_LIBPYTHON"
 #define RECORD_FILE "python.txt"   /* in the FMU's resources: key=value lines */
 #define SLAVE_MODULE_FILE "slavemodule.txt"
-#define STATE_HEADER "pythonfmu state of FMU "  /* + GUID + "\n", before the slave's bytes */
+#define STATE_HEADER "pythonfmu state of FMU "  /* + GUID + "\n": a serialised state's start */
+/* after the state machine state: the time's bits, written and read */
+#define TIME_BITS " at time 0x%016llx (IEEE 754 bits)"
+#define READ_TIME_BITS " at time 0x%16llx (IEEE 754 bits)%n"
 #define MESSAGE_SIZE 8192
 #define PATH_SIZE 4096
 #define CONFIG_SIZE 16384  /* bytes reserved for a PyConfig: larger than any CPython's */
+/* fmi2DoStep's currentCommunicationPoint may differ from the FMU's time by this much, relative
+ * to the larger of that time and the step size */
+#define TIME_TOLERANCE 1e-9
 
 /* sonames the dynamic linker may find when the recorded library is absent, newest first */
 static const char *const FALLBACK_SONAMES[] = {
@@ -618,8 +632,6 @@ static const char *const METHOD_NAMES[METHOD_COUNT] = {
     "exit_initialization_mode", "terminate", "_get_fmu_state", "_set_fmu_state",
     "_fmu_state_to_bytes", "_fmu_state_from_bytes"};
 
-enum Phase { INSTANTIATED, INITIALIZATION_MODE, STEPPING, TERMINATED };
-
 #define INSTANCE_TAG 0x464d5532u  /* "FMU2" */
 #define STATE_TAG 0x53544154u     /* "STAT" */
 
@@ -627,9 +639,10 @@ typedef struct {
     unsigned tag;
     Sink sink;
     char *guid, *resources, *module;
-    int visible, fatal;
-    enum Phase phase;
-    double last_successful_time;
+    int visible;
+    fmi2Type type;
+    Fmi2State state;              /* of the FMI 2.0 state machine (fmi2_states.h) */
+    double last_successful_time;  /* the FMU's time [s]: where the next step must start */
     PyObject *cls, *slave, *queue;
     PyObject *methods[METHOD_COUNT];
     PyObject **strings;  /* the UTF-8 bytes behind the last fmi2GetString's values */
@@ -640,6 +653,8 @@ typedef struct {
 typedef struct {
     unsigned tag;
     char *guid;        /* of the FMU that made it */
+    Fmi2State taken_in;  /* the instance's state machine state and time when it was taken */
+    double time;
     PyObject *state;   /* the slave's state object */
 } State;
 
@@ -818,7 +833,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         in->resources = folder;
         in->module = module;
         in->visible = visible != fmi2False;
-        in->phase = INSTANTIATED;
+        in->type = fmuType;
+        in->state = FMI2_INSTANTIATED;
         folder = module = NULL;
     } else if (!why.length) {
         append(&why, "out of memory");
@@ -849,44 +865,63 @@ void fmi2FreeInstance(fmi2Component c) {
     free_instance(in);
 }
 
-/* ---- calls ---------------------------------------------------------------------------- */
-#define ANY_PHASE 0xFu
-#define NOT_TERMINATED (ANY_PHASE & ~(1u << TERMINATED))
-
-/* Check an instance may take the call: not after fmi2Fatal, in a phase that allows it. */
-static fmi2Status admit(Instance *in, const char *function, unsigned phases) {
+/* ---- the state machine: every call checked against the FMI 2.0 tables (fmi2_states.h) -- */
+/* Whether a call may go ahead: fmi2OK, or fmi2Error for a call the instance's state does not
+ * allow (with a message, and the instance in the error state, as after any fmi2Error), or
+ * fmi2Fatal for any call after fmi2Fatal (the standard allows none then). */
+static fmi2Status check_call(Instance *in, Fmi2Call call) {
     if (!in || in->tag != INSTANCE_TAG) return fmi2Error;
-    if (in->fatal) {
+    if (in->state == FMI2_FATAL) {
         log_format(&in->sink, fmi2Fatal, "%s refused: an earlier call on this instance "
-                   "returned fmi2Fatal", function);
+                   "returned fmi2Fatal", fmi2_call_name(call));
         return fmi2Fatal;
     }
-    if (!(phases & (1u << in->phase))) {
-        log_format(&in->sink, fmi2Error, "%s refused: not allowed after fmi2Terminate (only "
-                   "fmi2Reset, fmi2FreeInstance and the getters are)", function);
+    if (!fmi2_allowed(in->type, in->state, call)) {
+        char refusal[1024];
+        fmi2_refusal(in->type, in->state, call, refusal, sizeof refusal);
+        in->state = FMI2_ERROR;
+        log_format(&in->sink, fmi2Error, "%s", refusal);
         return fmi2Error;
     }
     return fmi2OK;
 }
 
+/* Move the instance on after a call that returned status. */
+static void finish_call(Instance *in, Fmi2Call call, fmi2Status status) {
+    in->state = fmi2_next_state(in->type, in->state, call, status);
+}
+
+/* A call answered without Python: checked, the answer's status taken, the instance moved on. */
+static fmi2Status answer(fmi2Component c, Fmi2Call call, fmi2Status status) {
+    Instance *in = (Instance *)c;
+    fmi2Status refused = check_call(in, call);
+    if (refused != fmi2OK) return refused;
+    finish_call(in, call, status);
+    return status;
+}
+
+/* ---- calls ---------------------------------------------------------------------------- */
 /* Enter Python for a call: the GIL taken (and the failure message of the call cleared). */
-#define BEGIN(function, phases) \
+#define BEGIN(call) \
     Instance *in = (Instance *)c; \
-    const char *const function_name = function; \
-    { fmi2Status refused = admit(in, function_name, phases); \
+    const Fmi2Call this_call = call; \
+    const char *const function_name = fmi2_call_name(this_call); \
+    (void)function_name; \
+    { fmi2Status refused = check_call(in, this_call); \
       if (refused != fmi2OK) return refused; } \
     hold_thread_state(); \
     PyGILState_STATE gil = py.PyGILState_Ensure(); \
     fmi2Status status = fmi2OK
 
-/* Leave Python: the slave's messages, then the failure's, passed on; the GIL given back. */
+/* Leave Python: the slave's messages, then the failure's, passed on; the GIL given back; the
+ * instance moved on. */
 #define END() \
     drain_log(in); \
     if (status >= fmi2Error && in->failure) log_text(&in->sink, status, NULL, in->failure); \
     free(in->failure); \
     in->failure = NULL; \
     py.PyGILState_Release(gil); \
-    if (status == fmi2Fatal) in->fatal = 1; \
+    finish_call(in, this_call, status); \
     return status
 
 /* Call a method; the result (new reference) or NULL with status set from the exception. */
@@ -911,18 +946,24 @@ static PyObject *reference_list(const fmi2ValueReference vr[], size_t nvr) {
     return list;
 }
 
-static fmi2Status no_call(Instance *in, const char *function) {
-    log_format(&in->sink, fmi2Error, "%s: not supported by this FMU", function);
+/* A call this FMU does not implement (its model description says so): fmi2Error. */
+static fmi2Status no_call(fmi2Component c, Fmi2Call call) {
+    fmi2Status refused = check_call((Instance *)c, call);
+    if (refused != fmi2OK) return refused;
+    log_format(&((Instance *)c)->sink, fmi2Error, "%s: not supported by this FMU",
+               fmi2_call_name(call));
+    finish_call((Instance *)c, call, fmi2Error);
     return fmi2Error;
 }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     Instance *in = (Instance *)c;
-    fmi2Status refused = admit(in, "fmi2SetDebugLogging", ANY_PHASE);
+    fmi2Status refused = check_call(in, FMI2_SET_DEBUG_LOGGING);
     if (refused != fmi2OK) return refused;
     if (nCategories && !categories) {
         log_format(&in->sink, fmi2Error, "fmi2SetDebugLogging: categories is NULL");
+        finish_call(in, FMI2_SET_DEBUG_LOGGING, fmi2Error);
         return fmi2Error;
     }
     for (size_t i = 0; i < in->sink.category_count; i++) free(in->sink.categories[i]);
@@ -932,7 +973,10 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     in->sink.logging_on = loggingOn != fmi2False;
     if (nCategories) {
         in->sink.categories = calloc(nCategories, sizeof *in->sink.categories);
-        if (!in->sink.categories) return fmi2Error;
+        if (!in->sink.categories) {
+            finish_call(in, FMI2_SET_DEBUG_LOGGING, fmi2Error);
+            return fmi2Error;
+        }
         for (size_t i = 0; i < nCategories; i++)
             in->sink.categories[i] = strdup(categories[i] ? categories[i] : "");
         in->sink.category_count = nCategories;
@@ -941,22 +985,18 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
 }
 
 /* Call a method without arguments but self (the life-cycle calls). */
-static fmi2Status life_cycle(fmi2Component c, const char *function, enum Method method,
-                             unsigned phases, enum Phase next) {
-    BEGIN(function, phases);
+static fmi2Status life_cycle(fmi2Component c, Fmi2Call call, enum Method method) {
+    BEGIN(call);
     PyObject *result = py.PyObject_CallFunctionObjArgs(in->methods[method], NULL);
     if (!result) status = python_failure(in, function_name);
-    else {
-        release(&result);
-        in->phase = next;
-    }
+    release(&result);
     END();
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                                fmi2Real tolerance, fmi2Real startTime,
                                fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    BEGIN("fmi2SetupExperiment", NOT_TERMINATED);
+    BEGIN(FMI2_SETUP_EXPERIMENT);
     PyObject *start = py.PyFloat_FromDouble(startTime);
     PyObject *stop = stopTimeDefined ? py.PyFloat_FromDouble(stopTime) : NULL;
     PyObject *tol = toleranceDefined ? py.PyFloat_FromDouble(tolerance) : NULL;
@@ -973,40 +1013,53 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    return life_cycle(c, "fmi2EnterInitializationMode", ENTER_INITIALIZATION_MODE,
-                      NOT_TERMINATED, INITIALIZATION_MODE);
+    return life_cycle(c, FMI2_ENTER_INITIALIZATION_MODE, ENTER_INITIALIZATION_MODE);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    return life_cycle(c, "fmi2ExitInitializationMode", EXIT_INITIALIZATION_MODE,
-                      NOT_TERMINATED, STEPPING);
+    return life_cycle(c, FMI2_EXIT_INITIALIZATION_MODE, EXIT_INITIALIZATION_MODE);
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    return life_cycle(c, "fmi2Terminate", TERMINATE, NOT_TERMINATED, TERMINATED);
+    return life_cycle(c, FMI2_TERMINATE, TERMINATE);
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-    BEGIN("fmi2Reset", ANY_PHASE);
+    BEGIN(FMI2_RESET);
     release_slave(in);
     if (!create_slave(in)) status = fmi2Fatal;  /* no slave left: logged by create_slave */
-    else {
-        in->phase = INSTANTIATED;
-        in->last_successful_time = 0.0;
-    }
+    else in->last_successful_time = 0.0;
     END();
+}
+
+/* Whether a step starts at the FMU's time (the previous step's end, or the start time):
+ * within TIME_TOLERANCE of it relative to the larger of that time and the step size, which
+ * covers a host's rounding (t0 + k h against a running sum) and refuses a skipped or
+ * repeated step. Otherwise 0 with the call's failure message set. */
+static int at_fmu_time(Instance *in, double point, double step_size) {
+    double tolerance = TIME_TOLERANCE * fmax(fabs(in->last_successful_time), step_size);
+    if (fabs(point - in->last_successful_time) <= tolerance) return 1;  /* false for NaN */
+    Message m = {{0}, 0};
+    append(&m, "fmi2DoStep: currentCommunicationPoint = %.17g s is not the FMU's time "
+           "%.17g s (where its last step ended, or the start time of fmi2SetupExperiment; "
+           "allowed deviation %.3g s)", point, in->last_successful_time, tolerance);
+    free(in->failure);
+    in->failure = strdup(m.text);
+    return 0;
 }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     (void)noSetFMUStatePriorToCurrentPoint;
-    BEGIN("fmi2DoStep", NOT_TERMINATED);
-    PyObject *now = py.PyFloat_FromDouble(currentCommunicationPoint);
-    PyObject *step = py.PyFloat_FromDouble(communicationStepSize);
+    BEGIN(FMI2_DO_STEP);
+    int on_time = at_fmu_time(in, currentCommunicationPoint, communicationStepSize);
+    PyObject *now = on_time ? py.PyFloat_FromDouble(currentCommunicationPoint) : NULL;
+    PyObject *step = now ? py.PyFloat_FromDouble(communicationStepSize) : NULL;
     PyObject *result = now && step ? CALL(DO_STEP, now, step) : NULL;
     int taken = result ? py.PyObject_IsTrue(result) : -1;
-    if (taken < 0) status = python_failure(in, function_name);
+    if (!on_time) status = fmi2Error;  /* at_fmu_time said why */
+    else if (taken < 0) status = python_failure(in, function_name);
     else if (taken) in->last_successful_time = currentCommunicationPoint + communicationStepSize;
     else status = fmi2Discard;  /* refused by the slave, which logged why */
     release(&result);
@@ -1016,11 +1069,11 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
 }
 
 /* The getters: call the method with the value references, convert each item of its result. */
-#define GETTER(Type, fmiType, method, convert) \
+#define GETTER(Type, fmiType, call, method, convert) \
     fmi2Status fmi2Get##Type(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, \
                              fmiType value[]) { \
-        if (nvr == 0) return admit((Instance *)c, "fmi2Get" #Type, ANY_PHASE); \
-        BEGIN("fmi2Get" #Type, ANY_PHASE); \
+        if (nvr == 0) return answer(c, call, fmi2OK); \
+        BEGIN(call); \
         if (!vr || !value) { \
             status = wrong_result(in, function_name, "arguments: NULL arrays"); \
             END(); \
@@ -1045,10 +1098,10 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         END(); \
     }
 
-GETTER(Real, fmi2Real, GET_REAL, value[i] = py.PyFloat_AsDouble(item))
-GETTER(Boolean, fmi2Boolean, GET_BOOLEAN,
+GETTER(Real, fmi2Real, FMI2_GET_REAL, GET_REAL, value[i] = py.PyFloat_AsDouble(item))
+GETTER(Boolean, fmi2Boolean, FMI2_GET_BOOLEAN, GET_BOOLEAN,
        { int truth = py.PyObject_IsTrue(item); value[i] = truth > 0 ? fmi2True : fmi2False; })
-GETTER(Integer, fmi2Integer, GET_INTEGER, {
+GETTER(Integer, fmi2Integer, FMI2_GET_INTEGER, GET_INTEGER, {
     long number = py.PyLong_AsLong(item);
     if (number < INT32_MIN || number > INT32_MAX) {
         status = wrong_result(in, function_name, "get_integer value is beyond 32 bits");
@@ -1057,8 +1110,8 @@ GETTER(Integer, fmi2Integer, GET_INTEGER, {
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                          fmi2String value[]) {
-    if (nvr == 0) return admit((Instance *)c, "fmi2GetString", ANY_PHASE);
-    BEGIN("fmi2GetString", ANY_PHASE);
+    if (nvr == 0) return answer(c, FMI2_GET_STRING, fmi2OK);
+    BEGIN(FMI2_GET_STRING);
     PyObject *refs = vr && value ? reference_list(vr, nvr) : NULL;
     PyObject *result = refs ? CALL(GET_STRING, refs) : NULL;
     release(&refs);
@@ -1087,11 +1140,11 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 }
 
 /* The setters: call the method with the value references and a list of converted values. */
-#define SETTER(Type, fmiType, method, convert) \
+#define SETTER(Type, fmiType, call, method, convert) \
     fmi2Status fmi2Set##Type(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, \
                              const fmiType value[]) { \
-        if (nvr == 0) return admit((Instance *)c, "fmi2Set" #Type, NOT_TERMINATED); \
-        BEGIN("fmi2Set" #Type, NOT_TERMINATED); \
+        if (nvr == 0) return answer(c, call, fmi2OK); \
+        BEGIN(call); \
         PyObject *refs = vr && value ? reference_list(vr, nvr) : NULL; \
         PyObject *values = refs ? py.PyList_New((Py_ssize_t)nvr) : NULL; \
         for (size_t i = 0; values && i < nvr; i++) { \
@@ -1107,10 +1160,11 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
         END(); \
     }
 
-SETTER(Real, fmi2Real, SET_REAL, py.PyFloat_FromDouble(value[i]))
-SETTER(Integer, fmi2Integer, SET_INTEGER, py.PyLong_FromLong(value[i]))
-SETTER(Boolean, fmi2Boolean, SET_BOOLEAN, py.PyBool_FromLong(value[i] != fmi2False))
-SETTER(String, fmi2String, SET_STRING,
+SETTER(Real, fmi2Real, FMI2_SET_REAL, SET_REAL, py.PyFloat_FromDouble(value[i]))
+SETTER(Integer, fmi2Integer, FMI2_SET_INTEGER, SET_INTEGER, py.PyLong_FromLong(value[i]))
+SETTER(Boolean, fmi2Boolean, FMI2_SET_BOOLEAN, SET_BOOLEAN,
+       py.PyBool_FromLong(value[i] != fmi2False))
+SETTER(String, fmi2String, FMI2_SET_STRING, SET_STRING,
        value[i] ? py.PyUnicode_FromString(value[i]) : py.PyUnicode_FromString(""))
 
 /* ---- FMU states ----------------------------------------------------------------------- */
@@ -1132,7 +1186,7 @@ static State *state_of(Instance *in, fmi2FMUstate state, const char *function) {
 }
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    BEGIN("fmi2GetFMUstate", ANY_PHASE);
+    BEGIN(FMI2_GET_FMU_STATE);
     State *s = NULL;
     PyObject *result = state ? py.PyObject_CallFunctionObjArgs(in->methods[GET_FMU_STATE],
                                                                NULL) : NULL;
@@ -1146,6 +1200,8 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
     }
     if (status == fmi2OK) {
         s->tag = STATE_TAG;
+        s->taken_in = in->state;
+        s->time = in->last_successful_time;
         release(&s->state);
         s->state = result;  /* owned by the state now */
         result = NULL;
@@ -1156,18 +1212,22 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
-    BEGIN("fmi2SetFMUstate", ANY_PHASE);
+    BEGIN(FMI2_SET_FMU_STATE);
     State *s = state_of(in, state, function_name);
     PyObject *result = s ? CALL(SET_FMU_STATE, s->state) : NULL;
     if (!s) status = fmi2Error;
     else if (!result) status = python_failure(in, function_name);
+    else {  /* back where the state was taken: its state machine state and time */
+        in->state = s->taken_in;
+        in->last_successful_time = s->time;
+    }
     release(&result);
     END();
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    if (!state || !*state) return admit((Instance *)c, "fmi2FreeFMUstate", ANY_PHASE);
-    BEGIN("fmi2FreeFMUstate", ANY_PHASE);
+    if (!state || !*state) return answer(c, FMI2_FREE_FMU_STATE, fmi2OK);
+    BEGIN(FMI2_FREE_FMU_STATE);
     State *s = (State *)*state;
     if (s->tag != STATE_TAG) status = wrong_result(in, function_name, "argument: not a state");
     else {
@@ -1180,11 +1240,14 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
     END();
 }
 
-/* The serialised state: STATE_HEADER, the GUID, a line break, then the slave's bytes. A new
- * reference to the slave's bytes, or NULL with status set. */
+/* The serialised state: two lines of text, then the slave's bytes. The first line is
+ * STATE_HEADER and the GUID, the second the state machine state and the time [s] the state
+ * was taken in, "<state> at time 0x<the double's 64 bits in hex> (IEEE 754 bits)": exact, and
+ * read the same whatever the host's locale. A new reference to the slave's bytes (and in
+ * *taken the state they belong to), or NULL with status set. */
 static PyObject *state_bytes(Instance *in, fmi2FMUstate state, const char *function,
-                             fmi2Status *status) {
-    State *s = state_of(in, state, function);
+                             fmi2Status *status, State **taken) {
+    State *s = *taken = state_of(in, state, function);
     PyObject *bytes = s ? CALL(STATE_TO_BYTES, s->state) : NULL;
     char *data;
     if (!s) *status = fmi2Error;
@@ -1195,63 +1258,110 @@ static PyObject *state_bytes(Instance *in, fmi2FMUstate state, const char *funct
     return bytes;
 }
 
-static size_t header_size(const Instance *in) {
-    return strlen(STATE_HEADER) + strlen(in->guid) + 1;
+/* The two lines before the slave's bytes into text (at most size bytes with the NUL, which
+ * is not part of them); their length. */
+static size_t state_lines(const Instance *in, const State *s, char *text, size_t size) {
+    uint64_t bits;
+    memcpy(&bits, &s->time, sizeof bits);
+    int n = snprintf(text, size, STATE_HEADER "%s\n%s" TIME_BITS "\n", in->guid,
+                     fmi2_state_name(s->taken_in), (unsigned long long)bits);
+    return n > 0 ? (size_t)n : 0;
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size) {
-    BEGIN("fmi2SerializedFMUstateSize", ANY_PHASE);
-    PyObject *bytes = size ? state_bytes(in, state, function_name, &status) : NULL;
+    BEGIN(FMI2_SERIALIZED_FMU_STATE_SIZE);
+    State *s = NULL;
+    PyObject *bytes = size ? state_bytes(in, state, function_name, &status, &s) : NULL;
     char *data;
     Py_ssize_t length;
     if (!size) status = wrong_result(in, function_name, "argument: size is NULL");
     else if (bytes && py.PyBytes_AsStringAndSize(bytes, &data, &length) == 0)
-        *size = header_size(in) + (size_t)length;
+        *size = state_lines(in, s, NULL, 0) + (size_t)length;
     release(&bytes);
     END();
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte serialized[],
                                  size_t size) {
-    BEGIN("fmi2SerializeFMUstate", ANY_PHASE);
-    PyObject *bytes = serialized ? state_bytes(in, state, function_name, &status) : NULL;
-    char *data;
+    BEGIN(FMI2_SERIALIZE_FMU_STATE);
+    State *s = NULL;
+    PyObject *bytes = serialized ? state_bytes(in, state, function_name, &status, &s) : NULL;
+    char *data, *lines = NULL;
     Py_ssize_t length;
     if (!serialized) status = wrong_result(in, function_name, "argument: the array is NULL");
     else if (bytes && py.PyBytes_AsStringAndSize(bytes, &data, &length) == 0) {
-        size_t header = header_size(in);
+        size_t header = state_lines(in, s, NULL, 0);
         if (size < header + (size_t)length) {
             status = wrong_result(in, function_name,
                                   "state needs more bytes than given (fmi2SerializedFMUstateSize)");
+        } else if (!(lines = malloc(header + 1))) {
+            status = wrong_result(in, function_name, "state: out of memory");
         } else {
-            snprintf(serialized, header + 1, STATE_HEADER "%s\n", in->guid);
+            state_lines(in, s, lines, header + 1);
+            memcpy(serialized, lines, header);
             memcpy(serialized + header, data, (size_t)length);
         }
     }
+    free(lines);
     release(&bytes);
     END();
 }
 
+/* The length of the two lines that begin a serialised state of this instance's FMU, with
+ * the state machine state and time they name; 0 if they are not such lines (why in m). */
+static size_t parse_state_lines(const Instance *in, const char *bytes, size_t size,
+                                Fmi2State *taken_in, double *time, Message *m,
+                                const char *function) {
+    size_t prefix = strlen(STATE_HEADER), guid = strlen(in->guid);
+    const char *end = size > prefix ? memchr(bytes + prefix, '\n', size - prefix) : NULL;
+    if (!end || memcmp(bytes, STATE_HEADER, prefix) != 0) {
+        append(m, "%s: the bytes are not a serialised FMU state of this runtime", function);
+        return 0;
+    }
+    if ((size_t)(end - bytes) != prefix + guid || memcmp(bytes + prefix, in->guid, guid) != 0) {
+        append(m, "%s: the bytes are a state of another FMU (GUID %.*s, this one %s)",
+               function, (int)(end - bytes - (ptrdiff_t)prefix), bytes + prefix, in->guid);
+        return 0;
+    }
+    const char *record = end + 1;
+    const char *record_end = memchr(record, '\n', size - (size_t)(record - bytes));
+    char line[128];
+    size_t length = record_end ? (size_t)(record_end - record) : 0;
+    if (record_end && length < sizeof line) {
+        memcpy(line, record, length);
+        line[length] = '\0';
+        for (int state = 0; state < FMI2_STATE_COUNT; state++) {
+            const char *name = fmi2_state_name((Fmi2State)state);
+            size_t n = strlen(name);
+            unsigned long long bits;
+            int read = 0;
+            if (strncmp(line, name, n) != 0 ||
+                sscanf(line + n, READ_TIME_BITS, &bits, &read) != 1 ||
+                line[n + (size_t)read] != '\0') continue;
+            uint64_t exact = bits;
+            memcpy(time, &exact, sizeof *time);
+            *taken_in = (Fmi2State)state;
+            if (isfinite(*time) && fmi2_allowed(in->type, *taken_in, FMI2_GET_FMU_STATE))
+                return (size_t)(record_end + 1 - bytes);
+        }
+    }
+    append(m, "%s: the bytes are not a serialised FMU state of this runtime (no state "
+           "machine state and time on their second line)", function);
+    return 0;
+}
+
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serialized[], size_t size,
                                    fmi2FMUstate *state) {
-    BEGIN("fmi2DeSerializeFMUstate", ANY_PHASE);
-    size_t header = header_size(in), prefix = strlen(STATE_HEADER);
+    BEGIN(FMI2_DESERIALIZE_FMU_STATE);
     State *s = NULL;
+    Fmi2State taken_in = FMI2_START_END;
+    double time = 0.0;
+    Message m = {{0}, 0};
+    size_t header = serialized && state ? parse_state_lines(in, serialized, size, &taken_in,
+                                                            &time, &m, function_name) : 0;
     if (!serialized || !state) {
         status = wrong_result(in, function_name, "arguments: NULL");
-    } else if (size < header || memcmp(serialized, STATE_HEADER, prefix) != 0 ||
-               serialized[header - 1] != '\n' ||
-               memcmp(serialized + prefix, in->guid, header - prefix - 1) != 0) {
-        const char *end = size >= prefix ? memchr(serialized + prefix, '\n', size - prefix)
-                                         : NULL;
-        Message m = {{0}, 0};
-        if (size >= prefix && memcmp(serialized, STATE_HEADER, prefix) == 0 && end)
-            append(&m, "%s: the bytes are a state of another FMU (GUID %.*s, this one %s)",
-                   function_name, (int)(end - serialized - prefix), serialized + prefix,
-                   in->guid);
-        else
-            append(&m, "%s: the bytes are not a serialised FMU state of this runtime",
-                   function_name);
+    } else if (!header) {
         free(in->failure);
         in->failure = strdup(m.text);
         status = fmi2Error;
@@ -1267,6 +1377,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serialized[],
             status = wrong_result(in, function_name, "state: out of memory");
         } else {
             s->tag = STATE_TAG;
+            s->taken_in = taken_in;
+            s->time = time;
             s->state = result;
             *state = s;
         }
@@ -1280,69 +1392,61 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
                                         size_t nKnown, const fmi2Real dvKnown[],
                                         fmi2Real dvUnknown[]) {
     (void)unknown, (void)nUnknown, (void)known, (void)nKnown, (void)dvKnown, (void)dvUnknown;
-    fmi2Status refused = admit((Instance *)c, "fmi2GetDirectionalDerivative", ANY_PHASE);
-    return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2GetDirectionalDerivative");
+    return no_call(c, FMI2_GET_DIRECTIONAL_DERIVATIVE);
 }
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
                                        size_t nvr, const fmi2Integer order[],
                                        const fmi2Real value[]) {
     (void)vr, (void)nvr, (void)order, (void)value;
-    fmi2Status refused = admit((Instance *)c, "fmi2SetRealInputDerivatives", ANY_PHASE);
-    return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2SetRealInputDerivatives");
+    return no_call(c, FMI2_SET_REAL_INPUT_DERIVATIVES);
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
                                         size_t nvr, const fmi2Integer order[],
                                         fmi2Real value[]) {
     (void)vr, (void)nvr, (void)order, (void)value;
-    fmi2Status refused = admit((Instance *)c, "fmi2GetRealOutputDerivatives", ANY_PHASE);
-    return refused != fmi2OK ? refused
-                             : no_call((Instance *)c, "fmi2GetRealOutputDerivatives");
+    return no_call(c, FMI2_GET_REAL_OUTPUT_DERIVATIVES);
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) {
-    fmi2Status refused = admit((Instance *)c, "fmi2CancelStep", ANY_PHASE);
-    return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2CancelStep");
-}
+fmi2Status fmi2CancelStep(fmi2Component c) { return no_call(c, FMI2_CANCEL_STEP); }
 
-/* Steps are synchronous: no step is ever pending. */
-static fmi2Status no_status(Instance *in, const char *function, fmi2StatusKind kind) {
-    log_format(&in->sink, fmi2Discard, "%s: status kind %d is not provided (steps are "
-               "synchronous)", function, (int)kind);
+/* Steps are synchronous: no step is ever pending. An inquiry not answered is fmi2Discard
+ * (FMI 2.0, section 4.2.3), which leaves the state as it was. */
+static fmi2Status no_status(fmi2Component c, Fmi2Call call, fmi2StatusKind kind) {
+    fmi2Status refused = check_call((Instance *)c, call);
+    if (refused != fmi2OK) return refused;
+    log_format(&((Instance *)c)->sink, fmi2Discard, "%s: status kind %d is not provided "
+               "(steps are synchronous)", fmi2_call_name(call), (int)kind);
+    finish_call((Instance *)c, call, fmi2Discard);
     return fmi2Discard;
 }
 
 /* The inquiries this FMU does not answer: every kind of a type. */
-#define NO_STATUS(Type, fmiType) \
+#define NO_STATUS(Type, fmiType, call) \
     fmi2Status fmi2Get##Type(fmi2Component c, const fmi2StatusKind s, fmiType *value) { \
         (void)value; \
-        fmi2Status refused = admit((Instance *)c, "fmi2Get" #Type, ANY_PHASE); \
-        return refused != fmi2OK ? refused : no_status((Instance *)c, "fmi2Get" #Type, s); \
+        return no_status(c, call, s); \
     }
 
-NO_STATUS(Status, fmi2Status)
-NO_STATUS(IntegerStatus, fmi2Integer)
-NO_STATUS(StringStatus, fmi2String)
+NO_STATUS(Status, fmi2Status, FMI2_GET_STATUS)
+NO_STATUS(IntegerStatus, fmi2Integer, FMI2_GET_INTEGER_STATUS)
+NO_STATUS(StringStatus, fmi2String, FMI2_GET_STRING_STATUS)
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    fmi2Status refused = admit((Instance *)c, "fmi2GetRealStatus", ANY_PHASE);
-    if (refused != fmi2OK) return refused;
-    if (s != fmi2LastSuccessfulTime || !value)
-        return no_status((Instance *)c, "fmi2GetRealStatus", s);
-    *value = ((Instance *)c)->last_successful_time;
-    return fmi2OK;
+    if (s != fmi2LastSuccessfulTime || !value) return no_status(c, FMI2_GET_REAL_STATUS, s);
+    fmi2Status status = answer(c, FMI2_GET_REAL_STATUS, fmi2OK);
+    if (status == fmi2OK) *value = ((Instance *)c)->last_successful_time;
+    return status;
 }
 
 /* fmi2Terminated is false: a refused step (fmi2Discard) leaves the slave as it was, ready for
  * a shorter step or another input. */
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    fmi2Status refused = admit((Instance *)c, "fmi2GetBooleanStatus", ANY_PHASE);
-    if (refused != fmi2OK) return refused;
-    if (s != fmi2Terminated || !value)
-        return no_status((Instance *)c, "fmi2GetBooleanStatus", s);
-    *value = fmi2False;
-    return fmi2OK;
+    if (s != fmi2Terminated || !value) return no_status(c, FMI2_GET_BOOLEAN_STATUS, s);
+    fmi2Status status = answer(c, FMI2_GET_BOOLEAN_STATUS, fmi2OK);
+    if (status == fmi2OK) *value = fmi2False;
+    return status;
 }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
