@@ -110,6 +110,9 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(void *, PyGILState_GetThisThreadState, (void)) \
     X(void, Py_DecRef, (PyObject *)) \
     X(PyObject *, PyImport_ImportModule, (const char *)) \
+    X(PyObject *, PyImport_AddModule, (const char *)) \
+    X(PyObject *, PyModule_GetDict, (PyObject *)) \
+    X(void, Py_IncRef, (PyObject *)) \
     X(PyObject *, PyObject_GetAttrString, (PyObject *, const char *)) \
     X(PyObject *, PyObject_CallFunctionObjArgs, (PyObject *, ...)) \
     X(PyObject *, PyObject_Str, (PyObject *)) \
@@ -149,19 +152,115 @@ static struct {
 } py;
 #undef DECLARE
 
-/* The Python side of the runtime: find the slave class, make a slave. Run once per load of
- * this library into a private namespace. */
+/* The Python side of the runtime: find the slave class, make a slave. Its module lives once
+ * per process, in sys.modules under HELPER_MODULE (named by the digest of this text), shared
+ * by every FMU and every load of this library.
+ *
+ * Each FMU's Python code is imported from its own resources folder as the package
+ * _fmu_bundle_<digest of the bundle's Python files> (a meta path finder bound to that folder
+ * runs those modules with an __import__ that maps the bundle's top-level names, fmu_src,
+ * pythonfmu and the slave module, into that package). So an FMU runs the code it carries,
+ * whatever else the process imported: another FMU, another version of the same one, or a
+ * host's own fmu_src. FMUs of the same content share their modules. */
 static const char HELPER_SOURCE[] =
-    "import importlib, sys\n"
+    "import builtins\n"
+    "import hashlib\n"
+    "import importlib\n"
+    "import importlib.abc\n"
+    "import importlib.machinery\n"
+    "import os\n"
+    "import sys\n"
+    "import types\n"
+    "\n"
+    "# Each bundle's code is imported as the package PREFIX + <digest of its Python files>:\n"
+    "# FMUs of other content never share a module, FMUs of the same content share them all.\n"
+    "PREFIX = '_fmu_bundle_'\n"
+    "\n"
+    "\n"
+    "def _digest(resources):\n"
+    "    '''SHA-256 (32 hex digits) of the Python files below the resources folder: their paths\n"
+    "    and bytes, in sorted order (compiled caches left out).'''\n"
+    "    sha = hashlib.sha256()\n"
+    "    for folder, folders, files in os.walk(resources):\n"
+    "        folders[:] = sorted(name for name in folders if name != '__pycache__')\n"
+    "        for name in sorted(files):\n"
+    "            if name.endswith('.py'):\n"
+    "                path = os.path.join(folder, name)\n"
+    "                with open(path, 'rb') as file:\n"
+    "                    data = file.read()\n"
+    "                for part in (os.fsencode(os.path.relpath(path, resources)), data):\n"
+    "                    sha.update(len(part).to_bytes(8, 'big'))\n"
+    "                    sha.update(part)\n"
+    "    return sha.hexdigest()[:32]\n"
+    "\n"
+    "\n"
+    "def _bundle_import(package, tops):\n"
+    "    '''An __import__ for the modules of one bundle: an absolute import of one of its\n"
+    "    top-level names (fmu_src, pythonfmu, the slave module) is one of the bundle's package.'''\n"
+    "    real = builtins.__import__\n"
+    "\n"
+    "    def bundle_import(name, globals=None, locals=None, fromlist=(), level=0):\n"
+    "        top = name.partition('.')[0]\n"
+    "        if level == 0 and top in tops:\n"
+    "            module = real(package + '.' + name, globals, locals, fromlist, 0)\n"
+    "            return module if fromlist else sys.modules[package + '.' + top]\n"
+    "        return real(name, globals, locals, fromlist, level)\n"
+    "    return bundle_import\n"
+    "\n"
+    "\n"
+    "class _BundleLoader(importlib.machinery.SourceFileLoader):\n"
+    "    '''Runs a module of a bundle with the bundle's builtins (its __import__).'''\n"
+    "\n"
+    "    def exec_module(self, module):\n"
+    "        package = sys.modules[module.__name__.partition('.')[0]]\n"
+    "        module.__dict__['__builtins__'] = package._bundle_builtins\n"
+    "        super().exec_module(module)\n"
+    "\n"
+    "\n"
+    "class _BundleFinder(importlib.abc.MetaPathFinder):\n"
+    "    '''Finds the modules of the bundles' packages in their resources folders.'''\n"
+    "\n"
+    "    def find_spec(self, name, path, target=None):\n"
+    "        if not name.startswith(PREFIX) or '.' not in name:\n"
+    "            return None\n"
+    "        spec = importlib.machinery.PathFinder.find_spec(name, path)\n"
+    "        if spec is not None and type(spec.loader) is importlib.machinery.SourceFileLoader:\n"
+    "            spec.loader = _BundleLoader(spec.loader.name, spec.loader.path)\n"
+    "        return spec\n"
+    "\n"
+    "\n"
+    "def _package(resources):\n"
+    "    '''The package of the bundle in the resources folder, made on first use.'''\n"
+    "    name = PREFIX + _digest(resources)\n"
+    "    package = sys.modules.get(name)\n"
+    "    if package is not None:\n"
+    "        package.__path__[:] = [resources]  # earlier copies of this content may be deleted\n"
+    "        return package\n"
+    "    package = types.ModuleType(name, 'The Python code of the FMUs whose resources hold '\n"
+    "                                     'these files: ' + resources)\n"
+    "    package.__path__ = [resources]\n"
+    "    package.__spec__ = importlib.machinery.ModuleSpec(name, None, is_package=True)\n"
+    "    package.__spec__.submodule_search_locations = package.__path__\n"
+    "    tops = frozenset(entry[:-3] if entry.endswith('.py') else entry\n"
+    "                     for entry in os.listdir(resources)\n"
+    "                     if entry.endswith('.py') or (entry != '__pycache__' and os.path.isdir(\n"
+    "                         os.path.join(resources, entry))))\n"
+    "    package._bundle_builtins = dict(vars(builtins), __import__=_bundle_import(name, tops))\n"
+    "    if not any(type(finder).__name__ == '_BundleFinder' for finder in sys.meta_path):\n"
+    "        sys.meta_path.insert(0, _BundleFinder())\n"
+    "    return sys.modules.setdefault(name, package)  # another thread may have made it\n"
+    "\n"
+    "\n"
     "def _depth(cls):\n"
     "    names = [base.__name__ for base in getattr(cls, '__mro__', ())]\n"
     "    return names.index('Fmi2Slave') if 'Fmi2Slave' in names[1:] else -1\n"
+    "\n"
+    "\n"
     "def slave_class(resources, module_name):\n"
-    "    '''The Fmi2Slave subclass of the slave module (pythonfmu's rule: of the concrete\n"
-    "    classes the module defines, the one deepest below Fmi2Slave).'''\n"
-    "    if module_name not in sys.modules and resources not in sys.path:\n"
-    "        sys.path.insert(0, resources)\n"
-    "    module = importlib.import_module(module_name)\n"
+    "    '''The Fmi2Slave subclass of the slave module of the FMU whose resources folder this is,\n"
+    "    imported from it (pythonfmu's rule: of the concrete classes the module defines, the one\n"
+    "    deepest below Fmi2Slave).'''\n"
+    "    module = importlib.import_module(_package(resources).__name__ + '.' + module_name)\n"
     "    members = [m for m in vars(module).values() if isinstance(m, type) and _depth(m) > 0\n"
     "               and not getattr(m, '__abstractmethods__', None)]\n"
     "    own = [m for m in members if m.__module__ == module.__name__] or members\n"
@@ -169,6 +268,8 @@ static const char HELPER_SOURCE[] =
     "        raise TypeError(f'module {module_name} ({module.__file__}) defines no concrete '\n"
     "                        'subclass of pythonfmu.Fmi2Slave')\n"
     "    return max(own, key=_depth)\n"
+    "\n"
+    "\n"
     "def new_slave(cls, instance_name, resources, visible):\n"
     "    return cls(instance_name=instance_name, resources=resources, visible=bool(visible))\n";
 
@@ -483,29 +584,56 @@ static void hold_thread_state(void) {
     }
 }
 
-static int make_helper(Message *why) {
+/* The helper's module: HELPER_MODULE_PREFIX and the FNV-1a digest of HELPER_SOURCE, so that
+ * runtimes of one source share it and others do not. */
+static void helper_module_name(char *name, size_t size) {
+    uint64_t hash = 14695981039346656037ull;
+    for (const char *ch = HELPER_SOURCE; *ch; ch++)
+        hash = (hash ^ (unsigned char)*ch) * 1099511628211ull;
+    snprintf(name, size, "_fmu_runtime_helper_%016llx", (unsigned long long)hash);
+}
+
+/* Find the helper's functions in its module, running HELPER_SOURCE there first if this is
+ * the first load in the process: one FMU at a time (HELPER_SOURCE releases the GIL while it
+ * imports, and a second run of it would replace the functions a first took). This load keeps
+ * a reference to each function (never released: see the header). */
+static int make_helper_now(Message *why) {
+    char name[64];
+    helper_module_name(name, sizeof name);
     PyGILState_STATE gil = py.PyGILState_Ensure();
-    PyObject *namespace = py.PyDict_New(), *builtins = py.PyImport_ImportModule("builtins");
-    PyObject *result = NULL;
-    if (namespace && builtins && py.PyDict_SetItemString(namespace, "__builtins__", builtins) == 0)
-        result = py.PyRun_StringFlags(HELPER_SOURCE, PY_FILE_INPUT, namespace, namespace, NULL);
-    if (result) {
-        /* borrowed from the namespace, which is kept (never released: see the header) */
+    PyObject *module = py.PyImport_AddModule(name);  /* borrowed: sys.modules holds it */
+    PyObject *namespace = module ? py.PyModule_GetDict(module) : NULL;
+    PyObject *builtins = NULL, *result = NULL;
+    int ready = namespace && py.PyDict_GetItemString(namespace, "new_slave");
+    if (namespace && !ready) {
+        builtins = py.PyImport_ImportModule("builtins");
+        if (builtins && py.PyDict_SetItemString(namespace, "__builtins__", builtins) == 0)
+            result = py.PyRun_StringFlags(HELPER_SOURCE, PY_FILE_INPUT, namespace, namespace,
+                                          NULL);
+        ready = result != NULL;
+    }
+    if (ready) {
         helper_slave_class = py.PyDict_GetItemString(namespace, "slave_class");
         helper_new_slave = py.PyDict_GetItemString(namespace, "new_slave");
-        py.Py_DecRef(result);
-    } else {
-        py.PyErr_Clear();
-        if (namespace) py.Py_DecRef(namespace);
-        namespace = NULL;
+        if (helper_slave_class) py.Py_IncRef(helper_slave_class);
+        if (helper_new_slave) py.Py_IncRef(helper_new_slave);
     }
+    py.PyErr_Clear();
+    if (result) py.Py_DecRef(result);
     if (builtins) py.Py_DecRef(builtins);
     py.PyGILState_Release(gil);
-    if (!namespace || !helper_slave_class || !helper_new_slave) {
+    if (!helper_slave_class || !helper_new_slave) {
         append(why, "the runtime's Python helper did not compile");
         return 0;
     }
     return 1;
+}
+
+static int make_helper(Message *why) {
+    int lock = lock_process();
+    int made = make_helper_now(why);
+    if (lock >= 0) close(lock);
+    return made;
 }
 
 /* Make loaded true, or write why not. */

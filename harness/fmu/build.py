@@ -5,10 +5,12 @@ reading the imports), staged as the package `fmu_src` in the FMU's resources, so
 runs in any Python interpreter with nothing but the standard library and pythonfmu's own
 embedded files.
 
-`fmu_src` is a namespace package (no __init__.py) on purpose: pythonfmu runs every FMU of a
-process in one interpreter, each adding its resources folder to sys.path. A namespace
-package's search path follows sys.path, so a second FMU finds its own modules even when an
-earlier FMU imported `fmu_src` first (from a folder that may be deleted since).
+In a process, every FMU of our runtime imports the modules of its own bundle: the runtime
+imports them as a package named after the digest of the bundle's Python files, with an
+import hook bound to its resources folder (fmu_src/runtime/fmi2_runtime.c, HELPER_SOURCE;
+docs/build.md says why). `fmu_src` stays a namespace package (no __init__.py): under
+pythonfmu's own binary (win64), which puts each FMU's resources folder on sys.path, its
+search path follows sys.path.
 
 Every FMU carries `documentation/index.html`, generated from the built FMU by
 `harness.fmu.docs`. A build writes a temporary file in the destination folder and renames it
