@@ -325,6 +325,35 @@ def test_a_logged_message_reaches_a_printf_logger_as_its_text(
     assert PRINTF_MESSAGE in [message for _, message in messages(done.stderr)], done.stderr
 
 
+@pytest.mark.parametrize("depth", [1, -1], ids=["one level", "no limit"])
+def test_a_logger_that_calls_the_fmu_passes_each_message_on_once(
+        stress: Path, fmus: dict[str, Unzipped], depth: int) -> None:
+    """The probe logs a Warning in its step; the host's logger calls fmi2GetReal for every
+    message it gets, one level deep or without a limit. The nested call used to pass the
+    same queued message on again: logged twice with one level, and without a limit the
+    host died of SIGSEGV (endless recursion). Each message now reaches the logger once."""
+    probe = fmus[PROBE]
+    done = stress_run(stress, "reentrant", str(depth),
+                      *probe.args(probe_mode(probe, LOG_PRINTF), f"r:{probe.refs['y']}"))
+    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-2000:]}"
+    assert done.stdout.splitlines() == ["doStep status 0"]
+    assert [message for _, message in messages(done.stderr)] == [PRINTF_MESSAGE]
+
+
+def test_a_logger_whose_calls_log_again_is_cut_off(stress: Path,
+                                                   fmus: dict[str, Unzipped]) -> None:
+    """A logger that calls fmi2GetReal with an unknown value reference for every message:
+    each call fails with a new message, which calls the logger again. The recursion is cut
+    off 8 calls deep instead of running out of stack."""
+    probe = fmus[PROBE]
+    done = stress_run(stress, "reentrant", "-1", *probe.args(probe_mode(probe, LOG_PRINTF),
+                                                             "r:99999"))
+    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-2000:]}"
+    logged = messages(done.stderr)
+    assert logged[0] == (1, PRINTF_MESSAGE)
+    assert 1 < len(logged) <= 9 and all(status == FMI_ERROR for status, _ in logged[1:])
+
+
 def test_an_exception_in_do_step_is_an_error_with_its_message(
         stress: Path, fmus: dict[str, Unzipped]) -> None:
     probe = fmus[PROBE]

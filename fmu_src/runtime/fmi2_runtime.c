@@ -76,6 +76,7 @@
 /* fmi2DoStep's currentCommunicationPoint may differ from the FMU's time by this much, relative
  * to the larger of that time and the step size */
 #define TIME_TOLERANCE 1e-9
+#define MAX_LOGGER_DEPTH 8  /* nested calls of the host's logger (through calls it makes) */
 
 /* sonames the dynamic linker may find when the recorded library is absent, newest first */
 static const char *const FALLBACK_SONAMES[] = {
@@ -131,6 +132,7 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(Py_ssize_t, PySequence_Size, (PyObject *)) \
     X(PyObject *, PySequence_GetItem, (PyObject *, Py_ssize_t)) \
     X(int, PySequence_DelSlice, (PyObject *, Py_ssize_t, Py_ssize_t)) \
+    X(PyObject *, PySequence_GetSlice, (PyObject *, Py_ssize_t, Py_ssize_t)) \
     X(PyObject *, PyBytes_FromStringAndSize, (const char *, Py_ssize_t)) \
     X(int, PyBytes_AsStringAndSize, (PyObject *, char **, Py_ssize_t *)) \
     X(PyObject *, PyErr_Occurred, (void)) \
@@ -296,6 +298,7 @@ typedef struct {
     int logging_on;
     char **categories;  /* NULL: every category */
     size_t category_count;
+    int depth;          /* calls of the logger under way: a logger may call the FMU again */
 } Sink;
 
 static int category_enabled(const Sink *sink, const char *category) {
@@ -310,10 +313,11 @@ static const char *const STATUS_CATEGORIES[] = {"logAll", "logStatusWarning",
                                                "logStatusFatal", "logAll"};
 
 /* Pass text to the host's logger as a printf format that prints it as it is: each % as %%,
- * each line break as a space (one message, one line). */
-static void log_text(const Sink *sink, fmi2Status status, const char *category,
-                     const char *text) {
-    if (!sink->callbacks.logger) return;
+ * each line break as a space (one message, one line). A logger that calls the FMU, whose
+ * call logs, and so on, is cut off MAX_LOGGER_DEPTH calls deep (the deeper messages are
+ * dropped) instead of running out of stack. */
+static void log_text(Sink *sink, fmi2Status status, const char *category, const char *text) {
+    if (!sink->callbacks.logger || sink->depth >= MAX_LOGGER_DEPTH) return;
     if (status < fmi2Error && !(sink->logging_on && category_enabled(sink, category))) return;
     size_t length = strlen(text), percents = 0;
     for (size_t i = 0; i < length; i++) percents += text[i] == '%';
@@ -326,12 +330,14 @@ static void log_text(const Sink *sink, fmi2Status status, const char *category,
         *out++ = (ch == '\n' || ch == '\r') ? ' ' : ch;
     }
     *out = '\0';
+    sink->depth++;
     sink->callbacks.logger(sink->callbacks.componentEnvironment, sink->name, status,
                            category ? category : STATUS_CATEGORIES[status], escaped);
+    sink->depth--;
     free(escaped);
 }
 
-static void log_format(const Sink *sink, fmi2Status status, const char *format, ...) {
+static void log_format(Sink *sink, fmi2Status status, const char *format, ...) {
     Message m = {{0}, 0};
     va_list args;
     va_start(args, format);
@@ -844,15 +850,18 @@ static fmi2Status python_failure(Instance *in, const char *function) {
     return status;
 }
 
-/* Pass the slave's queued log messages on and empty its queue (the GIL held). */
+/* Pass the slave's queued log messages on (the GIL held): taken out of the queue first, so
+ * that a call the host's logger makes back into the FMU passes on only its own messages. */
 static void drain_log(Instance *in) {
     Py_ssize_t count = in->queue ? py.PySequence_Size(in->queue) : 0;
-    if (count <= 0) {
-        if (count < 0) py.PyErr_Clear();
+    PyObject *messages = count > 0 ? py.PySequence_GetSlice(in->queue, 0, count) : NULL;
+    if (messages && py.PySequence_DelSlice(in->queue, 0, count) != 0) release(&messages);
+    if (!messages) {
+        py.PyErr_Clear();
         return;
     }
     for (Py_ssize_t i = 0; i < count; i++) {
-        PyObject *message = py.PySequence_GetItem(in->queue, i);
+        PyObject *message = py.PySequence_GetItem(messages, i);
         PyObject *status = message ? py.PyObject_GetAttrString(message, "status") : NULL;
         PyObject *category = message ? py.PyObject_GetAttrString(message, "category") : NULL;
         PyObject *msg = message ? py.PyObject_GetAttrString(message, "msg") : NULL;
@@ -869,7 +878,7 @@ static void drain_log(Instance *in) {
         release(&status);
         release(&message);
     }
-    if (py.PySequence_DelSlice(in->queue, 0, count) != 0) py.PyErr_Clear();
+    release(&messages);
 }
 
 /* Make the instance's slave (and look its methods up once); 0 after logging why. */
@@ -1041,15 +1050,17 @@ static fmi2Status answer(fmi2Component c, Fmi2Call call, fmi2Status status) {
     PyGILState_STATE gil = py.PyGILState_Ensure(); \
     fmi2Status status = fmi2OK
 
-/* Leave Python: the slave's messages, then the failure's, passed on; the GIL given back; the
- * instance moved on. */
+/* Leave Python: the instance moved on, then the slave's messages and the failure's passed on
+ * (a call the host's logger makes back into the FMU sees the instance as this call left it),
+ * the GIL given back. */
 #define END() \
-    drain_log(in); \
-    if (status >= fmi2Error && in->failure) log_text(&in->sink, status, NULL, in->failure); \
-    free(in->failure); \
-    in->failure = NULL; \
-    py.PyGILState_Release(gil); \
     finish_call(in, this_call, status); \
+    drain_log(in); \
+    { char *failure = in->failure; \
+      in->failure = NULL; \
+      if (status >= fmi2Error && failure) log_text(&in->sink, status, NULL, failure); \
+      free(failure); } \
+    py.PyGILState_Release(gil); \
     return status
 
 /* Call a method; the result (new reference) or NULL with status set from the exception. */

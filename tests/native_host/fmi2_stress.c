@@ -23,6 +23,10 @@
  *        fmi2_stress instantiate FMU [--uri URI] [--guid G] [--type me|cs] [--null-name]
  *                    [--null-guid] [--null-uri] [--after-terminate]
  *                                                one instance with these arguments
+ *        fmi2_stress reentrant DEPTH FMU         one step, the logger calling fmi2GetReal
+ *                                                of the FMU's first r: reference for each
+ *                                                message, DEPTH calls deep at most (-1: no
+ *                                                limit)
  * exit status: 0 done, 1 a failed call, 2 usage, 3 a binary or function not loaded
  * build: cc -I<fmpy>/c-code fmi2_stress.c -ldl -lpthread -o fmi2_stress
  */
@@ -97,12 +101,36 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
 
 static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
 
+/* reentrant: the instance the logger calls back into, and how deep */
+static struct {
+    Fmu *fmu;
+    fmi2Component c;
+    long depth, limit;
+} reentry;
+
+static void reentrant_logger(fmi2ComponentEnvironment env, fmi2String instance,
+                             fmi2Status status, fmi2String category, fmi2String message, ...) {
+    va_list args;
+    char text[8192];
+    va_start(args, message);
+    vsnprintf(text, sizeof text, message ? message : "(null)", args);
+    va_end(args);
+    logger(env, instance, status, category, "%s", text);
+    if (reentry.c && (reentry.limit < 0 || reentry.depth < reentry.limit)) {
+        fmi2Real value;
+        reentry.depth++;
+        reentry.fmu->api.getReal(reentry.c, reentry.fmu->reads, 1, &value);
+        reentry.depth--;
+    }
+}
+
 static void usage(const char *program) {
     fprintf(stderr,
             "usage: %s cycles N STEPS FMU... | rss N FMU | threads FMU_A FMU_B | "
             "serial FMU_A FMU_B | short-threads N FMU | fatal N FMU | instantiate FMU "
             "[--uri URI] [--guid G] [--type me|cs] [--null-name] [--null-guid] [--null-uri] "
-            "[--after-terminate]\n  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
+            "[--after-terminate] | reentrant DEPTH FMU\n"
+            "  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
             program);
     exit(2);
 }
@@ -542,6 +570,36 @@ static int mode_instantiate(int argc, char **argv) {
 #undef CALL
 }
 
+static int mode_reentrant(int argc, char **argv) {
+    Fmu fmu;
+    long limit = argc > 2 ? strtol(argv[2], NULL, 10) : 0;
+    int a = 3;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a != argc) usage(argv[0]);
+    load(&fmu);
+    const fmi2CallbackFunctions reentrant = {reentrant_logger, calloc, free, NULL, NULL};
+    fmi2Component c = fmu.api.instantiate("reentrant", fmi2CoSimulation, fmu.guid, fmu.uri,
+                                          &reentrant, fmi2False, fmi2True);
+    if (!c) {
+        fprintf(stderr, "fmi2Instantiate returned NULL\n");
+        return 1;
+    }
+    must("fmi2SetupExperiment", fmu.api.setupExperiment(c, fmi2False, 0.0, 0.0, fmi2False,
+                                                        0.0));
+    must("fmi2EnterInitializationMode", fmu.api.enterInitializationMode(c));
+    must("fmi2SetReal/fmi2SetInteger", set_values(&fmu, c));
+    must("fmi2ExitInitializationMode", fmu.api.exitInitializationMode(c));
+    reentry.fmu = &fmu;
+    reentry.c = c;
+    reentry.limit = limit;
+    fmi2Status status = fmu.api.doStep(c, 0.0, STEP, fmi2True);
+    reentry.c = NULL;
+    printf("doStep status %d\n", status);
+    fmu.api.freeInstance(c);
+    unload(&fmu);
+    return 0;
+}
+
 int main(int argc, char **argv) {
     if (argc < 2) usage(argv[0]);
     const char *mode = argv[1];
@@ -552,6 +610,7 @@ int main(int argc, char **argv) {
     if (strcmp(mode, "short-threads") == 0) return mode_short_threads(argc, argv);
     if (strcmp(mode, "fatal") == 0) return mode_fatal(argc, argv);
     if (strcmp(mode, "instantiate") == 0) return mode_instantiate(argc, argv);
+    if (strcmp(mode, "reentrant") == 0) return mode_reentrant(argc, argv);
     usage(argv[0]);
     return 2;
 }
