@@ -201,15 +201,23 @@ def recorded_libpython(fmu: Unzipped) -> Path | None:
     return Path(found.group(1)) if found else None
 
 
-@functools.cache
-def clean_under_valgrind(libpython: Path) -> bool:
-    """Whether the interpreter of libpython (PREFIX/bin/python3.X beside PREFIX/lib) runs
-    an import without any valgrind error. CPython 3.11.7, for one, reads an uninitialised
-    digit in int.from_bytes: hundreds of errors before any FMU code runs."""
+def interpreter_of(libpython: Path) -> Path | None:
+    """The python3.X program of a CPython 3.8 or later shared library (PREFIX/bin beside
+    PREFIX/lib, or /usr/bin for a distribution's), if it is there."""
     minor = re.fullmatch(r"libpython3\.(\d+)\.so\.1\.0", libpython.name)
     prefix = libpython.parent.parent if libpython.parent.name == "lib" else Path("/usr")
     python = prefix / "bin" / f"python3.{minor.group(1)}" if minor else None
-    if python is None or int(minor.group(1)) < 8 or not python.exists():
+    return python if python is not None and int(minor.group(1)) >= 8 and python.exists() \
+        else None
+
+
+@functools.cache
+def clean_under_valgrind(libpython: Path) -> bool:
+    """Whether the interpreter of libpython runs an import without any valgrind error.
+    CPython 3.11.7, for one, reads an uninitialised digit in int.from_bytes: hundreds of
+    errors before any FMU code runs."""
+    python = interpreter_of(libpython)
+    if python is None:
         return False
     done = subprocess.run(["valgrind", "--error-exitcode=99", str(python), "-c",
                            "import importlib.util, json"], env=VALGRIND_ENV,
@@ -467,6 +475,92 @@ def test_a_fifo_named_as_libpython_is_refused_without_opening_it(
         pytest.fail(f"the host hung for {FIFO_TIMEOUT} s on a FIFO named as libpython")
     stderr = assert_refused(done)
     assert str(fifo) in stderr, stderr
+
+
+def test_the_host_environment_is_left_as_it_was(stress: Path,
+                                                fmus: dict[str, Unzipped]) -> None:
+    """With an empty environment the runtime starts the FMU's CPython with the prefix
+    recorded at build time as its home. It used to setenv PYTHONHOME for that, which stayed
+    set for the host's children: a child starting a CPython of another version died (No
+    module named 'encodings'). The home now goes through PyConfig: the environment is the
+    host's, and the child runs."""
+    probe = fmus[PROBE]
+    own = recorded_libpython(probe)
+    if own is None:
+        pytest.skip("the FMU records no libpython (its prefix is not passed then)")
+    version = re.search(r"^version=(\d+\.\d+)", (probe.resources / "python.txt").read_text(),
+                        re.MULTILINE)
+    others = [python for python in map(interpreter_of, libpythons())
+              if python is not None and version and python.name != f"python{version[1]}"]
+    if not others:
+        pytest.skip("no CPython of another version than the FMU's to start as a child")
+    done = stress_run(stress, "environment", *probe.args(), "--", str(others[0]), "-c",
+                      "import encodings")
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.splitlines() == ["environment unchanged", "child exit 0"]
+
+
+def test_the_recorded_prefix_is_the_home_of_the_python_it_starts(
+        stress: Path, fmus: dict[str, Unzipped], tmp_path: Path) -> None:
+    """The prefix in resources/python.txt reaches the CPython the runtime starts as its home
+    (through PyConfig): an empty folder recorded there keeps it from finding its standard
+    library, and the instance is refused naming that folder."""
+    probe = fmus[PROBE]
+    if recorded_libpython(probe) is None:
+        pytest.skip("the FMU records no libpython")
+    folder = tmp_path / "probe"
+    shutil.copytree(probe.folder, folder)
+    empty = tmp_path / "empty prefix"
+    empty.mkdir()
+    record = folder / "resources" / "python.txt"
+    record.write_text(re.sub(r"^prefix=.*$", f"prefix={empty}", record.read_text(),
+                             flags=re.MULTILINE))
+    moved = Unzipped(folder, probe.model, probe.guid, probe.refs)
+    stderr = assert_refused(instantiate(stress, moved))
+    assert f"PYTHONHOME={empty} (the prefix recorded at build time)" in stderr, stderr
+
+
+CONFIG_HOME_PROBE = """
+#include <Python.h>
+#include <stddef.h>
+#include <stdio.h>
+int main(void) { printf("%d %zu\\n", PY_MINOR_VERSION, offsetof(PyConfig, home)); return 0; }
+"""
+
+
+def include_folder(libpython: Path) -> Path | None:
+    """The folder of Python.h of a CPython shared library, if its headers are installed."""
+    minor = re.fullmatch(r"libpython(3\.\d+)\.so\.1\.0", libpython.name)
+    prefix = libpython.parent.parent if libpython.parent.name == "lib" else Path("/usr")
+    folder = prefix / "include" / f"python{minor.group(1)}" if minor else None
+    return folder if folder is not None and (folder / "Python.h").is_file() else None
+
+
+def test_the_runtime_knows_where_every_cpython_keeps_its_home(tmp_path: Path) -> None:
+    """The runtime passes the recorded home through PyConfig.home, whose offset differs by
+    CPython version: its table (config_home_offset) against offsetof in the headers of every
+    CPython 3.8 or later installed here."""
+    table = dict(re.findall(r"\[(\d+)\] = (\d+)", re.search(
+        r"config_home_offset\(void\) \{(.*?)\};", fmu_build.RUNTIME_SOURCE.read_text(),
+        re.DOTALL)[1]))
+    source = tmp_path / "home.c"
+    source.write_text(CONFIG_HOME_PROBE)
+    compiler = shutil.which("cc")  # the system's: a distribution's headers need its libc's
+    if compiler is None:
+        pytest.skip("no system C compiler")
+    checked = {}
+    for libpython in libpythons():
+        folder = include_folder(libpython)
+        if folder is None:
+            continue
+        probe = tmp_path / f"home_{libpython.name}"
+        subprocess.run([compiler, f"-I{folder}", str(source), "-o", str(probe)], check=True)
+        minor, offset = subprocess.run([str(probe)], capture_output=True, text=True,
+                                       check=True).stdout.split()
+        checked[minor] = offset
+        assert table.get(minor) == offset, (libpython, minor, offset)
+    if not checked:
+        pytest.skip("no CPython headers installed")
 
 
 # --- a Python host ------------------------------------------------------------------------

@@ -7,8 +7,9 @@
  *   named by BALANCER_FMU_LIBPYTHON if set (and only that one), else the one the FMU was built
  *   with (resources/python.txt), else a libpython 3.8 or later the dynamic linker finds, and
  *   starts it with Py_InitializeFromConfig, which returns a status instead of ending the
- *   process. For the recorded library it sets PYTHONHOME to the recorded prefix when the host
- *   has none. A failure gives NULL and a message naming what was tried, PYTHONHOME included.
+ *   process. For the recorded library it passes the recorded prefix as the home (PyConfig, not
+ *   the environment) when the host has no PYTHONHOME. A failure gives NULL and a message
+ *   naming what was tried, PYTHONHOME included. It never changes the host's environment.
  * - An interpreter it started stays running: nothing calls Py_Finalize, so no library
  *   destructor touches Python. It installs no signal handlers and leaves the host's locale
  *   environment alone.
@@ -100,6 +101,7 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(PyStatus, Py_PreInitialize, (const void *)) \
     X(void, PyConfig_InitPythonConfig, (void *)) \
     X(PyStatus, Py_InitializeFromConfig, (const void *)) \
+    X(PyStatus, PyConfig_SetBytesString, (void *, void *, const char *)) \
     X(void, PyConfig_Clear, (void *)) \
     X(int, PyStatus_Exception, (PyStatus)) \
     X(void *, PyEval_SaveThread, (void)) \
@@ -438,8 +440,10 @@ static int open_libpython(const char *path, Message *why) {
     return 1;
 }
 
-/* What PYTHONHOME is for a Python this runtime starts, for messages. */
+/* What PYTHONHOME is for a Python this runtime starts, for messages; and the home it passes
+ * to that Python (PyConfig.home), if any. */
 static char home_note[PATH_SIZE + 128];
+static const char *python_home;
 static int host_python;  /* Python was in the process before this runtime looked */
 
 /* Load libpython as the header comment says; 0 with the paths tried in why on failure. */
@@ -460,7 +464,7 @@ static int load_libpython(Message *why) {
     if (record.libpython[0]) {
         if (open_libpython(record.libpython, why)) {
             if (!home && record.prefix[0] && is_directory(record.prefix)) {
-                setenv("PYTHONHOME", record.prefix, 0);
+                python_home = record.prefix;  /* through PyConfig: the environment stays */
                 snprintf(home_note, sizeof home_note,
                          "PYTHONHOME=%s (the prefix recorded at build time)", record.prefix);
             }
@@ -514,6 +518,19 @@ static int failed_status(PyStatus status, const char *step, Message *why) {
  * ending the process. Its configuration is Python's usual one (PYTHONHOME, PYTHONPATH read
  * from the environment), less the C locale coercion (which would set LC_CTYPE in the host's
  * environment) and the signal handlers (the host keeps SIGINT). */
+/* offsetof(PyConfig, home) of each CPython 3.8 and later (x86_64) by minor version; 0 for
+ * a version not listed. tests/test_native_host.py checks them against the headers of every
+ * CPython installed. */
+static size_t config_home_offset(void) {
+    static const size_t OFFSETS[] = {[8] = 240, [9] = 240, [10] = 256, [11] = 280,
+                                     [12] = 288, [13] = 296};
+    int major = 0, minor = 0;
+    if (sscanf(py.Py_GetVersion(), "%d.%d", &major, &minor) != 2 || major != 3 || minor < 0 ||
+        (size_t)minor >= sizeof OFFSETS / sizeof *OFFSETS)
+        return 0;
+    return OFFSETS[minor];
+}
+
 static int start_python_now(Message *why) {
     if (py.Py_IsInitialized()) return 1;
     int pre[64] = {0};  /* a PyPreConfig: ints only, fewer than 16 in any CPython */
@@ -528,7 +545,16 @@ static int start_python_now(Message *why) {
     py.PyConfig_InitPythonConfig(config);
     if (config[0] == PY_CONFIG_INIT_PYTHON && config[4] == 1)
         config[4] = 0;  /* install_signal_handlers, the fifth int in every CPython 3.8+ */
-    PyStatus status = py.Py_InitializeFromConfig(config);
+    PyStatus status = {0, NULL, NULL, 0};
+    size_t home = python_home ? config_home_offset() : 0;
+    if (python_home && !home)  /* a CPython newer than this runtime: its built-in prefix */
+        snprintf(home_note, sizeof home_note, "PYTHONHOME unset (the recorded prefix %s not "
+                 "passed: the runtime does not know the PyConfig of CPython %.10s)",
+                 python_home, py.Py_GetVersion());
+    if (home)
+        status = py.PyConfig_SetBytesString(config, (void *)((char *)config + home),
+                                            python_home);
+    if (!py.PyStatus_Exception(status)) status = py.Py_InitializeFromConfig(config);
     py.PyConfig_Clear(config);
     free(config);
     if (failed_status(status, "initialisation", why)) return 0;

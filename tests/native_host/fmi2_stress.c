@@ -23,6 +23,11 @@
  *        fmi2_stress instantiate FMU [--uri URI] [--guid G] [--type me|cs] [--null-name]
  *                    [--null-guid] [--null-uri] [--after-terminate]
  *                                                one instance with these arguments
+ *        fmi2_stress environment FMU [-- PROGRAM ARG...]
+ *                                                run 10 steps, print whether the process
+ *                                                environment changed (each change on a
+ *                                                line), then run PROGRAM as a child and
+ *                                                print its exit status
  *        fmi2_stress reentrant DEPTH FMU         one step, the logger calling fmi2GetReal
  *                                                of the FMU's first r: reference for each
  *                                                message, DEPTH calls deep at most (-1: no
@@ -36,6 +41,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include "fmi2Functions.h"
 
@@ -129,7 +135,7 @@ static void usage(const char *program) {
             "usage: %s cycles N STEPS FMU... | rss N FMU | threads FMU_A FMU_B | "
             "serial FMU_A FMU_B | short-threads N FMU | fatal N FMU | instantiate FMU "
             "[--uri URI] [--guid G] [--type me|cs] [--null-name] [--null-guid] [--null-uri] "
-            "[--after-terminate] | reentrant DEPTH FMU\n"
+            "[--after-terminate] | reentrant DEPTH FMU | environment FMU [-- PROGRAM ARG...]\n"
             "  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
             program);
     exit(2);
@@ -570,6 +576,51 @@ static int mode_instantiate(int argc, char **argv) {
 #undef CALL
 }
 
+extern char **environ;
+
+static int in_list(char **list, const char *entry) {
+    for (; *list; list++)
+        if (strcmp(*list, entry) == 0) return 1;
+    return 0;
+}
+
+static int mode_environment(int argc, char **argv) {
+    Fmu fmu;
+    int a = 2, program = argc;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a < argc && strcmp(argv[a], "--") == 0 && a + 1 < argc) program = a + 1;
+    else if (a != argc) usage(argv[0]);
+    size_t count = 0;
+    while (environ[count]) count++;
+    char **before = calloc(count + 1, sizeof *before);
+    for (size_t i = 0; i < count; i++) before[i] = strdup(environ[i]);
+    load(&fmu);
+    fmi2Component c = start(&fmu, "environment");
+    steps(&fmu, c, 10, NULL);
+    finish(&fmu, c);
+    int same = 1;
+    for (char **entry = environ; *entry; entry++)
+        if (!in_list(before, *entry)) printf("added %s\n", *entry), same = 0;
+    for (size_t i = 0; i < count; i++)
+        if (!in_list(environ, before[i])) printf("removed %s\n", before[i]), same = 0;
+    printf("environment %s\n", same ? "unchanged" : "changed");
+    fflush(stdout);
+    if (program < argc) {
+        pid_t child = fork();
+        if (child == 0) {
+            execv(argv[program], &argv[program]);
+            _exit(127);
+        }
+        int status = 0;
+        waitpid(child, &status, 0);
+        printf("child exit %d\n", WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    }
+    for (size_t i = 0; i < count; i++) free(before[i]);
+    free(before);
+    unload(&fmu);
+    return 0;
+}
+
 static int mode_reentrant(int argc, char **argv) {
     Fmu fmu;
     long limit = argc > 2 ? strtol(argv[2], NULL, 10) : 0;
@@ -611,6 +662,7 @@ int main(int argc, char **argv) {
     if (strcmp(mode, "fatal") == 0) return mode_fatal(argc, argv);
     if (strcmp(mode, "instantiate") == 0) return mode_instantiate(argc, argv);
     if (strcmp(mode, "reentrant") == 0) return mode_reentrant(argc, argv);
+    if (strcmp(mode, "environment") == 0) return mode_environment(argc, argv);
     usage(argv[0]);
     return 2;
 }
