@@ -4,9 +4,11 @@ regression checks against the committed results."""
 from __future__ import annotations
 
 import contextlib
+import sys
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -32,6 +34,14 @@ SRB = "SelfRegulatingBalancer"
 def srb_fmu() -> Path:
     """The built SelfRegulatingBalancer FMU (rebuilt if its sources changed)."""
     return fmu_build.fmu_path(SRB)
+
+
+def bundled(module: str) -> list[ModuleType]:
+    """The modules of this dotted name (`SelfRegulatingBalancer`, `fmu_src.integration`) that
+    the FMUs opened in this process run: the runtime imports each FMU's bundle as a package
+    _fmu_bundle_<digest of its files> (docs/build.md), one per content."""
+    return [found for name, found in list(sys.modules.items())
+            if name.startswith("_fmu_bundle_") and name.partition(".")[2] == module]
 
 
 def open_fmu(path: Path, parameters: Mapping[str, float | bool | str] | None = None,
