@@ -563,6 +563,61 @@ def test_the_runtime_knows_where_every_cpython_keeps_its_home(tmp_path: Path) ->
         pytest.skip("no CPython headers installed")
 
 
+# --- a host with a CPython of its own ------------------------------------------------------
+
+
+def beside_cases() -> list:
+    """(libpython, binding, started) for every CPython 3.8 or later here other than the one
+    the FMUs are built with: the host opens it RTLD_LOCAL, binding lazily or now, and starts
+    it or not. Debian's 3.11 and a 3.12, the two the hostile round crashed with, in the fast
+    suite; the others in `make test-all`."""
+    own = fmu_build.libpython()
+    own = own.resolve() if own else None
+    cases = []
+    for libpython in libpythons():
+        if libpython.resolve() == own:
+            continue
+        fast = libpython.name == "libpython3.12.so.1.0" or str(libpython).startswith("/usr/")
+        for binding in ("lazy", "now"):
+            for started in ("start", "idle"):
+                marks = () if fast and binding == "lazy" else (pytest.mark.slow,)
+                cases.append(pytest.param(libpython, binding, started, marks=marks,
+                                          id=f"{libpython}-{binding}-{started}"))
+    return cases
+
+
+@pytest.mark.parametrize(("libpython", "binding", "started"), beside_cases())
+def test_a_host_holding_another_cpython_runs_the_fmu_in_it(
+        stress: Path, fmus: dict[str, Unzipped], libpython: Path, binding: str,
+        started: str) -> None:
+    """A C host that opened a CPython of its own RTLD_LOCAL (as a plugin does), started or
+    not. The runtime used to miss it, load the FMU's own CPython RTLD_GLOBAL beside it, and
+    the two interpreters' symbols crossed: SIGSEGV with 3.12, "double free or corruption"
+    with Debian's 3.11. It now finds the host's CPython (dl_iterate_phdr), makes its symbols
+    visible to its extension modules, starts it if the host has not, and runs the FMU in it;
+    the host's own Python code runs before and after."""
+    probe = fmus[PROBE]
+    done = stress_run(stress, "beside", str(libpython), binding, started,
+                      *probe.args(f"d:{probe.refs['u']}=3", f"r:{probe.refs['y']}"))
+    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-2000:]}"
+    assert done.stdout.splitlines() == ["value 3", "host python OK"]
+
+
+def test_a_host_holding_a_cpython_older_than_3_8_is_refused_by_name(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    """With a CPython 3.6 or 3.7 in the process the runtime can use none and loads no second
+    one beside it: the instance is NULL, the message names the library in the process."""
+    old = sorted(Path("/").glob(f"{Path.home()}/.pyenv/versions/3.[67].*/lib/libpython3.*.so.1.0"
+                                .lstrip("/")))
+    if not old:
+        pytest.skip("no CPython 3.6 or 3.7 shared library on this machine")
+    done = stress_run(stress, "beside", str(old[0]), "lazy", "idle", *fmus[PROBE].args())
+    assert done.returncode == 1, done.stdout + done.stderr[-2000:]
+    assert "fmi2Instantiate returned NULL" in done.stderr
+    assert f"{old[0]} (CPython 3." in done.stderr
+    assert "loads no second interpreter beside it" in done.stderr
+
+
 # --- a Python host ------------------------------------------------------------------------
 
 

@@ -46,6 +46,7 @@
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <errno.h>
+#include <link.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -408,17 +409,27 @@ static void read_record(void) {
     fclose(file);
 }
 
-/* A Python host, or a libpython loaded before (by this FMU or another). */
-static int python_in_process(void) { return dlsym(RTLD_DEFAULT, "Py_IsInitialized") != NULL; }
+/* ---- the Python of the process --------------------------------------------------------- */
+static void *python_library;  /* the handle the Python C API is resolved from */
+static int host_python;       /* that Python was running before this runtime looked */
+
+/* The CPython major and minor version of a library's Py_GetVersion, or 0. */
+static int python_version(void *library, int *minor) {
+    const char *(*version)(void) = (const char *(*)(void))dlsym(library, "Py_GetVersion");
+    int major = 0;
+    *minor = 0;
+    if (!version || sscanf(version(), "%d.%d", &major, minor) != 2) return 0;
+    return major;
+}
 
 /* dlopen a libpython (RTLD_GLOBAL), a regular file or a soname, and check it is CPython 3.8
- * or later; on failure add why to the message and return 0. */
-static int open_libpython(const char *path, Message *why) {
+ * or later; its handle, or NULL after adding why to the message. */
+static void *open_libpython(const char *path, Message *why) {
     if (strchr(path, '/') && !regular_file(path)) {
         struct stat info;
         append(why, "\n  %s: %s", path, stat(path, &info) != 0 ? "no such file"
                                           : "not a regular file (not opened)");
-        return 0;
+        return NULL;
     }
     void *handle = dlopen(path, RTLD_NOW | RTLD_GLOBAL);
     if (!handle) {
@@ -427,42 +438,143 @@ static int open_libpython(const char *path, Message *why) {
         if (strncmp(error, path, length) == 0 && strncmp(error + length, ": ", 2) == 0)
             error += length + 2;
         append(why, "\n  %s: %s", path, error);
-        return 0;
+        return NULL;
     }
-    const char *(*version)(void) = (const char *(*)(void))dlsym(handle, "Py_GetVersion");
-    int major = 0, minor = 0;
-    if (!version || sscanf(version(), "%d.%d", &major, &minor) != 2 || major != 3 || minor < 8) {
+    int minor, major = python_version(handle, &minor);
+    if (major != 3 || minor < 8) {
+        const char *(*version)(void) = (const char *(*)(void))dlsym(handle, "Py_GetVersion");
         append(why, "\n  %s: not a CPython 3.8 or later library (%s)", path,
                version ? version() : "no Py_GetVersion");
         dlclose(handle);
-        return 0;
+        return NULL;
     }
-    return 1;
+    return handle;
+}
+
+/* The objects mapped in the process (dl_iterate_phdr), as found: a name (empty for the
+ * program) and the address ranges of its loaded segments. */
+#define MAX_OBJECTS 1024
+#define MAX_SEGMENTS 8
+typedef struct {
+    char name[PATH_SIZE];
+    size_t segments;
+    uintptr_t start[MAX_SEGMENTS], end[MAX_SEGMENTS];
+} MappedObject;
+
+typedef struct {
+    MappedObject *objects;
+    size_t count;
+} MappedObjects;
+
+static int note_object(struct dl_phdr_info *info, size_t size, void *data) {
+    (void)size;
+    MappedObjects *found = data;
+    if (found->count == MAX_OBJECTS) return 1;
+    MappedObject *object = &found->objects[found->count++];
+    snprintf(object->name, sizeof object->name, "%s", info->dlpi_name ? info->dlpi_name : "");
+    object->segments = 0;
+    for (int i = 0; i < info->dlpi_phnum && object->segments < MAX_SEGMENTS; i++) {
+        if (info->dlpi_phdr[i].p_type != PT_LOAD) continue;
+        uintptr_t start = (uintptr_t)info->dlpi_addr + (uintptr_t)info->dlpi_phdr[i].p_vaddr;
+        object->start[object->segments] = start;
+        object->end[object->segments++] = start + (uintptr_t)info->dlpi_phdr[i].p_memsz;
+    }
+    return 0;
+}
+
+static int holds(const MappedObject *object, const void *address) {
+    for (size_t i = 0; i < object->segments; i++)
+        if ((uintptr_t)address >= object->start[i] && (uintptr_t)address < object->end[i])
+            return 1;
+    return 0;
+}
+
+/* A CPython already in the process, however it came (the host's program, a libpython loaded
+ * RTLD_GLOBAL or RTLD_LOCAL by the host or a plugin, or by another FMU): every mapped object
+ * that defines Py_IsInitialized itself. The one to use: a running CPython 3.8 or later, else
+ * one not started yet. Its handle (made global if it was loaded RTLD_LOCAL, so that its
+ * extension modules find its symbols), or NULL: none there (*refused 0), or none usable
+ * (*refused 1, why in the message). */
+static void *mapped_python(Message *why, int *refused) {
+    MappedObjects found = {calloc(MAX_OBJECTS, sizeof(MappedObject)), 0};
+    void *chosen = NULL;
+    int chosen_running = 0, chosen_program = 0, pythons = 0;
+    char chosen_name[PATH_SIZE] = "", other[PATH_SIZE + 64] = "";
+    *refused = 0;
+    if (!found.objects) return NULL;
+    dl_iterate_phdr(note_object, &found);  /* the objects noted first: no dlopen under its lock */
+    for (size_t i = 0; i < found.count; i++) {
+        const char *name = found.objects[i].name[0] ? found.objects[i].name : NULL;
+        if (i > 0 && !name) continue;  /* the program is the first object; others have names */
+        void *handle = dlopen(name, RTLD_LAZY | RTLD_NOLOAD);
+        void *symbol = handle ? dlsym(handle, "Py_IsInitialized") : NULL;
+        if (!symbol || !holds(&found.objects[i], symbol)) {
+            if (handle) dlclose(handle);
+            continue;
+        }
+        pythons++;
+        int minor, major = python_version(handle, &minor);
+        int running = ((int (*)(void))symbol)();
+        const char *label = name ? name : "the host program";
+        if (major != 3 || minor < 8) {
+            snprintf(other, sizeof other, "%s (CPython %d.%d)", label, major, minor);
+            dlclose(handle);
+        } else if (!chosen || (running && !chosen_running)) {
+            if (chosen) dlclose(chosen);
+            chosen = handle;
+            chosen_running = running;
+            chosen_program = !name;
+            snprintf(chosen_name, sizeof chosen_name, "%s", label);
+        } else {
+            snprintf(other, sizeof other, "%s", label);
+            dlclose(handle);
+        }
+    }
+    free(found.objects);
+    if (!chosen && pythons) {
+        append(why, "a CPython older than 3.8 is already in this process, %s: the FMU needs "
+               "3.8 or later and loads no second interpreter beside it", other);
+        *refused = 1;
+        return NULL;
+    }
+    if (!chosen) return NULL;
+    void *symbol = dlsym(chosen, "Py_IsInitialized");
+    if (dlsym(RTLD_DEFAULT, "Py_IsInitialized") != symbol) {  /* loaded RTLD_LOCAL */
+        if (pythons > 1) {
+            append(why, "CPython %s is in this process but not visible to the libraries it "
+                   "loads (RTLD_LOCAL), and another one is there too, %s: the FMU will not "
+                   "make one of them visible beside the other", chosen_name, other);
+            dlclose(chosen);
+            *refused = 1;
+            return NULL;
+        }
+        if (!chosen_program) dlopen(chosen_name, RTLD_LAZY | RTLD_NOLOAD | RTLD_GLOBAL);
+    }
+    host_python = chosen_running;
+    return chosen;
 }
 
 /* What PYTHONHOME is for a Python this runtime starts, for messages; and the home it passes
  * to that Python (PyConfig.home), if any. */
 static char home_note[PATH_SIZE + 128];
 static const char *python_home;
-static int host_python;  /* Python was in the process before this runtime looked */
 
-/* Load libpython as the header comment says; 0 with the paths tried in why on failure. */
-static int load_libpython(Message *why) {
-    if (python_in_process()) {
-        host_python = 1;
-        return 1;
-    }
+/* Find or load the Python as the header comment says (python_library); 0 with the paths tried
+ * in why on failure (*refused 1 when a Python in the process rules the others out). */
+static int load_libpython(Message *why, int *refused) {
+    if ((python_library = mapped_python(why, refused))) return 1;
+    if (*refused) return 0;
     const char *override = getenv(OVERRIDE_VARIABLE);
     const char *home = getenv("PYTHONHOME");
     if (home) snprintf(home_note, sizeof home_note, "PYTHONHOME=%s (from the environment)", home);
     else snprintf(home_note, sizeof home_note, "PYTHONHOME unset");
     if (override && override[0]) {
         append(why, "no Python for this FMU; tried %s=%s:", OVERRIDE_VARIABLE, override);
-        return open_libpython(override, why);
+        return (python_library = open_libpython(override, why)) != NULL;
     }
     append(why, "no Python for this FMU; tried (%s unset):", OVERRIDE_VARIABLE);
     if (record.libpython[0]) {
-        if (open_libpython(record.libpython, why)) {
+        if ((python_library = open_libpython(record.libpython, why))) {
             if (!home && record.prefix[0] && is_directory(record.prefix)) {
                 python_home = record.prefix;  /* through PyConfig: the environment stays */
                 snprintf(home_note, sizeof home_note,
@@ -474,22 +586,25 @@ static int load_libpython(Message *why) {
         append(why, "\n  resources/" RECORD_FILE ": no libpython recorded");
     }
     for (size_t i = 0; i < sizeof FALLBACK_SONAMES / sizeof *FALLBACK_SONAMES; i++)
-        if (open_libpython(FALLBACK_SONAMES[i], why)) return 1;
+        if ((python_library = open_libpython(FALLBACK_SONAMES[i], why))) return 1;
     return 0;
 }
 
+/* The Python C API from python_library: the CPython this runtime uses, whatever else is
+ * mapped in the process. */
 static int resolve_python_api(Message *why) {
+    void *library = python_library;
 #define RESOLVE(result, name, arguments) \
-    if (!(*(void **)&py.name = dlsym(RTLD_DEFAULT, #name))) { \
+    if (!(*(void **)&py.name = dlsym(library, #name))) { \
         append(why, "the Python C API function " #name " is not in this process"); return 0; }
     PYTHON_API(RESOLVE)
 #undef RESOLVE
-    *(void **)&py.IsFinalizing = dlsym(RTLD_DEFAULT, "Py_IsFinalizing");
-    if (!py.IsFinalizing) *(void **)&py.IsFinalizing = dlsym(RTLD_DEFAULT, "_Py_IsFinalizing");
-    py.None = (PyObject *)dlsym(RTLD_DEFAULT, "_Py_NoneStruct");
-    PyObject **memory = dlsym(RTLD_DEFAULT, "PyExc_MemoryError");
-    PyObject **exit = dlsym(RTLD_DEFAULT, "PyExc_SystemExit");
-    PyObject **interrupt = dlsym(RTLD_DEFAULT, "PyExc_KeyboardInterrupt");
+    *(void **)&py.IsFinalizing = dlsym(library, "Py_IsFinalizing");
+    if (!py.IsFinalizing) *(void **)&py.IsFinalizing = dlsym(library, "_Py_IsFinalizing");
+    py.None = (PyObject *)dlsym(library, "_Py_NoneStruct");
+    PyObject **memory = dlsym(library, "PyExc_MemoryError");
+    PyObject **exit = dlsym(library, "PyExc_SystemExit");
+    PyObject **interrupt = dlsym(library, "PyExc_KeyboardInterrupt");
     if (!py.None || !memory || !exit || !interrupt) {
         append(why, "the Python C API's None and exception types are not in this process");
         return 0;
@@ -673,10 +788,12 @@ static int load(Message *why) {
     pthread_mutex_lock(&load_lock);
     if (!loaded && !load_failure.length) {
         Message attempt = {{0}, 0};
-        if (!load_libpython(&attempt))
-            append(&attempt, "\nThis FMU runs its model in CPython 3.8 or later: set %s to the "
-                             "path of a libpython3.X.so.1.0 shared library.", OVERRIDE_VARIABLE);
-        else if (resolve_python_api(&attempt) && start_python(&attempt)) {
+        int refused = 0;
+        if (!load_libpython(&attempt, &refused)) {
+            if (!refused)
+                append(&attempt, "\nThis FMU runs its model in CPython 3.8 or later: set %s to "
+                       "the path of a libpython3.X.so.1.0 shared library.", OVERRIDE_VARIABLE);
+        } else if (resolve_python_api(&attempt) && start_python(&attempt)) {
             loaded = 1;
             if (!make_helper(&attempt)) loaded = 0;
             else thread_key_made = pthread_key_create(&thread_key, release_thread_state) == 0;

@@ -28,6 +28,13 @@
  *                                                environment changed (each change on a
  *                                                line), then run PROGRAM as a child and
  *                                                print its exit status
+ *        fmi2_stress beside LIBPYTHON lazy|now start|idle FMU
+ *                                                a host holding a CPython of its own, as a
+ *                                                plugin loads one: LIBPYTHON opened
+ *                                                RTLD_LOCAL (binding lazily or now), started
+ *                                                by the host or not; then the FMU runs 100
+ *                                                steps and its values are printed, and the
+ *                                                host runs Python code ("host python OK")
  *        fmi2_stress reentrant DEPTH FMU         one step, the logger calling fmi2GetReal
  *                                                of the FMU's first r: reference for each
  *                                                message, DEPTH calls deep at most (-1: no
@@ -135,7 +142,8 @@ static void usage(const char *program) {
             "usage: %s cycles N STEPS FMU... | rss N FMU | threads FMU_A FMU_B | "
             "serial FMU_A FMU_B | short-threads N FMU | fatal N FMU | instantiate FMU "
             "[--uri URI] [--guid G] [--type me|cs] [--null-name] [--null-guid] [--null-uri] "
-            "[--after-terminate] | reentrant DEPTH FMU | environment FMU [-- PROGRAM ARG...]\n"
+            "[--after-terminate] | reentrant DEPTH FMU | environment FMU [-- PROGRAM ARG...] "
+            "| beside LIBPYTHON lazy|now start|idle FMU\n"
             "  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
             program);
     exit(2);
@@ -621,6 +629,59 @@ static int mode_environment(int argc, char **argv) {
     return 0;
 }
 
+/* The host's own Python: run code in it (the host's thread taking the GIL); 0 when done. */
+static int host_python(void *python, const char *code) {
+    int (*initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    int (*ensure)(void) = (int (*)(void))dlsym(python, "PyGILState_Ensure");
+    void (*release)(int) = (void (*)(int))dlsym(python, "PyGILState_Release");
+    int (*run)(const char *) = (int (*)(const char *))dlsym(python, "PyRun_SimpleString");
+    if (!initialized || !ensure || !release || !run || !initialized()) return -1;
+    int gil = ensure();
+    int failed = run(code);
+    release(gil);
+    return failed;
+}
+
+static int mode_beside(int argc, char **argv) {
+    if (argc < 8) usage(argv[0]);
+    int lazy = strcmp(argv[3], "lazy") == 0, started = strcmp(argv[4], "start") == 0;
+    if ((!lazy && strcmp(argv[3], "now") != 0) || (!started && strcmp(argv[4], "idle") != 0))
+        usage(argv[0]);
+    void *python = dlopen(argv[2], (lazy ? RTLD_LAZY : RTLD_NOW) | RTLD_LOCAL);
+    if (!python) {
+        fprintf(stderr, "%s\n", dlerror());
+        return 3;
+    }
+    if (started) {  /* as an embedding host does: start it, then let other threads in */
+        void (*initialize)(int) = (void (*)(int))dlsym(python, "Py_InitializeEx");
+        void *(*save)(void) = (void *(*)(void))dlsym(python, "PyEval_SaveThread");
+        if (!initialize || !save) return 3;
+        initialize(0);
+        save();
+        if (host_python(python, "import sys\nassert sum([1, 1]) == 2\n") != 0)
+            return 1;
+    }
+    Fmu fmu;
+    int a = 5;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a != argc) usage(argv[0]);
+    load(&fmu);
+    fmi2Real values[MAX_REFS];
+    fmi2Component c = start(&fmu, "beside");
+    steps(&fmu, c, 100, NULL);
+    must("fmi2GetReal", fmu.api.getReal(c, fmu.reads, fmu.n_reads, values));
+    for (size_t r = 0; r < fmu.n_reads; r++) printf("value %.17g\n", values[r]);
+    finish(&fmu, c);
+    unload(&fmu);
+    if (started || host_python(python, "pass") == 0) {
+        int failed = host_python(python, "import json, math\n"
+                                         "assert json.loads(json.dumps([math.pi]))[0] == math.pi\n");
+        printf("host python %s\n", failed == 0 ? "OK" : "failed");
+    }
+    fflush(stdout);
+    return 0;
+}
+
 static int mode_reentrant(int argc, char **argv) {
     Fmu fmu;
     long limit = argc > 2 ? strtol(argv[2], NULL, 10) : 0;
@@ -663,6 +724,7 @@ int main(int argc, char **argv) {
     if (strcmp(mode, "instantiate") == 0) return mode_instantiate(argc, argv);
     if (strcmp(mode, "reentrant") == 0) return mode_reentrant(argc, argv);
     if (strcmp(mode, "environment") == 0) return mode_environment(argc, argv);
+    if (strcmp(mode, "beside") == 0) return mode_beside(argc, argv);
     usage(argv[0]);
     return 2;
 }
