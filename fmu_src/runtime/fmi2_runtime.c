@@ -112,6 +112,10 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(PyGILState_STATE, PyGILState_Ensure, (void)) \
     X(void, PyGILState_Release, (PyGILState_STATE)) \
     X(void *, PyGILState_GetThisThreadState, (void)) \
+    X(int, PyGILState_Check, (void)) \
+    X(void, PyOS_BeforeFork, (void)) \
+    X(void, PyOS_AfterFork_Parent, (void)) \
+    X(void, PyOS_AfterFork_Child, (void)) \
     X(void, Py_DecRef, (PyObject *)) \
     X(PyObject *, PyImport_ImportModule, (const char *)) \
     X(PyObject *, PyImport_AddModule, (const char *)) \
@@ -783,6 +787,39 @@ static int make_helper(Message *why) {
     return made;
 }
 
+/* ---- fork ------------------------------------------------------------------------------- */
+/* A host thread may fork while another is inside an FMU call, holding the GIL: the child would
+ * wait for ever on a GIL no thread of its own holds. Around every fork of the process, the
+ * forking thread takes the GIL first (waiting for the call under way to let go of it) and
+ * readies Python for the fork (PyOS_BeforeFork); parent and child go on from a consistent
+ * interpreter (PyOS_AfterFork_Parent/_Child) and release the GIL. A fork from Python code
+ * (os.fork) holds the GIL already and does this itself. Each copy of the runtime (one per FMU)
+ * registers the handlers; the first to run in a fork acts for all. */
+static int fork_prepared;  /* this copy took the GIL for the fork under way */
+
+static void before_fork(void) {
+    fork_prepared = 0;
+    if (!python_usable() || py.PyGILState_Check()) return;
+    hold_thread_state();
+    py.PyEval_RestoreThread(py.PyGILState_GetThisThreadState());
+    py.PyOS_BeforeFork();
+    fork_prepared = 1;
+}
+
+static void after_fork_in_parent(void) {
+    if (!fork_prepared) return;
+    fork_prepared = 0;
+    py.PyOS_AfterFork_Parent();
+    py.PyEval_SaveThread();
+}
+
+static void after_fork_in_child(void) {
+    if (!fork_prepared) return;
+    fork_prepared = 0;
+    py.PyOS_AfterFork_Child();
+    py.PyEval_SaveThread();
+}
+
 /* Make loaded true, or write why not. */
 static int load(Message *why) {
     pthread_mutex_lock(&load_lock);
@@ -796,7 +833,10 @@ static int load(Message *why) {
         } else if (resolve_python_api(&attempt) && start_python(&attempt)) {
             loaded = 1;
             if (!make_helper(&attempt)) loaded = 0;
-            else thread_key_made = pthread_key_create(&thread_key, release_thread_state) == 0;
+            else {
+                thread_key_made = pthread_key_create(&thread_key, release_thread_state) == 0;
+                pthread_atfork(before_fork, after_fork_in_parent, after_fork_in_child);
+            }
         }
         /* a Python that did not start cannot be started again in this process */
         if (!loaded && py.Py_IsInitialized) load_failure = attempt;

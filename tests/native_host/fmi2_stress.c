@@ -35,6 +35,11 @@
  *                                                by the host or not; then the FMU runs 100
  *                                                steps and its values are printed, and the
  *                                                host runs Python code ("host python OK")
+ *        fmi2_stress fork N FMU [FMU_B]          fork N times while a second host thread
+ *                                                steps an instance; each child steps and
+ *                                                reads another instance (of FMU_B if given),
+ *                                                10 s at the most; prints how many children
+ *                                                finished
  *        fmi2_stress reentrant DEPTH FMU         one step, the logger calling fmi2GetReal
  *                                                of the FMU's first r: reference for each
  *                                                message, DEPTH calls deep at most (-1: no
@@ -143,7 +148,7 @@ static void usage(const char *program) {
             "serial FMU_A FMU_B | short-threads N FMU | fatal N FMU | instantiate FMU "
             "[--uri URI] [--guid G] [--type me|cs] [--null-name] [--null-guid] [--null-uri] "
             "[--after-terminate] | reentrant DEPTH FMU | environment FMU [-- PROGRAM ARG...] "
-            "| beside LIBPYTHON lazy|now start|idle FMU\n"
+            "| beside LIBPYTHON lazy|now start|idle FMU | fork N FMU [FMU_B]\n"
             "  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
             program);
     exit(2);
@@ -682,6 +687,69 @@ static int mode_beside(int argc, char **argv) {
     return 0;
 }
 
+typedef struct {
+    Fmu *fmu;
+    fmi2Component c;
+    volatile int stop, steps;
+} Stepper;
+
+static void *step_until_stopped(void *argument) {
+    Stepper *stepper = argument;
+    fmi2Real value;
+    for (long k = 0; !stepper->stop; k++) {
+        must("fmi2DoStep", stepper->fmu->api.doStep(stepper->c, (double)k * STEP, STEP,
+                                                    fmi2True));
+        must("fmi2GetReal", stepper->fmu->api.getReal(stepper->c, stepper->fmu->reads, 1,
+                                                      &value));
+        stepper->steps++;
+    }
+    return NULL;
+}
+
+static int mode_fork(int argc, char **argv) {
+    Fmu fmus[2];
+    if (argc < 6) usage(argv[0]);
+    long n = parse_count(argv[2], argv[0]);
+    int a = 3;
+    parse_fmu(argc, argv, &a, &fmus[0]);
+    Fmu *second = &fmus[0];
+    if (a < argc) parse_fmu(argc, argv, &a, second = &fmus[1]);
+    if (a != argc) usage(argv[0]);
+    load(&fmus[0]);
+    if (second != &fmus[0]) load(second);
+    Fmu fmu = *second;  /* the children's */
+    fmi2Component other = start(&fmu, "forked");
+    Stepper stepper = {&fmus[0], start(&fmus[0], "stepping"), 0, 0};
+    pthread_t thread;
+    if (pthread_create(&thread, NULL, step_until_stopped, &stepper) != 0) return 3;
+    while (stepper.steps < 10) usleep(1000);  /* the thread is in its calls by now */
+    long finished = 0;
+    for (long k = 0; k < n; k++) {
+        fflush(stdout);
+        fflush(stderr);
+        pid_t child = fork();
+        if (child < 0) return 3;
+        if (child == 0) {  /* a second thread was inside an FMU call at the fork */
+            fmi2Real value;
+            alarm(10);
+            int ok = fmu.api.doStep(other, 0.0, STEP, fmi2True) == fmi2OK &&
+                     fmu.api.getReal(other, fmu.reads, 1, &value) == fmi2OK;
+            _exit(ok ? 0 : 1);
+        }
+        int status = 0;
+        waitpid(child, &status, 0);
+        finished += WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    }
+    stepper.stop = 1;
+    pthread_join(thread, NULL);
+    printf("children finished %ld of %ld\n", finished, n);
+    finish(&fmus[0], stepper.c);
+    finish(second, other);
+    if (second != &fmus[0]) unload(second);
+    unload(&fmus[0]);
+    return 0;
+}
+
 static int mode_reentrant(int argc, char **argv) {
     Fmu fmu;
     long limit = argc > 2 ? strtol(argv[2], NULL, 10) : 0;
@@ -725,6 +793,7 @@ int main(int argc, char **argv) {
     if (strcmp(mode, "reentrant") == 0) return mode_reentrant(argc, argv);
     if (strcmp(mode, "environment") == 0) return mode_environment(argc, argv);
     if (strcmp(mode, "beside") == 0) return mode_beside(argc, argv);
+    if (strcmp(mode, "fork") == 0) return mode_fork(argc, argv);
     usage(argv[0]);
     return 2;
 }
