@@ -372,6 +372,21 @@ def test_an_exception_in_do_step_is_an_error_with_its_message(
     assert "ValueError" in logged[0]
 
 
+def test_a_huge_nvr_is_an_error_not_fatal(stress: Path, fmus: dict[str, Unzipped]) -> None:
+    """fmi2GetReal with nvr = 2^40 (a host's mistake) used to end in a MemoryError: fmi2Fatal,
+    the instance dead for good. nvr beyond the FMU's variables is refused before any array
+    is read: fmi2Error naming it (fmi2SetReal alike), and the instance answers a read
+    afterwards (in the error state)."""
+    probe = fmus[PROBE]
+    done = stress_run(stress, "huge-nvr", *probe.args(f"r:{probe.refs['y']}"))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.splitlines() == [f"setReal huge status {FMI_ERROR}",
+                                        f"getReal huge status {FMI_ERROR}", "getReal status 0"]
+    logged = [message for status, message in messages(done.stderr) if status == FMI_ERROR]
+    assert logged == [f"fmi2{call}: nvr = {2**40} value references, more than the "
+                      f"{len(probe.refs)} variables of this FMU" for call in ("SetReal", "GetReal")]
+
+
 # --- resource URIs ------------------------------------------------------------------------
 
 

@@ -137,6 +137,7 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(PyObject *, PyList_New, (Py_ssize_t)) \
     X(int, PyList_SetItem, (PyObject *, Py_ssize_t, PyObject *)) \
     X(Py_ssize_t, PySequence_Size, (PyObject *)) \
+    X(Py_ssize_t, PyObject_Size, (PyObject *)) \
     X(PyObject *, PySequence_GetItem, (PyObject *, Py_ssize_t)) \
     X(int, PySequence_DelSlice, (PyObject *, Py_ssize_t, Py_ssize_t)) \
     X(PyObject *, PySequence_GetSlice, (PyObject *, Py_ssize_t, Py_ssize_t)) \
@@ -964,6 +965,7 @@ typedef struct {
     PyObject *methods[METHOD_COUNT];
     PyObject **strings;  /* the UTF-8 bytes behind the last fmi2GetString's values */
     size_t string_count;
+    size_t variable_count;  /* the slave's variables: no call names more value references */
     char *failure;       /* the message of the current call's Python exception */
 } Instance;
 
@@ -1081,6 +1083,11 @@ static int create_slave(Instance *in) {
                                  ? py.PyObject_GetAttrString(in->slave, "_get_log_queue") : NULL;
     if (queue_getter) in->queue = py.PyObject_CallFunctionObjArgs(queue_getter, NULL);
     release(&queue_getter);
+    PyObject *variables = in->queue ? py.PyObject_GetAttrString(in->slave, "vars") : NULL;
+    Py_ssize_t count = variables ? py.PyObject_Size(variables) : -1;
+    in->variable_count = count >= 0 ? (size_t)count : SIZE_MAX;  /* not pythonfmu's: unknown */
+    py.PyErr_Clear();
+    release(&variables);
     release(&name);
     release(&resources);
     release(&module);
@@ -1259,6 +1266,19 @@ static fmi2Status wrong_result(Instance *in, const char *function, const char *w
     return fmi2Error;
 }
 
+/* nvr no larger than the FMU's number of variables (a larger one can only be a host's mistake:
+ * the length of another array, a negative number cast), checked before any array is read;
+ * otherwise 0 with the call's failure message set. */
+static int references_fit(Instance *in, size_t nvr, const char *function) {
+    if (nvr <= in->variable_count) return 1;
+    Message m = {{0}, 0};
+    append(&m, "%s: nvr = %zu value references, more than the %zu variables of this FMU",
+           function, nvr, in->variable_count);
+    free(in->failure);
+    in->failure = strdup(m.text);
+    return 0;
+}
+
 static PyObject *reference_list(const fmi2ValueReference vr[], size_t nvr) {
     PyObject *list = py.PyList_New((Py_ssize_t)nvr);
     for (size_t i = 0; list && i < nvr; i++) {
@@ -1400,6 +1420,10 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
             status = wrong_result(in, function_name, "arguments: NULL arrays"); \
             END(); \
         } \
+        if (!references_fit(in, nvr, function_name)) { \
+            status = fmi2Error; \
+            END(); \
+        } \
         PyObject *refs = reference_list(vr, nvr); \
         PyObject *result = refs ? CALL(method, refs) : NULL; \
         release(&refs); \
@@ -1434,11 +1458,13 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
                          fmi2String value[]) {
     if (nvr == 0) return answer(c, FMI2_GET_STRING, fmi2OK);
     BEGIN(FMI2_GET_STRING);
-    PyObject *refs = vr && value ? reference_list(vr, nvr) : NULL;
+    int fit = references_fit(in, nvr, function_name);
+    PyObject *refs = vr && value && fit ? reference_list(vr, nvr) : NULL;
     PyObject *result = refs ? CALL(GET_STRING, refs) : NULL;
     release(&refs);
     release_strings(in);
-    if (!vr || !value) status = wrong_result(in, function_name, "arguments: NULL arrays");
+    if (!fit) status = fmi2Error;
+    else if (!vr || !value) status = wrong_result(in, function_name, "arguments: NULL arrays");
     else if (!result) status = python_failure(in, function_name);
     else if (py.PySequence_Size(result) != (Py_ssize_t)nvr) {
         py.PyErr_Clear();
@@ -1467,14 +1493,17 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
                              const fmiType value[]) { \
         if (nvr == 0) return answer(c, call, fmi2OK); \
         BEGIN(call); \
-        PyObject *refs = vr && value ? reference_list(vr, nvr) : NULL; \
+        int fit = references_fit(in, nvr, function_name); \
+        PyObject *refs = vr && value && fit ? reference_list(vr, nvr) : NULL; \
         PyObject *values = refs ? py.PyList_New((Py_ssize_t)nvr) : NULL; \
         for (size_t i = 0; values && i < nvr; i++) { \
             PyObject *item = convert; \
             if (!item || py.PyList_SetItem(values, (Py_ssize_t)i, item) != 0) release(&values); \
         } \
         PyObject *result = values ? CALL(method, refs, values) : NULL; \
-        if (!vr || !value) status = wrong_result(in, function_name, "arguments: NULL arrays"); \
+        if (!fit) status = fmi2Error; \
+        else if (!vr || !value) \
+            status = wrong_result(in, function_name, "arguments: NULL arrays"); \
         else if (!result) status = python_failure(in, function_name); \
         release(&result); \
         release(&values); \

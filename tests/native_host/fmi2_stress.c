@@ -40,6 +40,9 @@
  *                                                reads another instance (of FMU_B if given),
  *                                                10 s at the most; prints how many children
  *                                                finished
+ *        fmi2_stress huge-nvr FMU                one step, fmi2SetReal and fmi2GetReal with
+ *                                                nvr = 2^40 (the arrays one element long),
+ *                                                then fmi2GetReal of one value: the statuses
  *        fmi2_stress reentrant DEPTH FMU         one step, the logger calling fmi2GetReal
  *                                                of the FMU's first r: reference for each
  *                                                message, DEPTH calls deep at most (-1: no
@@ -148,7 +151,7 @@ static void usage(const char *program) {
             "serial FMU_A FMU_B | short-threads N FMU | fatal N FMU | instantiate FMU "
             "[--uri URI] [--guid G] [--type me|cs] [--null-name] [--null-guid] [--null-uri] "
             "[--after-terminate] | reentrant DEPTH FMU | environment FMU [-- PROGRAM ARG...] "
-            "| beside LIBPYTHON lazy|now start|idle FMU | fork N FMU [FMU_B]\n"
+            "| beside LIBPYTHON lazy|now start|idle FMU | fork N FMU [FMU_B] | huge-nvr FMU\n"
             "  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
             program);
     exit(2);
@@ -750,6 +753,24 @@ static int mode_fork(int argc, char **argv) {
     return 0;
 }
 
+static int mode_huge_nvr(int argc, char **argv) {
+    Fmu fmu;
+    int a = 2;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a != argc) usage(argv[0]);
+    load(&fmu);
+    fmi2Component c = start(&fmu, "huge");
+    steps(&fmu, c, 1, NULL);
+    fmi2Real value = 0.0;
+    const size_t huge = (size_t)1 << 40;
+    printf("setReal huge status %d\n", fmu.api.setReal(c, fmu.reads, huge, &value));
+    printf("getReal huge status %d\n", fmu.api.getReal(c, fmu.reads, huge, &value));
+    printf("getReal status %d\n", fmu.api.getReal(c, fmu.reads, 1, &value));
+    fmu.api.freeInstance(c);
+    unload(&fmu);
+    return 0;
+}
+
 static int mode_reentrant(int argc, char **argv) {
     Fmu fmu;
     long limit = argc > 2 ? strtol(argv[2], NULL, 10) : 0;
@@ -794,6 +815,7 @@ int main(int argc, char **argv) {
     if (strcmp(mode, "environment") == 0) return mode_environment(argc, argv);
     if (strcmp(mode, "beside") == 0) return mode_beside(argc, argv);
     if (strcmp(mode, "fork") == 0) return mode_fork(argc, argv);
+    if (strcmp(mode, "huge-nvr") == 0) return mode_huge_nvr(argc, argv);
     usage(argv[0]);
     return 2;
 }
