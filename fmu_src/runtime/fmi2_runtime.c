@@ -797,6 +797,14 @@ static int make_helper(Message *why) {
  * (os.fork) holds the GIL already and does this itself. Each copy of the runtime (one per FMU)
  * registers the handlers; the first to run in a fork acts for all. */
 static int fork_prepared;  /* this copy took the GIL for the fork under way */
+/* Its address names this copy's fork handlers to glibc (__register_atfork), which forgets them
+ * when the library is unloaded (__cxa_finalize, called from the library's destructor): a fork
+ * after that must not call into unmapped code. (pthread_atfork, as linked for glibc 2.17, keeps
+ * them for good.) */
+static char fork_handlers;
+static int fork_handlers_registered;
+extern int __register_atfork(void (*)(void), void (*)(void), void (*)(void), void *);
+extern void __cxa_finalize(void *);
 
 static void before_fork(void) {
     fork_prepared = 0;
@@ -836,7 +844,8 @@ static int load(Message *why) {
             if (!make_helper(&attempt)) loaded = 0;
             else {
                 thread_key_made = pthread_key_create(&thread_key, release_thread_state) == 0;
-                pthread_atfork(before_fork, after_fork_in_parent, after_fork_in_child);
+                fork_handlers_registered = __register_atfork(
+                    before_fork, after_fork_in_parent, after_fork_in_child, &fork_handlers) == 0;
             }
         }
         /* a Python that did not start cannot be started again in this process */
@@ -850,9 +859,10 @@ static int load(Message *why) {
     return ok;
 }
 
-/* A thread-exit destructor must not run once this library is unloaded. */
+/* A thread-exit destructor or a fork handler must not run once this library is unloaded. */
 __attribute__((destructor)) static void unload(void) {
     if (thread_key_made) pthread_key_delete(thread_key);
+    if (fork_handlers_registered) __cxa_finalize(&fork_handlers);
 }
 
 /* ---- resource location ---------------------------------------------------------------- */

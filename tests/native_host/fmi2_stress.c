@@ -39,7 +39,8 @@
  *                                                steps an instance; each child steps and
  *                                                reads another instance (of FMU_B if given),
  *                                                10 s at the most; prints how many children
- *                                                finished
+ *                                                finished, and forks once more after
+ *                                                unloading the FMUs
  *        fmi2_stress huge-nvr FMU                one step, fmi2SetReal and fmi2GetReal with
  *                                                nvr = 2^40 (the arrays one element long),
  *                                                then fmi2GetReal of one value: the statuses
@@ -750,6 +751,12 @@ static int mode_fork(int argc, char **argv) {
     finish(second, other);
     if (second != &fmus[0]) unload(second);
     unload(&fmus[0]);
+    fflush(stdout);
+    pid_t child = fork();  /* no handler of an unloaded runtime may run */
+    if (child == 0) _exit(0);
+    int status = -1;
+    if (child > 0) waitpid(child, &status, 0);
+    printf("fork after unloading: %s\n", status == 0 ? "OK" : "failed");
     return 0;
 }
 
