@@ -277,6 +277,17 @@ def test_instance_cycles_do_not_grow_resident_memory(
     assert measure(stdout, "rss_bytes_per_cycle") <= MAX_BYTES_PER_CYCLE
 
 
+@pytest.mark.parametrize(("model", "cycles"), [
+    (PROBE, 300), pytest.param(SRB, 2000, marks=pytest.mark.slow)])
+def test_load_and_unload_cycles_do_not_grow_resident_memory(
+        stress: Path, fmus: dict[str, Unzipped], model: str, cycles: int) -> None:
+    """dlopen, instantiate, 10 steps, free, dlclose: each load of the runtime used to make
+    its Python helper anew and keep it (about 5 kB a cycle for the probe, 6 kB for the
+    SelfRegulatingBalancer); the helper is the process's now, made once."""
+    stdout = stress_ok(stress, "reload", str(cycles), *fmus[model].args())
+    assert measure(stdout, "rss_bytes_per_reload") <= MAX_BYTES_PER_CYCLE
+
+
 @pytest.mark.parametrize("threads", [2000, pytest.param(20000, marks=pytest.mark.slow)])
 def test_short_lived_host_threads_do_not_grow_resident_memory(
         stress: Path, fmus: dict[str, Unzipped], threads: int) -> None:

@@ -16,6 +16,8 @@
  * usage: fmi2_stress cycles N STEPS FMU...       N times: each FMU dlopen, instantiate,
  *                                                run, state round trip, free, dlclose
  *        fmi2_stress rss N FMU                   RSS growth per instance cycle
+ *        fmi2_stress reload N FMU                RSS growth per cycle of dlopen,
+ *                                                instantiate, 10 steps, free, dlclose
  *        fmi2_stress threads FMU_A FMU_B         two host threads, one instance each
  *        fmi2_stress serial FMU_A FMU_B          the same work in the main thread
  *        fmi2_stress short-threads N FMU         RSS growth per short-lived host thread
@@ -148,7 +150,7 @@ static void reentrant_logger(fmi2ComponentEnvironment env, fmi2String instance,
 
 static void usage(const char *program) {
     fprintf(stderr,
-            "usage: %s cycles N STEPS FMU... | rss N FMU | threads FMU_A FMU_B | "
+            "usage: %s cycles N STEPS FMU... | rss N FMU | reload N FMU | threads FMU_A FMU_B | "
             "serial FMU_A FMU_B | short-threads N FMU | fatal N FMU | instantiate FMU "
             "[--uri URI] [--guid G] [--type me|cs] [--null-name] [--null-guid] [--null-uri] "
             "[--after-terminate] | reentrant DEPTH FMU | environment FMU [-- PROGRAM ARG...] "
@@ -404,6 +406,24 @@ static int mode_rss(int argc, char **argv) {
     double after = resident_bytes();
     printf("rss_bytes_per_cycle %.6g\n", (after - before) / (double)n);
     unload(&fmu);
+    return 0;
+}
+
+static void reload_cycle(Fmu *fmu) {
+    load(fmu);
+    instance_cycle(fmu);
+    unload(fmu);
+}
+
+static int mode_reload(int argc, char **argv) {
+    Fmu fmu;
+    long n = count_and_fmu(argc, argv, 1, &fmu);
+    unload(&fmu);
+    for (int k = 0; k < WARM_UP; k++) reload_cycle(&fmu);
+    double before = resident_bytes();
+    for (long k = 0; k < n; k++) reload_cycle(&fmu);
+    double after = resident_bytes();
+    printf("rss_bytes_per_reload %.6g\n", (after - before) / (double)n);
     return 0;
 }
 
@@ -813,6 +833,7 @@ int main(int argc, char **argv) {
     const char *mode = argv[1];
     if (strcmp(mode, "cycles") == 0) return mode_cycles(argc, argv);
     if (strcmp(mode, "rss") == 0) return mode_rss(argc, argv);
+    if (strcmp(mode, "reload") == 0) return mode_reload(argc, argv);
     if (strcmp(mode, "threads") == 0) return mode_threads(argc, argv, 1);
     if (strcmp(mode, "serial") == 0) return mode_threads(argc, argv, 0);
     if (strcmp(mode, "short-threads") == 0) return mode_short_threads(argc, argv);
