@@ -57,7 +57,9 @@ sweep: fmu
 	$(PY) -m harness sweep harness/sweeps/table1.toml
 	$(PY) -m harness sweep harness/sweeps/regulation.toml
 
-# docs/variables/<Model>.md from the built FMUs' model descriptions
+# the generated pages: docs/variables/<Model>.md, docs/fmus.md and the mechanisms' README sections
+# from the built FMUs; docs/findings.md, the README's headline table and docs/performance.md's
+# figures from the committed results (tests/test_docs.py fails when one is stale)
 docs: fmu
 	$(PY) -m harness docs
 

@@ -54,8 +54,10 @@ COMMANDS = {
                      "benchmarks: FMU step cost against a trivial FMU and in a C host, "
                      "co-simulation real-time factor, step convergence, sweep scaling "
                      "(results/bench)"),
-    "docs": Command("harness.fmu.variable_pages",
-                    "write docs/variables/<Model>.md from the built FMUs' model descriptions"),
+    "docs": Command("harness.run.docs",
+                    "write the generated pages: the FMUs' variable tables and list from the "
+                    "built FMUs, docs/findings.md and the README's and docs/performance.md's "
+                    "figures from the committed results"),
     "cross-check": Command("harness.fmu.cross_check",
                            "write every FMU with its reference result in the FMI cross-check "
                            "layout (build/cross-check) and validate it"),

@@ -1,11 +1,14 @@
-"""The documentation in docs/ stays true to the code, and the repository stands on its own."""
+"""The documentation in docs/ stays true to the code and the committed results, and the
+repository stands on its own."""
 
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from fmpy import read_model_description
 
@@ -13,6 +16,7 @@ from harness import registry
 from harness.drive.metrics import METRICS
 from harness.fmu import build as fmu_build
 from harness.fmu import variable_pages
+from harness.run import report
 from harness.run.results import SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -123,3 +127,61 @@ def test_the_generated_section_replaces_only_itself() -> None:
     assert first == "# M\n\nText.\n\n" + section
     changed = first.replace("A.", "B.") + "\n## After\n"
     assert variable_pages.with_generated_section(changed, section) == first + "\n## After\n"
+
+
+def test_the_pages_made_from_the_results_are_fresh() -> None:
+    """docs/findings.md, the README's headline section and docs/performance.md's figures are
+    what `make docs` writes from the committed CSV files: every table and every number of
+    every sentence. The README and performance.md hold their section once."""
+    for path, text in report.pages(report.Results()).items():
+        assert path.read_text() == text, (
+            f"{path.relative_to(ROOT)} is out of date: run `make docs`")
+    for page in (report.README, report.PERFORMANCE):
+        assert page.read_text().count(report.GENERATED_START) == 1, page
+    assert "<!--=" not in report.README.read_text()
+
+
+def test_the_generated_pages_follow_the_csv_files(tmp_path: Path) -> None:
+    """From a copy of the committed CSV files in which franchetti2021's self-regulation draws
+    0.0123456 J, the findings' table and one-line answer and the README's table print that
+    value and what follows from it, not the committed one."""
+    copy = tmp_path / "results"
+    shutil.copytree(report.RESULTS_DIR, copy, ignore=shutil.ignore_patterns("*.parquet",
+                                                                              "*.png"))
+    path = copy / "franchetti2021" / "summary.csv"
+    summary = pd.read_csv(path)
+    summary.loc[summary.variant == "self_regulating", "E_drawn"] = 0.0123456
+    summary.to_csv(path, index=False)
+    unregulated = summary.set_index("variant").E_drawn.unregulated
+    pages = report.pages(report.Results(copy))
+    answer = f"cuts the drive's energy to {report.percent(0.0123456 / unregulated, 2)} % of"
+    for page in (report.FINDINGS, report.README):
+        assert answer in pages[page], page
+    assert "| `self_regulating` | 0.01235 | 2.882 |" in pages[report.FINDINGS]
+    assert "| franchetti2021 | `self_regulating` | 0.01235 | 2.882 |" in pages[report.README]
+    committed = report.pages(report.Results())
+    assert pages[report.PERFORMANCE] == committed[report.PERFORMANCE]
+    assert "0.06991" in committed[report.FINDINGS]
+
+
+def test_numbers_are_printed_to_their_significant_digits() -> None:
+    assert report.number(0.069907, 3) == "0.0699"
+    assert report.number(125.92, 5) == "125.92"
+    assert report.number(10.0, 4) == "10.00"
+    assert report.number(0.00099999, 2) == "0.0010"   # rounded across a decade
+    assert report.number(4.2e-4, 2) == "4.2e-4"
+    assert report.number(-1.1749, 3) == "-1.17"
+    assert report.number(float("nan")) == "-"
+    assert report.span([0.9931, 0.9987], 3, 100) == "99.3-99.9"
+    assert report.falls_or_rises(0.86, 0.823) == "falls from 0.860 to 0.823"
+    assert report.more_or_less(-0.0846, "J") == "0.0846 J less"
+
+
+def test_generated_prose_is_wrapped_without_starting_a_markdown_block() -> None:
+    """Paragraphs wrap to WIDTH; a piece that would open a list, heading or table on a new
+    line stays on the line before; tables and headings are kept whole."""
+    text = ("word " * 60).strip()
+    assert all(len(line) <= report.WIDTH for line in report.wrapped([text]))
+    assert " ".join(report.wrapped([text])) == text
+    assert report.wrapped(["w" * 90 + " - b", "| a | b |", "# " + "h " * 60]) == [
+        "w" * 90 + " - b", "| a | b |", "# " + "h " * 60]

@@ -4,7 +4,7 @@ source (a function-level import hides a cycle from a plain `import`, it does not
 including those of any `if __name__ == "__main__":` block: a command is a module of its own,
 run by `harness.cli`.
 
-The rooms stand in layers (docs/model-structure.md), each importing only rooms below it:
+The rooms stand in layers (docs/code_structure.md), each importing only rooms below it:
 the base modules (errors, io, interrupts, registry), then scenarios, fmu (building, loading
 and calling FMUs), drive (motor, controller, metrics), engines, run (the cosim command,
 result files, plots, compare), and the commands built on those (design, sweeps, bench),

@@ -266,11 +266,11 @@ def test_paper_design_keeps_eqs_10_and_16() -> None:
 
 
 def test_regulation_sweep_slider_settles_at_its_static_equilibrium() -> None:
-    """results/sweeps/regulation (the README's regulation paragraph): away from 180 deg the
+    """results/sweeps/regulation (docs/findings.md, "Where to regulate"): away from 180 deg the
     released slider settles where wire and spring balance along the link, short of b_max for
     1 kg; its position from the run's E_cw (the counterweight's descent, R/r times the
-    slider's travel) is the static equilibrium, and it reaches b_max only from the payloads
-    the README quotes."""
+    slider's travel) is the static equilibrium, at the positions quoted here, and it reaches
+    b_max only from the payloads quoted here."""
     import csv
     from pathlib import Path
 

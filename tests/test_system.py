@@ -316,7 +316,7 @@ def test_ssd_carries_the_stop_time_omsimulator_reads(described: description.Syst
           oms_setStopTime(cref, oms::Flags::StopTime());
 
     and Flags.h:160 defaults it to "1", so `OMSimulator x.ssp` stops at 1 s whatever any SSP
-    says; the README gives the command with `--stopTime` and the task's duration."""
+    says; docs/using_the_fmus.md gives the command with `--stopTime` and the task's duration."""
     ssp = writers.write_ssp(described, tmp_path / "x.ssp")
     with zipfile.ZipFile(ssp) as archive:
         root = ET.fromstring(archive.read("SystemStructure.ssd"))
@@ -328,10 +328,11 @@ def test_ssd_carries_the_stop_time_omsimulator_reads(described: description.Syst
     for name, value in (("startTime", 0.0), ("stopTime", SCENARIO.duration)):
         literal = experiment.get(name)
         assert re.fullmatch(OMS_DOUBLE, literal) and float(literal) == value, (name, literal)
-    readme = " ".join((Path(__file__).parents[1] / "README.md").read_text().split())
+    page = Path(__file__).parents[1] / "docs" / "using_the_fmus.md"
+    text = " ".join(page.read_text().split())
     duration = f"{SCENARIO.duration:g}"
     assert f"OMSimulator --stopTime {duration} build/system/franchetti2021/unbalanced.ssp" in (
-        readme)
+        text)
 
 
 def test_sequencer_variant_number_selects_the_variant_by_position() -> None:

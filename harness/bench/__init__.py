@@ -3,8 +3,8 @@
 Each benchmark is a function (steps, repeats) -> table; BENCHMARKS maps the CSV name to it.
 
 `fmu_step`: the cost of one communication step of SelfRegulatingBalancer stepped by FMPy,
-with the calls the co-simulation master makes per step (harness.run.master: setReal tau_drive,
-doStep, getReal theta and omega), next to the same loop over `BenchFloor`, a pythonfmu
+with the calls the co-simulation master makes per step (harness.engines.fmpy_master: setReal
+tau_drive, doStep, getReal theta and omega), next to the same loop over `BenchFloor`, a pythonfmu
 FMU that only copies its input to its output, with pythonfmu's own binary: the floor that
 pythonfmu imposes on any FMU made with it. `BenchFloorRuntime` is the same slave on our
 runtime (fmu_src/runtime), as every FMU of the product is.
@@ -27,10 +27,11 @@ real-time factor. The last row is the sum, what `make cosim` spends in simulatio
 core.
 
 `master_share`: per franchetti2021 variant, the CPU time of one closed-loop step (as `cosim`)
-and that of its FMU calls (the master's loop, `harness.fmu.calls.run_steps`, replaying the run's
-efforts with no controller and no motor: the input changes and the recording read included),
-best of repeats each, and their difference, the master's share: its set-up and result
-assembly spread over the steps, and the controller and motor.
+and that of its FMU calls (the master's loop, `harness.engines.fmpy_master.run_steps`,
+replaying the run's efforts with no controller and no motor: the input changes and the
+recording read included), best of repeats each, and their difference, the master's share
+(also as a fraction of the step): its set-up and result assembly spread over the steps, and
+the controller and motor. A reported figure, not a check: the two are timed seconds apart.
 
 `convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
 reference (harness.engines.reference): the relative error of each drive energy, which must shrink
@@ -52,8 +53,8 @@ first communication point at or after it); `ecco.png` plots both errors against 
 Checks (CHECKS): after the tables, the figures that must hold on any machine, each with its
 bound and whether it holds, printed and written to checks.csv (the rows of benchmarks not run
 this time re-evaluated from their CSVs in the folder): every mechanism's step dearer than the
-stock floor's (its physics on top of the same FMI calls), a run's FMU calls alone cheaper than
-its whole closed-loop step, and the top-level help under a second. `bench` exits 1 when a
+stock floor's (its physics on top of the same FMI calls) and the top-level help under a
+second. `bench` exits 1 when a
 check of the benchmarks it ran fails, after writing every table.
 """
 

@@ -36,8 +36,8 @@ def ssd_tree(system: System) -> ET.ElementTree:
     input) and inline parameter bindings, connections, the system's OpenModelica annotation
     (OMSimulator's fixed-step master, without which OMSimulator 3.0 aborts) and a
     DefaultExperiment over the task [s], where OMSimulator's import reads the stop time (its
-    command line overrides it with --stopTime: README), whose OSP annotation gives the fixed
-    step (libcosim)."""
+    command line overrides it with --stopTime: docs/using_the_fmus.md), whose OSP annotation
+    gives the fixed step (libcosim)."""
     for prefix, uri in NS.items():
         ET.register_namespace(prefix, uri)
     ssd, ssc, ssv, osp_, oms = (f"{{{NS[p]}}}" for p in ("ssd", "ssc", "ssv", "osp", "oms"))

@@ -1,11 +1,11 @@
-"""`python -m harness docs` (`make docs`): docs/fmus.md, the list of the FMUs with their slave
-scripts; docs/variables/<Model>.md, the variable table of each built FMU's model
-description; and in each mechanism's README.md the section on its reference run and energy
-ledger, from its registration. tests/test_docs.py fails when one no longer matches."""
+"""The pages made from the built FMUs and their registrations (`make docs`, `harness.run.docs`):
+docs/fmus.md, the list of the FMUs with their slave scripts; docs/variables/<Model>.md, the
+variable table of each built FMU's model description; and in each mechanism's README.md the
+section on its reference run and energy ledger, from its registration. tests/test_docs.py
+fails when one no longer matches."""
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
 
@@ -14,7 +14,6 @@ from fmpy.model_description import ModelDescription
 
 from fmu_src.mechanism import Registration
 from harness import registry
-from harness.fmu import build as fmu_build
 from harness.fmu.docs import VARIABLE_COLUMNS, variable_cells
 from harness.io import write_atomic
 
@@ -89,10 +88,10 @@ def reference_and_ledger_markdown(script: Path, found: Registration) -> str:
         "", GENERATED_END, ""])
 
 
-def with_generated_section(text: str, section: str) -> str:
-    """A README's text with its generated section replaced by section (appended at the end
-    when it has none)."""
-    start = text.find(GENERATED_START)
+def with_generated_section(text: str, section: str, marker: str = GENERATED_START) -> str:
+    """A page's text with its generated section, from the heading before `marker` to
+    GENERATED_END, replaced by section (appended at the end when it has none)."""
+    start = text.find(marker)
     if start < 0:
         return text.rstrip("\n") + "\n\n" + section
     heading = text.rfind("\n## ", 0, start) + 1
@@ -124,14 +123,3 @@ def write_pages(fmus: list[Path], folder: Path = DOCS_VARIABLES,
              for md in descriptions]
     return [*pages, _write_text(index, fmu_index_markdown(descriptions)),
             *write_mechanism_readmes()]
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--fmus", type=Path, default=fmu_build.DEFAULT_DEST, metavar="DIR",
-                        help="folder of the built FMUs (default build/fmus, `make fmu`)")
-
-
-def run(args: argparse.Namespace) -> int:
-    for written in write_pages([fmu_build.locate(m, args.fmus) for m in fmu_build.MODELS]):
-        print(written)
-    return 0
