@@ -128,20 +128,26 @@ def no_input_events(p: Any, before: Any, after: Any, s: Any) -> Any:
     return s
 
 
-# The one-link figure's panels after the link angle (Franchetti et al. 2021, Figure 5), as
-# (title, unit): a one-link mechanism draws its outputs in them (Registration.plot_panels), so
-# that the variants of one scenario, whatever their models, share them
-ENERGY_PANEL = ("(b) energies", "J")
-ADJUSTMENT_PANEL = ("(c) adjuster travel and payload", "mm | kg")
-GEOMETRY_PANEL = ("(d) spring length or counterweight position", "mm")
+# The one-link figure's panels after the link angle, as (title, unit): Franchetti et al. 2021,
+# Figure 5 (b) energies, (c) adjuster travel and payload (two quantities, so two panels here)
+# and (d) spring length. A one-link mechanism draws its outputs in them
+# (Registration.plot_panels), so that the variants of one scenario, whatever their models,
+# share them
+ENERGY_PANEL = ("energies", "J")
+TRAVEL_PANEL = ("adjuster travel", "mm")
+PAYLOAD_PANEL = ("payload", "kg")
+GEOMETRY_PANEL = ("spring length or counterweight position", "mm")
 
 
-def one_link_panels(energies: tuple[str, ...], adjustment: tuple[str, ...],
-                    geometry: tuple[str, ...]) -> tuple[tuple[str, str, tuple[str, ...]], ...]:
+def one_link_panels(energies: tuple[str, ...], travel: tuple[str, ...],
+                    geometry: tuple[str, ...], payload: tuple[str, ...] = ("payload",)
+                    ) -> tuple[tuple[str, str, tuple[str, ...]], ...]:
     """The plot_panels of a one-link mechanism: the variables it draws in ENERGY_PANEL,
-    ADJUSTMENT_PANEL and GEOMETRY_PANEL."""
-    return ((*ENERGY_PANEL, energies), (*ADJUSTMENT_PANEL, adjustment),
-            (*GEOMETRY_PANEL, geometry))
+    TRAVEL_PANEL (its adjuster's travel, none for a mechanism without one), PAYLOAD_PANEL and
+    GEOMETRY_PANEL; a panel with no variable is left out."""
+    panels = ((*ENERGY_PANEL, energies), (*TRAVEL_PANEL, travel), (*PAYLOAD_PANEL, payload),
+              (*GEOMETRY_PANEL, geometry))
+    return tuple(panel for panel in panels if panel[2])
 
 
 # OSP-IS port kinds (harness.fmu.osp): effort and flow of each
@@ -242,8 +248,9 @@ class Registration:
     # the monolithic reference (harness.engines.reference) can solve it as one ODE
     monolithic_reference: bool = True
     # plot panels after the joints' tracking panels: (title, unit, names of its inputs or
-    # outputs; a one-link mechanism's are `one_link_panels`); the panels of one title are one
-    # panel in a figure of several models' variants, a line style per name in order
+    # outputs; a one-link mechanism's are `one_link_panels`), one quantity in one unit per
+    # panel; the panels of one title are one panel in a figure of several models' variants,
+    # a line style per name in order
     plot_panels: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
     # outputs a result summary reports at the end of a run (an adjusting actuator's work)
     summary_outputs: tuple[str, ...] = ()

@@ -195,6 +195,8 @@ FRANCHETTI = (scenarios.SCENARIO_DIR / "franchetti2021.toml").read_text()
      "variant active_relocation phase_targets III regulate: targets name no joint theta"),
     (FRANCHETTI.replace('static_effort = "F_hold"', ""),
      r"joint q needs .*static_effort, static_load"),
+    (FRANCHETTI.replace('source = "Franchetti et al. 2021"', "source = 2021"),
+     "source = 2021 must be a string"),
 ])
 def test_bad_files_are_rejected_with_clear_messages(tmp_path: Path, text: str,
                                                     message: str) -> None:

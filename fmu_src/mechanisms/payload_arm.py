@@ -36,5 +36,5 @@ def payload_arm(physics: Any, reference_outputs: tuple[str, ...], counterweight_
                                         reference_outputs, "; no payload"),
         moving_run=Run({}, {"payload": 2.0}, 2.0),
         dependency_probes=(Run({}, {"tau_drive": 1.0, "payload": 0.5}, 0.3),),
-        plot_panels=one_link_panels(("E_p",), ("payload",), (counterweight_position,)),
+        plot_panels=one_link_panels(("E_p",), (), (counterweight_position,)),
         **more)

@@ -2,9 +2,11 @@
 
 Every engine (`harness.engines.ENGINES`) writes the same result set (docs/results.md): a CSV
 series per variant, the summary and the plot, into OUT/<scenario>/ for the scenario as
-written and OUT/<scenario>/realistic/ for its realistic loss set. OUT is results/ for the
-FMPy master, whose result sets are the committed ones, and build/results/<engine>/ for the
-others, so that no other engine overwrites them unless asked to.
+written and OUT/<scenario>/realistic/ for its realistic loss set; after either, the
+scenario's headline figure OUT/<scenario>/<scenario>_energy.png is redrawn from both sets'
+summaries. OUT is results/ for the FMPy master, whose result sets are the committed ones,
+and build/results/<engine>/ for the others, so that no other engine overwrites them unless
+asked to.
 
 The runs (every selected variant of every selected scenario and loss set) are independent:
 with `--workers N` above 1 they run in N worker processes (pythonfmu embeds one interpreter
@@ -152,6 +154,11 @@ class Plan:
     folder: Path
     loaded: scenarios.Scenario | None = None
 
+
+    @property
+    def scenario_folder(self) -> Path:
+        """The scenario's folder, OUT/<scenario>/ (the ideal set's)."""
+        return self.folder if self.loss_set == "ideal" else self.folder.parent
 
 
 def selected_variants(scenario: scenarios.Scenario, spec: str) -> list[str]:
@@ -342,9 +349,13 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
 
 
 def write_result_set(plan: Plan, runs: list[RunResult], drives: pd.DataFrame | None) -> str:
-    """Write one result set's files into its folder (with the sizing rows of its drives);
-    their paths and its summary, to print."""
-    paths = results.write_run(runs, plan.scenario, plan.folder, drives)
+    """Write one result set's files into its folder (with the sizing rows of its drives),
+    then redraw the scenario's headline figure from every loss set's summary there is
+    (results.write_energy_figure: the set written last, whichever it is, leaves it showing
+    both); their paths and the set's summary, to print."""
+    paths = results.write_run(runs, plan.scenario, plan.folder, plan.loss_set, drives)
+    paths.append(results.write_energy_figure(plan.scenario,
+                                             losses.set_folders(plan.scenario_folder)))
     return "\n".join([*map(str, paths), results.summary_text(
         plan.folder / "summary.csv", plan.scenario, plan.loss_set)])
 

@@ -1,5 +1,6 @@
-"""Result files (docs/results.md): per-variant CSV series, a summary table, the plot
-(`harness.run.plots`).
+"""Result files (docs/results.md): per-variant CSV series, a summary table, the time series
+plot, and the scenario's headline figure drawn from every loss set's summary
+(`write_energy_figure`; the figures are `harness.run.plots`).
 
 CSVs follow the FMI cross-check conventions (as fmpy.util.write_csv): quoted header,
 `time` first, one column per quantity named after the FMU variable or drive signal, SI units,
@@ -31,7 +32,7 @@ from harness import interrupts, registry
 from harness.drive.metrics import METRICS, efficaciousness
 from harness.engines.result import RunResult, suffix
 from harness.errors import UserError
-from harness.io import check_target, write_csv
+from harness.io import check_target, save_figure, write_csv
 from harness.run import plots
 from harness.scenarios import Scenario
 
@@ -223,21 +224,21 @@ def remove_stale_staging(out_dir: Path) -> list[Path]:
 
 
 def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path,
-              drives: pd.DataFrame | None = None) -> list[Path]:
+              loss_set: str = "ideal", drives: pd.DataFrame | None = None) -> list[Path]:
     """Write <variant>.csv for each run, then the plot and summary.csv of the whole result set
-    in out_dir: every row of an earlier summary is kept (with the union of the columns) but
-    the variants run now, eps is recomputed over all rows. A failure before the renames
-    (a full disk) is a UserError naming the file and leaves the old set untouched; the
-    summary is renamed last: it lists what the set holds. drives: the sizing rows of the
-    variants run (harness.run.sizing.table_row), merged into the set's drives.csv. A stop
-    asked for before the renames (`harness.interrupts`) renames nothing and raises
-    KeyboardInterrupt."""
+    in out_dir (of the loss set, which the plot's title names): every row of an earlier
+    summary is kept (with the union of the columns) but the variants run now, eps is
+    recomputed over all rows. A failure before the renames (a full disk) is a UserError
+    naming the file and leaves the old set untouched; the summary is renamed last: it lists
+    what the set holds. drives: the sizing rows of the variants run
+    (harness.run.sizing.table_row), merged into the set's drives.csv. A stop asked for
+    before the renames (`harness.interrupts`) renames nothing and raises KeyboardInterrupt."""
     with locked(out_dir):
         remove_stale_staging(out_dir)
         old = read_summary(out_dir / "summary.csv")
         try:
             with staging(out_dir) as folder:  # every file made here, then renamed in a burst
-                staged = _stage(results, scenario, out_dir, old, folder)
+                staged = _stage(results, scenario, out_dir, old, folder, loss_set)
                 if drives is not None:
                     staged.insert(-1, _stage_drives(drives, scenario, out_dir, folder))
                 for path in staged:
@@ -253,7 +254,7 @@ def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path,
 
 
 def _stage(results: list[RunResult], scenario: Scenario, out_dir: Path,
-           old: pd.DataFrame | None, folder: Path) -> list[Path]:
+           old: pd.DataFrame | None, folder: Path, loss_set: str) -> list[Path]:
     """Write into folder the new variants' CSVs, then the plot and the summary of the set:
     the new rows and every old row of another variant (old, the existing summary), in the
     scenario's variant order (variants it no longer has last, as they were)."""
@@ -269,7 +270,7 @@ def _stage(results: list[RunResult], scenario: Scenario, out_dir: Path,
               for variant, model in zip(kept.variant, kept.model, strict=True)
               if (out_dir / f"{variant}.csv").exists()]  # a row without its CSV: not plotted
     runs = sorted([*results, *stored], key=lambda r: rank.get(r.variant, len(rank)))
-    staged.append(plots.plot(runs, scenario, folder / f"{scenario.name}.png"))
+    staged.append(plots.plot(runs, scenario, folder / f"{scenario.name}.png", loss_set))
     staged.append(write_csv(table, folder / "summary.csv"))
     return staged
 
@@ -285,6 +286,26 @@ def _stage_drives(drives: pd.DataFrame, scenario: Scenario, out_dir: Path,
     table = table.sort_values("variant", key=lambda v: v.map(lambda n: rank.get(n, len(rank))),
                               kind="stable")
     return write_csv(table.reset_index(drop=True), folder / "drives.csv")
+
+
+def energy_figure_path(folders: Mapping[str, Path], scenario: Scenario) -> Path:
+    """Where a scenario's headline figure goes: `<scenario>_energy.png` in the folder of its
+    first loss set (the ideal set's, the scenario's own folder)."""
+    return next(iter(folders.values())) / f"{scenario.name}_energy.png"
+
+
+def write_energy_figure(scenario: Scenario, folders: Mapping[str, Path]) -> Path:
+    """Draw the scenario's headline figure (plots.energy_figure) from the summaries of its
+    loss sets' result sets (folders: loss set -> folder), those that exist, at
+    `energy_figure_path`. Called after each set is written, it holds the lock of the
+    figure's folder while it reads and writes, so of two sets written at once the later
+    drawing sees both summaries (each is renamed into place whole)."""
+    path = energy_figure_path(folders, scenario)
+    with locked(path.parent):
+        tables = {loss_set: table for loss_set, folder in folders.items()
+                  if (table := read_summary(folder / "summary.csv")) is not None}
+        check_target(path)
+        return save_figure(plots.energy_figure(scenario, tables), path)
 
 
 def _read_csv(path: Path, **options: object) -> pd.DataFrame:

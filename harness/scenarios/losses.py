@@ -119,8 +119,13 @@ def loss_sets(scenario: Scenario, selected: str) -> list[tuple[str, Scenario]]:
     return sets
 
 
+def set_folders(scenario_folder: Path) -> dict[str, Path]:
+    """Each loss set's result folder in a scenario's folder (OUT/<scenario>/), ideal first:
+    the ideal set in it, the realistic set in its REALISTIC_FOLDER."""
+    return {"ideal": scenario_folder, "realistic": scenario_folder / REALISTIC_FOLDER}
+
+
 def result_folder(out: Path, scenario: Scenario, loss_set: str) -> Path:
     """Where a loss set's result set goes: OUT/<scenario>/, the realistic set in its
-    REALISTIC_FOLDER."""
-    folder = out / scenario.name
-    return folder if loss_set == "ideal" else folder / REALISTIC_FOLDER
+    REALISTIC_FOLDER (set_folders)."""
+    return set_folders(out / scenario.name)[loss_set]

@@ -73,5 +73,5 @@ REGISTRATION = Registration(
     moving_run=Run({}, {"tau_drive": 0.5, "F_adjust": 30.0, "payload": 0.5}, 2.0),
     # carriage pushed up against the spring while the link swings: the screw's force acts
     dependency_probes=(Run({}, {"tau_drive": 1.0, "F_adjust": 40.0, "payload": 0.5}, 0.3),),
-    plot_panels=one_link_panels(("E_p", "E_e", "E_t"), ("q", "payload"), ("l_s",)),
+    plot_panels=one_link_panels(("E_p", "E_e", "E_t"), ("q",), ("l_s",)),
 )

@@ -50,8 +50,8 @@ REGISTRATION = Registration(
     moving_run=Run({}, {"tau1": 0.5, "f2": 1.0}, 2.0),
     dependency_probes=(Run({}, {"tau1": 1.0, "f2": 1.0}, 0.3),),
     plot_panels=(
-        ("gravity residuals: efforts to hold the arm", "N m | N",
-         ("tau1_gravity_residual", "f2_gravity_residual")),
+        ("gravity residual on q1: torque to hold the arm", "N m", ("tau1_gravity_residual",)),
+        ("gravity residual on q2: force to hold the arm", "N", ("f2_gravity_residual",)),
         ("energies", "J", ("E_grav", "E_springs", "E_kin", "W_worm")),
     ),
 )

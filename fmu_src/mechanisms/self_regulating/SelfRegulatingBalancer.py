@@ -140,5 +140,5 @@ REGISTRATION = Registration(
         Run({"theta0": math.pi}, {"tau_drive": 1.0, "slider_locked": False}, 1.0),
     ),
     initial_parameters={"omega0": 0.5},
-    plot_panels=one_link_panels(("E_p", "E_e", "E_t"), ("delta_b", "payload"), ("x",)),
+    plot_panels=one_link_panels(("E_p", "E_e", "E_t"), ("delta_b",), ("x",)),
 )

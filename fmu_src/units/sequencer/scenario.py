@@ -4,12 +4,13 @@ harness does; `harness.scenarios` finds the files and evaluates them on numpy ar
 This module holds the data model; `scenario_format.parse` reads a file's data into it.
 
 A scenario (a TOML file) names the mechanism FMU, its parameters, the joints the drives move
-and a list of phases. Each phase has a duration [s], a target per joint reached by a quintic
-(zero velocity and acceleration at both ends) over the phase, and input changes applied at
-the phase start: a plain value steps there, `{ ramp = value }` ramps to value over the phase,
-linearly or with `shape` one of RAMP_SHAPES (e.g. `{ ramp = 4.0, shape = "ease_out" }`).
-Inputs keep their value until a later phase changes them; a joint a phase gives no target
-holds its previous one.
+and a list of phases, and optionally the work it reproduces (`source`, which figures cite).
+Each phase has a duration [s], a target per joint reached by a quintic (zero velocity and
+acceleration at both ends) over the phase, and input changes applied at the phase start: a
+plain value steps there, `{ ramp = value }` ramps to value over the phase, linearly or with
+`shape` one of RAMP_SHAPES (e.g. `{ ramp = 4.0, shape = "ease_out" }`). Inputs keep their
+value until a later phase changes them; a joint a phase gives no target holds its previous
+one.
 
 Joints. Without a `joints` table the scenario has one revolute joint with the names of the
 balancer FMUs (DEFAULT_JOINT; a `[joint]` table may rename them), its initial angle is
@@ -286,6 +287,9 @@ class Scenario:
     variants: dict[str, Variant]
     baseline: str                   # default variant against which eps is computed
     joints: tuple[Joint, ...]
+    # the work the scenario reproduces, as figures cite it ("Franchetti et al. 2021"); a
+    # citation, not part of the task, so left out of repr (which sweep run ids hash)
+    source: str = field(default="", repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "initial_angle", _positions(self.initial_angle))

@@ -215,7 +215,7 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
           ) -> Scenario:
     """A scenario from the data of its TOML file (where: the file's name, for messages)."""
     try:
-        for key in ("name", "description", "model", "baseline"):
+        for key in ("name", "description", "source", "model", "baseline"):
             if not isinstance(data.get(key, ""), str):
                 raise ValueError(f"{key} = {shown(data[key])} must be a string")
         joints, initial = _joints(data)
@@ -226,7 +226,8 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
             model=data["model"],
             parameters=_parameter_values(data.get("parameters", {}), "parameters"),
             initial_angle=initial, phases=phases, variants=variants,
-            baseline=data.get("baseline", next(iter(variants), "")), joints=joints)
+            baseline=data.get("baseline", next(iter(variants), "")), joints=joints,
+            source=data.get("source", ""))
         unknown = sorted(set(scenario.baselines.values()) - set(variants))
         if unknown:
             raise ValueError(f"baseline {', '.join(unknown)} names no variant; choose from "
