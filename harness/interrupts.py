@@ -51,9 +51,9 @@ def stop_if_requested() -> None:
 @contextlib.contextmanager
 def deferred() -> Iterator[None]:
     """SIGINT and SIGTERM set `requested` while inside; leaving raises KeyboardInterrupt if
-    it is set (in place of an Exception raised meanwhile). Only in the main thread (the one
-    that gets signals); a signal that is ignored (SIGINT of a job started in the background)
-    stays ignored."""
+    it is set (in place of an Exception raised meanwhile), and clears it. Only in the main
+    thread (the one that gets signals); a signal that is ignored (SIGINT of a job started in
+    the background) stays ignored."""
     global received
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -76,7 +76,11 @@ def deferred() -> Iterator[None]:
     finally:
         for signum, handled in previous.items():
             signal.signal(signum, handled)
-    stop_if_requested()
+        # answered here (also by a KeyboardInterrupt leaving): what runs after is not stopped
+        stop = requested.is_set()
+        requested.clear()
+    if stop:
+        raise KeyboardInterrupt
 
 
 @contextlib.contextmanager

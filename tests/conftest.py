@@ -185,11 +185,17 @@ def fair_run(scenario: Scenario, variant: str, loss_set: str = "ideal",
              engine: Callable[..., RunResult] | None = None, **options: Any) -> RunResult:
     """A run of the variant (scenario: the loss set's) with the drives its committed result
     set ran with (results/<scenario>/drives.csv), by the FMPy master or engine."""
-    folder = results.RESULTS_DIR / scenario.name
-    drives = stored_drives(folder if loss_set == "ideal" else folder / "realistic", variant,
-                           loss_set)
-    return (engine or fmpy_master.run)(scenario, scenario.variant(variant), drives=drives,
+    return (engine or fmpy_master.run)(scenario, scenario.variant(variant),
+                                       drives=committed_drives(scenario, variant, loss_set),
                                        **options)
+
+
+def committed_drives(scenario: Scenario, variant: str, loss_set: str = "ideal"
+                     ) -> dict[str, Any]:
+    """The drives the variant's committed result set ran with, by joint."""
+    folder = results.RESULTS_DIR / scenario.name
+    return stored_drives(folder if loss_set == "ideal" else folder / "realistic", variant,
+                         loss_set)
 
 
 def assert_reproduces_committed_summary(scenario: Scenario, runs: Iterable[RunResult],

@@ -27,6 +27,7 @@ from harness.drive import catalogue
 from harness.drive.sizing import MARGIN, JointLoad, choose, evaluate
 from harness.drive.trace import SampledDrive
 from harness.engines import fmpy_master
+from harness.run.report import LEGACY_E_DRAWN
 from harness.run.results import RESULTS_DIR
 
 LOSSY = MotorParameters(N=111.0, eta=0.7, eta_back=0.57)
@@ -208,11 +209,11 @@ def test_the_anchor_drive_draws_nothing_while_the_screw_holds() -> None:
 
 
 def test_the_legacy_configuration_reproduces_the_tables_before_the_fair_protocol() -> None:
-    """The legacy drives, always on: self_regulating's and active_relocation's E_drawn of the
-    tables before the fair protocol (0.06990653125 J and 125.9938121 J), to the 10 digits
-    they were written with."""
+    """The legacy drives, always on: self_regulating's E_drawn of the tables before the fair
+    protocol (0.06990653125 J), and active_relocation's that the README quotes, to the 10
+    digits they were written with."""
     legacy = scenarios.load("franchetti2021").drives_always_on()
     for variant, drawn in (("self_regulating", 0.06990653125),
-                           ("active_relocation", 125.9938121)):
+                           ("active_relocation", LEGACY_E_DRAWN["active_relocation"])):
         run = fmpy_master.run(legacy, legacy.variant(variant))
         assert run.metrics["E_drawn"] == pytest.approx(drawn, rel=1e-9)
