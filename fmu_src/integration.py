@@ -16,9 +16,17 @@ and takes the step again with more sub-steps until that error is within the mech
 `ledger_accuracy` times the step's energy throughput plus the ledger's own rounding
 (`ledger_tolerance`).
 
-One RK4 for every mechanism: a physics module gives the derivative of its whole state (the
-one its `derivatives` returns) and its constraints, and `advance_controlled` (or
-`integrate_substeps` under `ledger_controlled`) steps it.
+The RK4 kernels, one per state shape; a physics module gives rates (and events) and calls
+one of them. All but `rk4` keep the stages in local floats, because a call and a tuple per
+stage cost more than a small model's arithmetic, and each gives the numbers of `rk4` over its
+full state bit for bit (tests/test_integration.py):
+- `rk4`, `integrate`, `integrate_substeps`: any state, a derivative of the whole state;
+- `integrate_arm`: a one-link arm (theta, omega, W_drive, E_loss) with rates f(theta, omega);
+- `integrate_sine_arm`: the same arm of constant inertia with sinusoidal gravity and spring
+  moments, written out with no call per stage;
+- `integrate_link_slider`: a link with a slider along it and a body the slider drives;
+- `rk4_link_carriage_step`: one step of a link with a force-driven carriage whose regime
+  (a self-locking screw's) is held through the step.
 """
 
 from __future__ import annotations
@@ -217,13 +225,193 @@ def first_substeps(dt: float, rate: float) -> int:
     return 1 if dt * rate / STEP_RATE_PRODUCT <= 1.0 else substeps(dt, rate)
 
 
-def advance_controlled(rates: Callable[[Sequence[float]], Sequence[float]],
-                       terms: Callable[[S], Sequence[float]], works: Sequence[int], s: S,
-                       dt: float, rate: float, p: Any, events: tuple = (),
-                       constrain: Callable[[S], S] | None = None) -> S:
-    """A mechanism's communication step of dt [s] from s: RK4 over the state's derivative
-    rates(state) (`integrate_substeps`, constrain after each sub-step), its sub-steps from
-    the dynamics' fastest rate [1/s] (`first_substeps`), raised under `ledger_controlled`
-    for the ledger terms(state) of the parameters p and the event inputs."""
-    return ledger_controlled(lambda n: integrate_substeps(rates, s, dt, n, constrain), terms,
-                             works, s, first_substeps(dt, rate), dt, p, events)
+def integrate_arm(f: Callable[[float, float], tuple[float, float]], theta: float, omega: float,
+                  W_drive: float, E_loss: float, tau: float, dt: float, n: int
+                  ) -> tuple[float, float, float, float]:
+    """Advance a one-link arm over dt [s] with RK4 sub-steps: theta' = omega,
+    (omega', E_loss') = f(theta, omega) and W_drive' = tau omega for a drive torque tau held
+    over the step with n sub-steps; returns (theta, omega, W_drive, E_loss).
+
+    The same numbers as `integrate_substeps` over the state (theta, omega, W_drive, E_loss),
+    bit for bit, with the stages kept in local floats: one call of f per stage and no tuple
+    per stage, where the tuples and calls cost more than the arm's arithmetic.
+    """
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    for _ in range(n):
+        a1, l1 = f(theta, omega)
+        o2 = omega + half * a1
+        a2, l2 = f(theta + half * omega, o2)
+        o3 = omega + half * a2
+        a3, l3 = f(theta + half * o2, o3)
+        o4 = omega + h * a3
+        a4, l4 = f(theta + h * o3, o4)
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return theta, omega, W_drive, E_loss
+
+
+def rk4_link_carriage_step(rates: Callable[..., tuple[float, float, float]], tau: float,
+                           force: float, s: S, h: float) -> S:
+    """One RK4 step of size h [s] from s for a link and a driven carriage, the state
+    (theta, omega, q, q_dot, W_drive, W_force, E_loss, E_added) for a link torque tau [N m]
+    and a carriage force [N] held over the step: theta' = omega, q' = q_dot, (omega',
+    q_dot', E_loss') = rates(theta, omega, q, q_dot, direction, tau, force), with the
+    carriage's direction that of q_dot at the step's start (a self-locking drive's regime is
+    held through the step), W_drive' = tau omega, W_force' = force q_dot and E_added' = 0.
+
+    The numbers of `rk4` over the full state, bit for bit, with the stages in local floats:
+    one call of rates per stage and no tuple per stage.
+    """
+    theta, omega, q, q_dot, W_drive, W_force, E_loss, E_added = s
+    half, sixth = 0.5 * h, h / 6.0
+    a1, b1, l1 = rates(theta, omega, q, q_dot, q_dot, tau, force)
+    o2, v2 = omega + half * a1, q_dot + half * b1
+    a2, b2, l2 = rates(theta + half * omega, o2, q + half * q_dot, v2, q_dot, tau, force)
+    o3, v3 = omega + half * a2, q_dot + half * b2
+    a3, b3, l3 = rates(theta + half * o2, o3, q + half * v2, v3, q_dot, tau, force)
+    o4, v4 = omega + h * a3, q_dot + h * b3
+    a4, b4, l4 = rates(theta + h * o3, o4, q + h * v3, v4, q_dot, tau, force)
+    return tuple.__new__(type(s), (
+        theta + sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4),
+        omega + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        q + sixth * (q_dot + 2.0 * v2 + 2.0 * v3 + v4),
+        q_dot + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
+        W_drive + sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4),
+        W_force + sixth * (force * q_dot + 2.0 * (force * v2) + 2.0 * (force * v3)
+                           + force * v4),
+        E_loss + sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4),
+        E_added + sixth * 0.0))    # E_added' = 0 (-0.0 turns +0.0, as in rk4)
+
+
+def integrate_link_slider(rates: Callable[[float, float, float, float],
+                                          tuple[float, float, float, float]],
+                          s: S, tau: float, coupling: float | None, dt: float, n: int,
+                          low: float, high: float, constrain: Callable[[Any, Any, S], S],
+                          p: Any, u: Any) -> S:
+    """Advance a link and a slider along it over dt [s] in n RK4 sub-steps: the state
+    (theta, omega, b, v, x_coupled, W_drive, E_loss, E_added) with theta' = omega,
+    (omega', b', v', E_loss') = rates(theta, omega, b, v) (b' is v for a slider with mass,
+    its creep speed for a massless one), x_coupled' = coupling b' (a body the slider drives:
+    None holds it), W_drive' = tau omega for a link torque tau [N m] held over the step and
+    E_added' = 0; constrain(p, u, state) (end stops, for the mechanism's parameters p and
+    inputs u) after every sub-step that ends with b outside [low, high] [m] (an empty range,
+    low > high: after every sub-step).
+
+    The numbers of `integrate_substeps` over the full state with `constrain` after every
+    sub-step, bit for bit, wherever constrain leaves a state with b inside alone; the stages
+    kept in local floats: one call of rates per stage and no tuple per stage, where the
+    tuples, calls and the full-state arithmetic cost more than the slider's own.
+    """
+    theta, omega, b, v, x_coupled, W_drive, E_loss, E_added = s
+    kind = type(s)
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    for _ in range(n):
+        a1, b1, v1, l1 = rates(theta, omega, b, v)
+        o2 = omega + half * a1
+        a2, b2, v2, l2 = rates(theta + half * omega, o2, b + half * b1, v + half * v1)
+        o3 = omega + half * a2
+        a3, b3, v3, l3 = rates(theta + half * o2, o3, b + half * b2, v + half * v2)
+        o4 = omega + h * a3
+        a4, b4, v4, l4 = rates(theta + h * o3, o4, b + h * b3, v + h * v3)
+        # rk4's sums for a held coupled body (rate 0.0) and E_added (rate 0.0): adding
+        # sixth times the zero sum is adding 0.0
+        if coupling is None:
+            x_coupled += 0.0
+        else:
+            x_coupled += sixth * (coupling * b1 + 2.0 * (coupling * b2)
+                                  + 2.0 * (coupling * b3) + coupling * b4)
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+        E_added += 0.0
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        b += sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        v += sixth * (v1 + 2.0 * v2 + 2.0 * v3 + v4)
+        if not low <= b <= high:
+            theta, omega, b, v, x_coupled, W_drive, E_loss, E_added = constrain(
+                p, u, tuple.__new__(kind, (theta, omega, b, v, x_coupled, W_drive, E_loss,
+                                           E_added)))
+    return tuple.__new__(kind, (theta, omega, b, v, x_coupled, W_drive, E_loss, E_added))
+
+
+def integrate_sine_arm(tau: float, moment: float, spring: float,
+                       factor: Callable[[float], float] | None, d: float, J: float,
+                       theta: float, omega: float, W_drive: float, E_loss: float, dt: float,
+                       n: int) -> tuple[float, float, float, float]:
+    """`integrate_arm` for a link of constant inertia J [kg m^2] whose angular acceleration
+    is (tau + moment sin(theta) - spring sin(theta) factor(theta) - d omega) / J: a drive
+    torque tau [N m], a gravity moment [N m], a spring moment [N m] scaled by factor(theta)
+    (None: by exactly 1) and a damper d [N m s/rad], whose loss rate is d omega^2; returns
+    (theta, omega, W_drive, E_loss).
+
+    The numbers of `integrate_arm` for those rates, bit for bit, with the stages written
+    out: no call per stage, where four calls per sub-step cost more than the link's
+    arithmetic.
+    """
+    sin = math.sin
+    h = dt / n
+    half, sixth = 0.5 * h, h / 6.0
+    f1 = f2 = f3 = f4 = 1.0   # multiplying by 1.0 changes no number
+    for _ in range(n):
+        t2 = theta + half * omega
+        if factor is not None:
+            f1, f2 = factor(theta), factor(t2)
+        s1 = sin(theta)
+        a1 = (tau + moment * s1 - spring * s1 * f1 - d * omega) / J
+        o2 = omega + half * a1
+        s2 = sin(t2)
+        a2 = (tau + moment * s2 - spring * s2 * f2 - d * o2) / J
+        o3 = omega + half * a2
+        t3 = theta + half * o2
+        if factor is not None:
+            f3 = factor(t3)
+        s3 = sin(t3)
+        a3 = (tau + moment * s3 - spring * s3 * f3 - d * o3) / J
+        o4 = omega + h * a3
+        t4 = theta + h * o3
+        if factor is not None:
+            f4 = factor(t4)
+        s4 = sin(t4)
+        a4 = (tau + moment * s4 - spring * s4 * f4 - d * o4) / J
+        W_drive += sixth * (tau * omega + 2.0 * (tau * o2) + 2.0 * (tau * o3) + tau * o4)
+        E_loss += sixth * (d * omega * omega + 2.0 * (d * o2 * o2) + 2.0 * (d * o3 * o3)
+                           + d * o4 * o4)
+        theta += sixth * (omega + 2.0 * o2 + 2.0 * o3 + o4)
+        omega += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return theta, omega, W_drive, E_loss
+
+
+def advance_arm(f: Callable[[float, float], tuple[float, float]], s: S, tau: float, dt: float,
+                rate: float, terms: Callable[[S], Sequence[float]], p: Any, payload: float
+                ) -> S:
+    """A one-link arm's communication step of dt [s] from s, a state (theta, omega, W_drive,
+    E_loss, E_added) whose E_added the step leaves alone: `integrate_arm` for the rates f and
+    the drive torque tau, its sub-steps from the rate [1/s], raised under `ledger_controlled`
+    for the ledger terms(state) of the parameters p and the payload [kg]."""
+    theta, omega, W_drive, E_loss, E_added = s
+
+    def run(n: int) -> S:
+        return tuple.__new__(type(s), (*integrate_arm(f, theta, omega, W_drive, E_loss, tau,
+                                                      dt, n), E_added))
+
+    return ledger_controlled(run, terms, (2,), s, first_substeps(dt, rate), dt, p, (payload,))
+
+
+def kept_outputs(ledger_terms: Callable) -> Callable:
+    """The mechanism's `outputs(p, u, s)` for a `ledger_terms` that evaluates the step's end
+    once for the ledger and the outputs and keeps them in `p._kept_outputs[0]` as (state,
+    inputs, outputs): the kept outputs when state and inputs are those objects, else a fresh
+    evaluation. A closure, so reading the outputs costs one call, as a written-out reader."""
+    def outputs(p, u, s):
+        kept = p._kept_outputs[0]
+        if kept[0] is not s or kept[1] is not u:
+            ledger_terms(p, u, s)
+            kept = p._kept_outputs[0]
+        return kept[2]
+    outputs.__doc__ = ("All outputs for the state s and inputs u (those `ledger_terms` "
+                       "computed with them at the end of the step, if it did).")
+    return outputs

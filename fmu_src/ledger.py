@@ -71,13 +71,13 @@ def payload_switch(inertia: Callable[[Any, float, float], tuple]) -> Callable:
     return switch_inputs
 
 
-def payload_derivatives(arm_rates: Callable[[Any, float, float, float, float],
-                                             tuple[float, float]],
+def payload_derivatives(arm_rates: Callable[[Any, float, float], Callable],
                         inertia: Callable[[Any, float, float], tuple],
                         state: Callable[..., S]) -> Callable:
     """`derivatives` of a one-link arm whose state is (theta, omega, W_drive, E_loss,
-    E_added), given its arm_rates(p, payload, tau_drive, theta, omega) -> (omega', friction
-    loss [W]), its inertia(p, payload, theta) (as for `payload_switch`) and its State type."""
+    E_added), given its arm_rates(p, payload, tau_drive), the rates (theta, omega) ->
+    (omega', friction loss [W]), its inertia(p, payload, theta) (as for `payload_switch`)
+    and its State type."""
     def derivatives(p: Any, u: Any, s: S, rates: Any = None) -> S:
         """Time derivative of the state (Lagrange equation) for inputs u that are constant
         or, for a continuous-time model such as the harness's reference, change at `rates`
@@ -86,7 +86,7 @@ def payload_derivatives(arm_rates: Callable[[Any, float, float, float, float],
         E_loss 1/2 payload_rate w^2 omega^2; a payload leaving takes its kinetic energy
         (E_added)."""
         theta, omega = s[0], s[1]
-        omega_dot, loss = arm_rates(p, u.payload, u.tau_drive, theta, omega)
+        omega_dot, loss = arm_rates(p, u.payload, u.tau_drive)(theta, omega)
         if rates is None:
             return state(omega, omega_dot, u.tau_drive * omega, loss, 0.0)
         flow = payload_flow(rates.payload, p.w, p.g, theta, omega,

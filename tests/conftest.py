@@ -6,11 +6,13 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from fmu_src import integration
 from harness import registry
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU, FMICallException
@@ -193,3 +195,17 @@ def refused_step(fmu: CoSimFMU, time_point: float = 0.0, step_size: float = 1e-3
     assert len(new) == 1
     assert "Traceback" not in new[0]
     return new[0]
+
+
+def controlled_reference(physics: Any, p: Any, u: Any, start: Any, dt: float,
+                         works: tuple[int, ...], constrain: Any = None) -> Any:
+    """RK4 over a mechanism's full state (its `derivatives`, constrain after each sub-step)
+    over dt [s] from start, with the rate rule's sub-steps raised under the ledger control
+    the physics uses (`integration.ledger_controlled`; works: the indices of the works in
+    the state): the reference the written-out kernels must equal bit for bit."""
+    return integration.ledger_controlled(
+        lambda n: integration.integrate_substeps(lambda s: physics.derivatives(p, u, s), start,
+                                                 dt, n, constrain),
+        lambda s: physics.ledger_terms(p, u, s), works, start,
+        integration.first_substeps(dt, physics.characteristic_rate(p, u, start)), dt, p,
+        tuple(getattr(u, name) for name in physics.EVENT_INPUTS))

@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import json
 import math
+from functools import partial
 
 import pytest
 
+from fmu_src import integration
 from fmu_src.mechanisms.active_spring import model, physics
 from harness import cli
 from harness.design import active_spring as active_design
@@ -309,25 +311,34 @@ STAGE_CASES = [   # (parameters, inputs, state): carriage at rest, held, moving,
 
 
 @pytest.mark.parametrize(("params", "inputs", "start"), STAGE_CASES)
-def test_derivatives_are_the_link_equation_and_the_screw_law(params: dict, inputs: tuple,
-                                                             start: tuple) -> None:
-    """`derivatives` is the link's equation of motion over `tau_gravity` and the carriage's
-    screw law `carriage` (with the regime of the state's q_dot), bit for bit, at the case's
-    state and at 40 angles and speeds around it."""
+def test_stage_rates_are_the_spring_and_carriage_laws(params: dict, inputs: tuple,
+                                                      start: tuple) -> None:
+    """`derivatives` (the stages' rates written out) equals `tau_gravity` and `carriage` bit
+    for bit, and `advance`'s RK4 sub-step equals `integration.rk4` over `derivatives`, at
+    the case's state and at 40 angles and speeds around it (rounding shows in some)."""
     p, u = physics.Parameters(**params), physics.Inputs(*inputs)
+    rates = physics._stage_rates(p, model.link_inertia(p, u.payload),
+                                 model.gravity_moment(p, u.payload))
     theta0, omega0, q, q_dot = start
+    direction = q_dot
     for theta, omega in [(theta0 + 0.37 * i, omega0 * (1.0 + 0.11 * i)) for i in range(40)]:
         s = physics.State(theta, omega, q, q_dot, 0.1, 0.2, 0.3, -0.0)
         Y_B = p.Y_B0 + q
         q_ddot, lock = model.carriage(
-            p, u.F_adjust, model.spring(p, theta, Y_B).F_q - p.m_q * G, q_dot, q_dot)
+            p, u.F_adjust, model.spring(p, theta, Y_B).F_q - p.m_q * G, q_dot, direction)
         omega_dot = ((u.tau_drive + model.tau_gravity(p, u.payload, theta, Y_B)
                       - p.d_link * omega) / model.link_inertia(p, u.payload))
         loss_rate = p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot
         assert tuple(physics.derivatives(p, u, s)) == (omega, omega_dot, q_dot, q_ddot,
                                                        u.tau_drive * omega,
                                                        u.F_adjust * q_dot, loss_rate, 0.0)
-
+        h = 0.05   # long enough for the increments to show the rounding of their sums
+        reference = integration.rk4(partial(physics.derivatives, p, u, direction=direction),
+                                    s, h)
+        step = integration.rk4_link_carriage_step(rates, u.tau_drive, u.F_adjust, s, h)
+        assert type(step) is physics.State
+        assert [(x, math.copysign(1.0, x)) for x in step] == [
+            (x, math.copysign(1.0, x)) for x in reference]
 
 # ---- active-design: eq. 27 ----------------------------------------------------------------
 

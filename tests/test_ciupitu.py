@@ -264,3 +264,29 @@ def test_counterweight_slide_friction_dissipates_d_cw_times_its_speed_squared() 
     braking = (ciupitu.derivatives(free, ciupitu.Inputs(), s).omega - rates.omega) * J * omega
     assert braking == pytest.approx(3.0 * slide_speed ** 2, rel=1e-8)
     assert ciupitu.derivatives(p, ciupitu.Inputs(), ciupitu.State(theta, 0.0)).E_loss == 0.0
+
+
+@pytest.mark.parametrize("kw", [{}, {"OA": 0.0}, {"d_cw": 2.0, "J_drive": 0.3, "OA": 0.3}])
+def test_rk4_stage_is_the_arm_terms_written_out(kw: dict[str, float]) -> None:
+    """The RK4 stage (`_arm_rates`) writes _arm_terms out for speed: it must give the numbers
+    of the Lagrange equation over _arm_terms bit for bit, with the terms computed afresh or
+    kept from the last _arm_terms (same theta and payload objects), and must not take kept
+    terms of another payload or angle."""
+    def expected(payload: float, tau: float, theta: float, omega: float) -> tuple[float, float]:
+        _, _, _, J, dJ, damping, gravity = ciupitu._arm_terms(
+            ciupitu.Parameters(**kw), payload, theta)   # fresh parameters: nothing kept
+        return ((tau + gravity - damping * omega - 0.5 * dJ * omega * omega) / J,
+                damping * omega * omega)
+
+    for theta in (-0.0, 0.3, 1.0, math.pi / 2, 2.5, -4.0, 11.0):
+        for omega, payload, tau in ((0.0, 0.0, 0.0), (1.7, 0.4, -2.0), (-3.1, 1.3, 0.5)):
+            want = [x.hex() for x in expected(payload, tau, theta, omega)]
+            p = ciupitu.Parameters(**kw)
+            assert [x.hex() for x in ciupitu._arm_rates(p, payload, tau)(theta, omega)] == want
+            ciupitu._arm_terms(p, payload, theta)     # kept: the stage takes them
+            assert [x.hex() for x in ciupitu._arm_rates(p, payload, tau)(theta, omega)] == want
+            other_payload = payload + 0.25            # kept terms of another payload
+            ciupitu._arm_terms(p, other_payload, theta)
+            assert [x.hex() for x in ciupitu._arm_rates(p, payload, tau)(theta, omega)] == want
+            ciupitu._arm_terms(p, payload, theta + 0.5)  # and of another angle
+            assert [x.hex() for x in ciupitu._arm_rates(p, payload, tau)(theta, omega)] == want

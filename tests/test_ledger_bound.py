@@ -162,13 +162,33 @@ def test_an_undriven_step_after_a_carriage_push_meets_the_bound() -> None:
     physics = MECHANISMS["ActiveSpringBalancer"].physics
     p, u = physics.Parameters(mu=0.0), physics.Inputs(**steps[1][0])
     pushed = physics.advance(p, physics.Inputs(**steps[0][0]), physics.initial_state(p), 1e-4)
-    coarse = physics._integrate(p, u, pushed, 0.01, 64)
+    coarse = physics._integrate(p, u, pushed, 0.01, 64, physics._payload_terms(p, 0.0)[2])
     assert coarse.q_dot == 0.0 < pushed.q_dot
     assert abs(sum(physics.ledger_terms(p, u, coarse))
                - sum(physics.ledger_terms(p, u, pushed))) > 1e-10
     worst, refused = worst_ratio_over("ActiveSpringBalancer[ideal_self_locking_screw]",
                                       {"mu": 0.0}, steps)
     assert worst <= 1.0 and refused == 0
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_outputs_kept_from_the_ledger_are_the_outputs(case: str) -> None:
+    """The outputs a step's end evaluation kept for its state and inputs (the ledger's terms
+    and the outputs computed once) are, bit for bit, those computed afresh (another inputs
+    object of the same values), along a random run."""
+    model = mechanism(case)
+    physics = MECHANISMS[model].physics
+    p = dataclasses.replace(physics.Parameters(), **CASES[case][0])
+    rng = random.Random(5)
+    u, s = physics.Inputs(), physics.initial_state(p)
+    for _ in range(30):
+        new_inputs = physics.Inputs(**CASES[case][1](rng))
+        s = physics.advance(p, new_inputs, physics.switch_inputs(p, u, new_inputs, s), 2e-3)
+        u = new_inputs
+        kept = physics.outputs(p, u, s)
+        assert kept == physics.outputs(p, physics.Inputs(*u), s)
+        assert tuple(physics.ledger_terms(p, u, s)) == tuple(
+            physics.ledger_terms(p, physics.Inputs(*u), s))
 
 
 def test_every_mechanism_declares_ledger_accuracy_with_its_default() -> None:

@@ -329,3 +329,35 @@ def test_cycle_stroke_work_is_the_lagrangian_energy(cycle: dict[str, master.RunR
     # 0.0012 deg rms measured for both laws: 2x that
     assert math.degrees(run.metrics["track_err_rms"]) < 0.0025
     assert run.messages == []
+
+
+@pytest.mark.parametrize("B_left", [True, False])
+def test_rk4_stage_is_the_arm_terms_written_out(B_left: bool) -> None:
+    """The RK4 stage (`_arm_rates`) writes _arm_terms out for speed: it must give the numbers
+    of the Lagrange equation over _arm_terms bit for bit, with the terms computed afresh or
+    kept from the last _arm_terms (same theta and payload objects), and must not take kept
+    terms of another payload or angle."""
+    kw = {"B_left": B_left, "J_drive": 0.2}
+
+    def expected(payload: float, tau: float, theta: float, omega: float) -> list[str]:
+        p = rocking.Parameters(**kw)                  # fresh parameters: nothing kept
+        _, J, dJ, gravity = rocking._arm_terms(p, payload, theta)
+        return [x.hex() for x in ((tau + gravity - p.d_link * omega - 0.5 * dJ * omega * omega)
+                                  / J, p.d_link * omega * omega)]
+
+    def stage_numbers(p: rocking.Parameters, payload: float, tau: float, theta: float,
+                      omega: float) -> list[str]:
+        return [x.hex() for x in rocking._arm_rates(p, payload, tau)(theta, omega)]
+
+    for theta in (-0.0, 0.3, 1.0, math.pi / 2, 2.5, -4.0, 11.0):
+        for omega, payload, tau in ((0.0, 0.0, 0.0), (1.7, 0.4, -2.0), (-3.1, 1.3, 0.5)):
+            want = expected(payload, tau, theta, omega)
+            p = rocking.Parameters(**kw)
+            stage = (p, payload, tau, theta, omega)
+            assert stage_numbers(*stage) == want
+            rocking._arm_terms(p, payload, theta)     # kept: the stage takes them
+            assert stage_numbers(*stage) == want
+            rocking._arm_terms(p, payload + 0.25, theta)   # kept terms of another payload
+            assert stage_numbers(*stage) == want
+            rocking._arm_terms(p, payload, theta + 0.5)    # and of another angle
+            assert stage_numbers(*stage) == want

@@ -10,6 +10,7 @@ import dataclasses
 import math
 
 import pytest
+from conftest import controlled_reference
 
 from fmu_src.mechanisms.self_regulating import equilibrium, model, physics
 
@@ -91,12 +92,59 @@ def test_real_spring_free_slider_conserves_energy() -> None:
     assert travel > 1e-3 and drift < 1e-8
 
 
-def test_link_terms_are_their_closed_forms() -> None:
-    """The link's terms for a payload and slider position are the closed forms (m c +
-    payload w + m_slider b) g, J_link + payload w^2 + m_slider b^2 + J_drive, k a b, their
-    difference, b - b0, a^2 + b^2 and 2 a b."""
+@pytest.mark.parametrize("L0", [0.0, 0.01])
+def test_locked_slider_shortcut_matches_the_full_state_integration(L0: float) -> None:
+    """advance() integrates only the link while the slider is clamped: same numbers as RK4 on
+    the full state with the general derivatives, for the ideal and a real spring."""
+    p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=L0, theta0=1.0, omega0=2.0)
+    u = physics.Inputs(tau_drive=0.3, payload=0.8)
+    fast = full = physics.initial_state(p)
+    for dt in (1e-3, 1e-2, 0.1) * 20:
+        fast = physics.advance(p, u, fast, dt)
+        full = controlled_reference(physics, p, u, full, dt, (5,))
+        assert fast == full
+
+
+@pytest.mark.parametrize("changes, inputs, b, v", [
+    # regulating (slider and pulley free), a real spring and a slider with mass
+    ({"m_slider": 0.2, "L0": 0.01}, {"payload": 0.8, "counterweight_added": 0.5}, 0.07, 0.1),
+    # slider and counterweight thrown onto b_max, the link driven
+    ({"m_slider": 0.1}, {"tau_drive": 0.3, "counterweight_added": 3.0}, 0.345, 5.0),
+    # massless slider with the pulley locked: first-order creep onto b_min
+    ({}, {"pulley_locked": True}, 0.01, 0.0),
+    # a slider with mass and the pulley locked, thrown onto b_min
+    ({"m_slider": 0.3}, {"pulley_locked": True}, 0.005, -1.0),
+])
+def test_free_slider_shortcut_matches_the_full_state_integration(
+        changes: dict, inputs: dict, b: float, v: float) -> None:
+    """advance() integrates a free slider with no friction in local floats: same numbers, bit
+    for bit, as RK4 on the full state with the general derivatives and the end-stop clamp,
+    within the stops and when it hits one."""
+    p = dataclasses.replace(TABLE_1, theta0=2.5, omega0=1.5, **changes)
+    u = physics.Inputs(**{"slider_locked": False, "pulley_locked": False, **inputs})
+    fast = full = physics.initial_state(p)._replace(b=b, v=v, s_cw=0.01, E_added=0.2)
+    clamped = []
+
+    def constrain(s: physics.State) -> physics.State:
+        after = physics._apply_constraints(p, u, s)
+        clamped.append(after.b != s.b)
+        return after
+    for dt in (1e-3, 1e-2, 0.1) * 10:
+        fast = physics.advance(p, u, fast, dt)
+        full = controlled_reference(physics, p, u, full, dt, (5,), constrain)
+        assert fast == full
+    assert any(clamped) == (b != 0.07)
+    assert fast.b != b
+
+
+def test_link_terms_kept_with_the_parameters_give_the_numbers_computed_afresh() -> None:
+    """The link's terms a parameter set keeps for its last payload and slider position are
+    the closed forms (m c + payload w + m_slider b) g, J_link + payload w^2 + m_slider b^2 +
+    J_drive, k a b, their difference, b - b0, a^2 + b^2 and 2 a b, and outputs and advance
+    give the same numbers whether they are reused, replaced by other ones, or computed on a
+    fresh copy of the parameters."""
     p = dataclasses.replace(TABLE_1, m_slider=0.2, L0=0.01, J_drive=0.05)
-    for payload, b in ((0.0, 0.06), (0.7, 0.08), (0.7, 0.05), (0.0, 0.05)):
+    for payload, b in ((0.0, 0.06), (0.7, 0.08), (0.7, 0.08), (0.7, 0.05), (0.0, 0.05)):
         moment, J, spring, _, balance, delta_b, a2_b2, two_a_b = model._link_terms(
             p, payload, b)
         assert (balance, delta_b) == (moment - spring, b - p.b0)
@@ -106,6 +154,13 @@ def test_link_terms_are_their_closed_forms() -> None:
         assert J == pytest.approx(p.J_link + payload * p.w ** 2 + p.m_slider * b ** 2
                                   + p.J_drive, rel=1e-15)
         assert spring == pytest.approx(p.k * p.a * b, rel=1e-15)
+    s = physics.State(1.0, 0.5, 0.08, 0.0, 0.01, 0.2, 0.1, 0.05)
+    held, other = physics.Inputs(tau_drive=0.3, payload=0.7), physics.Inputs(payload=0.2)
+    for u, b in ((held, 0.08), (other, 0.08), (held, 0.09), (held, 0.09), (held, 0.06),
+                 (other, 0.06)):
+        fresh, at_b = dataclasses.replace(p), s._replace(b=b)  # fresh: no kept terms
+        assert physics.outputs(p, u, at_b) == physics.outputs(fresh, u, at_b)
+        assert physics.advance(p, u, at_b, 1e-3) == physics.advance(fresh, u, at_b, 1e-3)
 
 
 # ---- events at communication points (switch_inputs), against momentum balances by hand

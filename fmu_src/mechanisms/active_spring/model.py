@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 from fmu_src.integration import ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
-from fmu_src.memo import derive
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -80,14 +80,22 @@ class Parameters:
     ledger_accuracy: float = ledger_accuracy()
 
     def __post_init__(self) -> None:
-        # the derived constants (fmu_src.memo)
+        # the derived constants and slots (fmu_src.memo): `outputs` keeps (state, l_s, F_s),
+        # keyed by identity, for the next step's rate; `_payload_terms` keeps (payload,
+        # inertia, moment, stage rates), keyed by equality; `_stage_rates` reads
+        # _stage_constants, in one tuple
+        carriage_inertia = self.m_q + self.m_drive_q
         if self.mu > 0.0:
             eta_forward, eta_backward = screw_efficiencies(self.mu, self.lead_angle,
                                                            self.flank_angle)
         else:
             eta_forward, eta_backward = 1.0, 0.0 if self.self_locking else 1.0
-        derive(self, carriage_inertia=self.m_q + self.m_drive_q, eta_forward=eta_forward,
-               eta_backward=eta_backward)
+        derive(self, carriage_inertia=carriage_inertia, eta_forward=eta_forward,
+               eta_backward=eta_backward, _kept_spring=slot((None, 0.0, 0.0)),
+               _kept_payload=slot((None, 0.0, 0.0, None)), _stage_constants=(
+                   self.X_B, self.x1A, -self.x1A, self.Y_B0, self.k, self.F_s0, self.l_s0,
+                   self.d_link, self.d_q, carriage_inertia, self.m_q * self.g,
+                   1.0 / eta_forward, eta_backward, eta_forward == eta_backward == 1.0))
 
     @property
     def free_length(self) -> float:
@@ -317,6 +325,7 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
     Y_B = p.Y_B0 + q
     l_s, F_s, spring_torque, F_q, spring_moment = _spring(p, theta, Y_B)
+    p._kept_spring[0] = (s, l_s, F_s)
     moment = gravity_moment(p, u.payload)
     E_p = moment * math.cos(theta) + p.m_q * p.g * Y_B
     E_e = elastic_energy(p, l_s)

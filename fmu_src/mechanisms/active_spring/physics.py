@@ -82,10 +82,12 @@ with E_loss also counting the dampers d_link and d_q and the screw's friction.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from functools import partial
+from typing import TYPE_CHECKING
 
 from fmu_src import ledger
-from fmu_src.integration import first_substeps, ledger_controlled, rk4
+from fmu_src.integration import first_substeps, ledger_controlled, rk4_link_carriage_step
 
 # model.py holds the Physics protocol's data types, validate, initial_state and outputs:
 # imported here because the harness and the slave call them as physics.<name>
@@ -98,7 +100,6 @@ from fmu_src.mechanisms.active_spring.model import (  # noqa: F401
     Parameters,
     State,
     _spring,
-    carriage,
     elastic_energy,
     gravity_moment,
     initial_state,
@@ -117,27 +118,102 @@ def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
                 direction: float | None = None) -> State:
     """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
     other mechanisms take it: a payload changes only at events here, so it is not used);
-    direction as for `carriage` (the screw's regime held through an RK4 sub-step), None for
-    that of s's q_dot."""
+    direction as for `carriage`, None for that of s's q_dot."""
     theta, omega, q, q_dot = s[:4]
-    tau_drive, F_adjust, payload = u
-    _, _, spring_torque, F_q, _ = _spring(p, theta, p.Y_B0 + q)
-    omega_dot = ((tau_drive + (gravity_moment(p, payload) * math.sin(theta) + spring_torque)
-                  - p.d_link * omega) / link_inertia(p, payload))
-    q_ddot, lock = carriage(p, F_adjust, F_q - p.m_q * p.g, q_dot,
-                            q_dot if direction is None else direction)
-    return State(omega, omega_dot, q_dot, q_ddot, tau_drive * omega, F_adjust * q_dot,
-                 p.d_link * omega * omega + p.d_q * q_dot * q_dot - lock * q_dot, 0.0)
+    if direction is None:
+        direction = q_dot
+    omega_dot, q_ddot, loss_rate = _payload_terms(p, u.payload)[2](
+        theta, omega, q, q_dot, direction, u.tau_drive, u.F_adjust)
+    return State(omega, omega_dot, q_dot, q_ddot, u.tau_drive * omega, u.F_adjust * q_dot,
+                 loss_rate, 0.0)
+
+
+if TYPE_CHECKING:   # annotations only: Python 3.8 cannot subscript tuple and Callable
+    StageRates = Callable[[float, float, float, float, float, float, float],
+                         tuple[float, float, float]]
+
+
+def _payload_terms(p: Parameters, payload: float) -> tuple[float, float, StageRates]:
+    """The link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`) and the stage rates (`_stage_rates`) for the payload [kg], kept with
+    the parameters while the payload stays the same (equal floats give the same terms)."""
+    kept = p._kept_payload[0]
+    if kept[0] != payload:
+        inertia, moment = link_inertia(p, payload), gravity_moment(p, payload)
+        kept = p._kept_payload[0] = (payload, inertia, moment,
+                                     _stage_rates(p, inertia, moment))
+    return kept[1], kept[2], kept[3]
+
+
+def _stage_rates(p: Parameters, inertia: float, moment: float) -> StageRates:
+    """The rates an RK4 stage needs, (omega', q_dot'', E_loss') as a function of theta,
+    omega, q, q_dot, the carriage's direction (as for `carriage`), tau_drive and F_adjust,
+    for the link's inertia [kg m^2] and gravity moment [N m] (`link_inertia`,
+    `gravity_moment`); the other rates follow (theta' = omega, q' = q_dot, W_drive' =
+    tau_drive omega, W_adjust' = F_adjust q_dot, E_added' = 0).
+
+    `_spring`, the torque and `carriage` written out operation for operation, with the terms
+    that only the parameters and the payload set read once: one call per stage.
+    """
+    sin, cos, hypot = math.sin, math.cos, math.hypot
+    (X_B, x1A, neg_x1A, Y_B0, k, F_s0, l_s0, d_link, d_q, M_q, weight_q, inverse_eta_forward,
+     eta_backward, lossless) = p._stage_constants
+
+    def rates(theta: float, omega: float, q: float, q_dot: float, direction: float,
+              tau_drive: float, F_adjust: float) -> tuple[float, float, float]:
+        Y_B = Y_B0 + q
+        sin_t, cos_t = sin(theta), cos(theta)
+        dy = Y_B - x1A * cos_t
+        l_s = hypot(X_B + x1A * sin_t, dy)
+        F_s = F_s0 + k * (l_s - l_s0)
+        per_length = F_s / l_s if l_s > 0.0 else k
+        torque = moment * sin_t + neg_x1A * per_length * (Y_B * sin_t + X_B * cos_t)
+        omega_dot = (tau_drive + torque - d_link * omega) / inertia
+        load = -per_length * dy - weight_q
+        if lossless:
+            q_ddot, lock = (F_adjust + load - d_q * q_dot) / M_q, 0.0
+        else:
+            moving, held = direction if direction != 0.0 else q_dot, False
+            if moving == 0.0:      # at rest: upwards, else downwards, else held
+                push = F_adjust + (load * inverse_eta_forward if load < 0.0 else
+                                   load * eta_backward)
+                if push <= 0.0:
+                    push = F_adjust + (load * inverse_eta_forward if load > 0.0 else
+                                       load * eta_backward)
+                    held = push >= 0.0
+            else:
+                push = F_adjust + (load * inverse_eta_forward if load * moving < 0.0 else
+                                   load * eta_backward)
+            if held:
+                q_ddot, lock = 0.0, -(F_adjust + load)
+            else:
+                q_ddot, lock = (push - d_q * q_dot) / M_q, push - F_adjust - load
+        return omega_dot, q_ddot, d_link * omega * omega + d_q * q_dot * q_dot - lock * q_dot
+
+    return rates
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
-    J, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
-    l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
+    return _rate(p, u, s, link_inertia(p, u.payload), gravity_moment(p, u.payload))
+
+
+def _rate(p: Parameters, u: Inputs, s: State, J: float, moment: float) -> float:
+    """`characteristic_rate` for the link's inertia J [kg m^2] and gravity moment [N m] of
+    the step (`link_inertia`, `gravity_moment`); the larger of two rates by comparison (as
+    `max` takes it) instead of a call."""
+    kept_state, l_s, F_s = p._kept_spring[0]
+    if kept_state is not s:     # `outputs` keeps the spring of the state a step starts from
+        l_s, F_s = _spring(p, s.theta, p.Y_B0 + s.q)[:2]
     reach = p.x1A + math.hypot(p.X_B, p.Y_B0 + s.q)
     per_length = abs(F_s) / l_s if l_s > 0.0 else p.k
     stiffness = abs(moment) + p.x1A * reach * (p.k + per_length)
-    rate = max(math.sqrt(stiffness / J), p.d_link / J, abs(s.omega))
+    rate = math.sqrt(stiffness / J)
+    damping_rate, speed = p.d_link / J, abs(s.omega)
+    if damping_rate > rate:
+        rate = damping_rate
+    if speed > rate:
+        rate = speed
     if s.q_dot != 0.0 or u.F_adjust != 0.0 or p.eta_backward > 0.0:   # the carriage moves
         M_q = p.carriage_inertia
         # the screw's friction scales the spring's stiffness the carriage meets by 1 / eta_f
@@ -159,31 +235,28 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     the interpolation's residual speed goes to E_loss) and the rest of the sub-step starts
     from rest, where the screw holds it or the forces break it loose.
     """
-    return ledger_controlled(lambda n: _integrate(p, u, s, dt, n),
+    inertia, moment, rates = _payload_terms(p, u.payload)
+    return ledger_controlled(lambda n: _integrate(p, u, s, dt, n, rates),
                              partial(ledger_terms, p, u), (4, 5), s,
-                             first_substeps(dt, characteristic_rate(p, u, s)), dt, p,
+                             first_substeps(dt, _rate(p, u, s, inertia, moment)), dt, p,
                              (u.payload,))
 
 
-def _carriage_step(p: Parameters, u: Inputs, s: State, h: float) -> State:
-    """One RK4 sub-step of h [s] from s with the screw's regime of s held (`derivatives`'
-    direction: that of s's q_dot)."""
-    return rk4(partial(derivatives, p, u, direction=s.q_dot), s, h)
-
-
-def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
-    """`advance` over dt [s] in n RK4 sub-steps."""
+def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: StageRates
+               ) -> State:
+    """`advance` over dt [s] in n RK4 sub-steps, for the stage rates of the payload."""
     h = dt / n
-    lossless = p.eta_forward == p.eta_backward == 1.0
+    tau_drive, F_adjust = u.tau_drive, u.F_adjust
+    lossless = p._stage_constants[-1]
     for _ in range(n):
-        new = _carriage_step(p, u, s, h)
+        new = rk4_link_carriage_step(rates, tau_drive, F_adjust, s, h)
         if not lossless and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
-            stopped = _carriage_step(p, u, s, h_stop)
+            stopped = rk4_link_carriage_step(rates, tau_drive, F_adjust, s, h_stop)
             stopped = stopped._replace(
                 q_dot=0.0,
                 E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
-            new = _carriage_step(p, u, stopped, h - h_stop)
+            new = rk4_link_carriage_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
         s = new
     return s
 
@@ -193,7 +266,7 @@ def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
     -W_adjust and -E_added (as `outputs` reports them): their sum is constant
     (docs/energy_ledger.md)."""
     theta, omega, q, q_dot, W_drive, W_adjust, E_loss, E_added = s
-    inertia, moment = link_inertia(p, u.payload), gravity_moment(p, u.payload)
+    inertia, moment = _payload_terms(p, u.payload)[:2]
     Y_B = p.Y_B0 + q
     l_s = _spring(p, theta, Y_B)[0]
     return (moment * math.cos(theta) + p.m_q * p.g * Y_B, elastic_energy(p, l_s),

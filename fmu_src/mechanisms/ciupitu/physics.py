@@ -66,14 +66,16 @@ counterweight balances the link (m_fixed_cw c_fixed_cw = m c, the default).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from typing import NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import advance_controlled, ledger_accuracy
+from fmu_src.integration import advance_arm, kept_outputs, ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.ciupitu.statics import _check_bar, _geometry, _moments
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -120,6 +122,13 @@ class Parameters:
         return (self.J_link + self.J_drive + self.m_fixed_cw * self.c_fixed_cw ** 2
                 + self.m2 * (self.AB - self.OA) ** 2)
 
+    def __post_init__(self) -> None:
+        # the slots (fmu_src.memo) of `_held`, (payload, terms), and `_arm_terms`, (theta,
+        # payload, terms), keyed by identity; (state, inputs, outputs) of `ledger_terms`,
+        # for `outputs`
+        derive(self, _last_held=slot((None, ())), _last_terms=slot((None, None, ())),
+               _kept_outputs=slot((None, None, None)))
+
 
 def validate(params: Parameters) -> None:
     """Raise ValueError naming the first parameter that is NaN or outside its physical range."""
@@ -165,25 +174,64 @@ def initial_state(params: Parameters) -> State:
     return State(params.theta0, params.omega0)
 
 
-def _arm_moments(p: Parameters, payload: float) -> tuple[float, float]:
-    """(J_held [kg m^2], arm_held [kg m]): the arm's inertia without the sliding
-    counterweight, J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive, and its
-    gravity moment arm m c + payload w - m_fixed_cw c_fixed_cw, with the payload [kg]."""
-    return (p.J_link + payload * p.w ** 2 + p.m_fixed_cw * p.c_fixed_cw ** 2 + p.J_drive,
-            p.m * p.c + payload * p.w - p.m_fixed_cw * p.c_fixed_cw)
+class _Held(NamedTuple):
+    """Terms of the dynamics that the parameters and a held payload set."""
+
+    OA: float               # m
+    OA2: float              # m^2, OA^2
+    AB2: float              # m^2, AB^2
+    m2: float               # kg
+    g: float                # m/s^2
+    d_link: float           # N m s/rad
+    d_cw: float             # N s/m
+    w: float                # m
+    G2: float               # N, m2 g
+    J_held: float           # kg m^2, J_link + payload w^2 + m_fixed_cw c_fixed_cw^2 + J_drive
+    arm_held: float         # kg m, m c + payload w - m_fixed_cw c_fixed_cw
+    stiffness_held: float   # kg m, m c + payload w + m_fixed_cw c_fixed_cw
+
+
+def _held(p: Parameters, payload: float) -> _Held:
+    """The terms the parameters and the payload [kg] set: the last ones are kept with the
+    parameters, for the very object payload (an input held over many steps)."""
+    last_payload, held = p._last_held[0]
+    if last_payload is payload:
+        return held
+    mc, payload_moment, mc_fixed_cw = p.m * p.c, payload * p.w, p.m_fixed_cw * p.c_fixed_cw
+    held = _Held(p.OA, p.OA * p.OA, p.AB * p.AB, p.m2, p.g, p.d_link, p.d_cw, p.w, p.m2 * p.g,
+                 p.J_link + payload * p.w ** 2 + p.m_fixed_cw * p.c_fixed_cw ** 2 + p.J_drive,
+                 mc + payload_moment - mc_fixed_cw, mc + payload_moment + mc_fixed_cw)
+    p._last_held[0] = (payload, held)   # one assignment: key and terms together
+    return held
 
 
 def _arm_terms(p: Parameters, payload: float, theta: float
                ) -> tuple[float, float, float, float, float, float, float]:
     """(OB [m], OB' [m/rad], OB'' [m/rad^2], J [kg m^2], dJ/dtheta [kg m^2/rad], damping
     d(theta) = d_link + d_cw OB'^2 [N m s/rad], tau_gravity [N m]) at theta with the
-    payload [kg]."""
-    m2 = p.m2
-    J_held, arm_held = _arm_moments(p, payload)
+    payload [kg].
+
+    The last ones are kept with the parameters, for the very objects theta and payload: the
+    outputs after a step compute them at the state the next step starts from, where its rate
+    and its first RK4 stage need them again.
+    """
+    last = p._last_terms[0]
+    if last[0] is theta and last[1] is payload:
+        return last[2]
+    _, _, _, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = _held(p, payload)
     OB, dOB, d2OB = _geometry(p.OA, p.AB, HALF_PI - theta)
-    return (OB, dOB, d2OB, J_held + m2 * (OB * OB + dOB * dOB), -2.0 * m2 * dOB * (OB + d2OB),
-            p.d_link + p.d_cw * dOB * dOB,
-            p.g * (math.sin(theta) * (arm_held - m2 * OB) - math.cos(theta) * m2 * dOB))
+    terms = (OB, dOB, d2OB, J_held + m2 * (OB * OB + dOB * dOB), -2.0 * m2 * dOB * (OB + d2OB),
+             d_link + d_cw * dOB * dOB,
+             g * (math.sin(theta) * (arm_held - m2 * OB) - math.cos(theta) * m2 * dOB))
+    p._last_terms[0] = (theta, payload, terms)   # one assignment: key and terms together
+    return terms
+
+
+def kept_start(last_terms: list, payload: float) -> tuple[float | None, tuple]:
+    """(theta, terms) that a one-link arm's _arm_terms kept last in last_terms, for this very
+    payload object, else (None, ()): the terms a step's first RK4 stage may take."""
+    theta, last_payload, terms = last_terms[0]
+    return (theta, terms) if last_payload is payload else (None, ())
 
 
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
@@ -196,46 +244,116 @@ def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
     return _arm_terms(p, payload, theta)[6]
 
 
-def arm_rates(p: Parameters, payload: float, tau_drive: float, theta: float, omega: float
-              ) -> tuple[float, float]:
-    """(the angular acceleration [rad/s^2], the friction loss d(theta) omega^2 [W]) from
-    the Lagrange equation
-    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega."""
-    _, _, _, J, dJ, damping, gravity = _arm_terms(p, payload, theta)
-    return ((tau_drive + gravity - damping * omega - 0.5 * dJ * omega * omega) / J,
-            damping * omega * omega)
-
-
 def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
-    """Angular acceleration [rad/s^2] (`arm_rates`)."""
-    return arm_rates(p, payload, tau_drive, theta, omega)[0]
+    """Angular acceleration [rad/s^2] from the Lagrange equation
+    J(theta) theta'' + 1/2 J'(theta) omega^2 = tau_drive + tau_gravity - d(theta) omega."""
+    return _arm_rates(p, payload, tau_drive)(theta, omega)[0]
+
+
+def _arm_rates(p: Parameters, payload: float, tau_drive: float
+               ) -> Callable[[float, float], tuple[float, float]]:
+    """(theta, omega) -> (the angular acceleration [rad/s^2] (`acceleration`), the friction
+    loss d(theta) omega^2 [W]) with the payload and the drive torque held.
+
+    It runs four times per RK4 sub-step, so _arm_terms is written out in it, operation for
+    operation (the same numbers; tests/test_ciupitu.py checks it), with the terms the
+    payload sets computed once: a call and a tuple per stage cost more than the arithmetic.
+    At the angle _arm_terms computed last (the step's start) it takes its terms.
+    """
+    held = _held(p, payload)
+    last_theta, last = kept_start(p._last_terms, payload)
+
+    def rates(theta: float, omega: float) -> tuple[float, float]:
+        if theta is last_theta:
+            _, _, _, J, dJ, damping, gravity = last
+        else:
+            OA, OA2, AB2, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = held
+            phi = HALF_PI - theta
+            sin_p, cos_p = math.sin(phi), math.cos(phi)
+            root = math.sqrt(AB2 - (OA * cos_p) ** 2)
+            d_root = OA2 * sin_p * cos_p / root
+            OB = root - OA * sin_p
+            dOB = d_root - OA * cos_p
+            d2OB = (OA2 * math.cos(2.0 * phi) - d_root * d_root) / root + OA * sin_p
+            J = J_held + m2 * (OB * OB + dOB * dOB)
+            dJ = -2.0 * m2 * dOB * (OB + d2OB)
+            damping = d_link + d_cw * dOB * dOB
+            gravity = g * (math.sin(theta) * (arm_held - m2 * OB) - math.cos(theta) * m2 * dOB)
+        return ((tau_drive + gravity - damping * omega - 0.5 * dJ * omega * omega) / J,
+                damping * omega * omega)
+
+    OA = held[0]
+    if OA == 0.0 and math.copysign(1.0, OA) > 0.0:
+        return _pivoted_rates(held, tau_drive, rates)
+    return rates
+
+
+def _pivoted_rates(held: _Held, tau_drive: float,
+                   rates: Callable[[float, float], tuple[float, float]]
+                   ) -> Callable[[float, float], tuple[float, float]]:
+    """`_arm_rates`'s rates for OA = +0, with fewer operations and the same numbers.
+
+    The bar then pivots at O and the counterweight stays at OB = AB: the written-out terms
+    give OB' = OB'' = +-0, so J, d(theta) and the net moment arm do not change with the
+    angle, and dJ/dtheta and the bar's gravity term are +-0, whose subtraction leaves a
+    non-zero finite sum as it is. Where the sum is zero or not finite, rates computes it.
+    """
+    _, _, AB2, m2, g, d_link, d_cw, _, _, J_held, arm_held, _ = held
+    OB = math.sqrt(AB2)                       # root - OA sin(phi) with OA = +0
+    J = J_held + m2 * (OB * OB + 0.0)         # J_held + m2 (OB^2 + OB'^2), OB'^2 = +0
+    damping = d_link + d_cw * 0.0 * 0.0       # d_cw OB'^2 has the sign of d_cw
+    net = arm_held - m2 * OB
+
+    def pivoted(theta: float, omega: float) -> tuple[float, float]:
+        moment = math.sin(theta) * net
+        if moment != 0.0:
+            torque = tau_drive + g * moment - damping * omega
+            if torque != 0.0 and -math.inf < torque < math.inf:
+                return torque / J, damping * omega * omega
+        return rates(theta, omega)
+
+    return pivoted
 
 
 # d/dt of the state, for constant or continuously changing inputs (docs/energy_ledger.md)
-derivatives = ledger.payload_derivatives(arm_rates, inertia, State)
+derivatives = ledger.payload_derivatives(_arm_rates, inertia, State)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
     """Fastest rate of the local dynamics [1/s]: sets the internal integration step."""
     payload = u.payload
     OB, dOB, d2OB, J, dJ, damping, _ = _arm_terms(p, payload, s.theta)
-    stiffness = p.g * (p.m * p.c + payload * p.w + p.m_fixed_cw * p.c_fixed_cw
-                       + p.m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
+    _, _, _, m2, g, _, _, _, _, _, _, stiffness_held = _held(p, payload)
+    stiffness = g * (stiffness_held + m2 * (OB + 2.0 * abs(dOB) + abs(d2OB)))
     return max(math.sqrt(stiffness / J), damping / J, abs(s.omega) * (1.0 + abs(dJ) / J))
 
 
 def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
     """The signed terms of the energy ledger [J], E_p, E_kin, E_loss, -W_drive and -E_added
-    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md)."""
-    o = outputs(p, u, s)
-    return o.E_p, o.E_kin, o.E_loss, -o.W_drive, -o.E_added
+    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md). The outputs
+    come with them, from the same energies, kept for `outputs` (the end of a step is
+    evaluated once, for the ledger's control and the slave)."""
+    theta, omega, payload = s.theta, s.omega, u.payload
+    OB, dOB, _, J, _, _, gravity = _arm_terms(p, payload, theta)
+    _, _, _, m2, g, _, _, w, G2, _, arm_held, _ = _held(p, payload)
+    M_g, M_b, M_u = _moments(payload * g, w, G2, OB, math.sin(theta))  # cos(phi)
+    E_p, E_kin = g * math.cos(theta) * (arm_held - m2 * OB), 0.5 * J * omega ** 2
+    W_drive, E_loss, E_added = s.W_drive, s.E_loss, s.E_added
+    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
+    p._kept_outputs[0] = (s, u, tuple.__new__(Outputs, (
+        theta, omega, OB, gravity, E_p, E_kin, M_g, M_b, M_u,
+        G2 * dOB * math.sin(HALF_PI - theta),                               # M_bar
+        W_drive, E_loss, E_added)))
+    return E_p, E_kin, E_loss, -W_drive, -E_added
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return advance_controlled(partial(derivatives, p, u), partial(ledger_terms, p, u), (2,), s,
-                              dt, characteristic_rate(p, u, s), p, (u.payload,))
+    tau = u.tau_drive
+    rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
+    return advance_arm(_arm_rates(p, u.payload, tau), s, tau, dt, rate,
+                       partial(ledger_terms, p, u), p, u.payload)
 
 
 # a payload caught from rest or released at a communication point (docs/energy_ledger.md)
@@ -302,15 +420,4 @@ OUTPUT_VARIABLES = output_variables(
 )
 
 
-def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
-    """All outputs for the state s and inputs u."""
-    theta, omega, payload, g, m2 = s.theta, s.omega, u.payload, p.g, p.m2
-    OB, dOB, _, J, _, _, gravity = _arm_terms(p, payload, theta)
-    M_g, M_b, M_u = _moments(payload * g, p.w, m2 * g, OB, math.sin(theta))  # cos(phi)
-    # In field order, built by tuple.__new__: Outputs(...) is a Python call.
-    return tuple.__new__(Outputs, (
-        theta, omega, OB, gravity,
-        g * math.cos(theta) * (_arm_moments(p, payload)[1] - m2 * OB),    # E_p
-        0.5 * J * omega ** 2, M_g, M_b, M_u,                               # E_kin, moments
-        m2 * g * dOB * math.sin(HALF_PI - theta),                          # M_bar
-        s.W_drive, s.E_loss, s.E_added))
+outputs = kept_outputs(ledger_terms)

@@ -67,7 +67,12 @@ from dataclasses import dataclass
 from functools import partial
 from typing import NamedTuple
 
-from fmu_src.integration import advance_controlled, ledger_accuracy
+from fmu_src.integration import (
+    first_substeps,
+    integrate_substeps,
+    ledger_accuracy,
+    ledger_controlled,
+)
 from fmu_src.mechanism import input_variables, no_input_events, output_variables, variable
 from fmu_src.memo import derive, unless_rejected
 from fmu_src.parameters import check_ranges, parameter
@@ -331,9 +336,11 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
     from the rate rule, raised until the energy ledger meets p.ledger_accuracy
     (`integration.ledger_controlled`)."""
-    return advance_controlled(partial(_derivatives, p, u), partial(ledger_terms, p, u), (4, 5),
-                              s, dt, characteristic_rate(p, u, s), p,
-                              constrain=partial(_apply_stops, p))
+    return ledger_controlled(
+        lambda n: integrate_substeps(partial(_derivatives, p, u), s, dt, n,
+                                     partial(_apply_stops, p)),
+        partial(ledger_terms, p, u), (4, 5), s,
+        first_substeps(dt, characteristic_rate(p, u, s)), dt, p)
 
 
 switch_inputs = no_input_events  # EVENT_INPUTS is empty

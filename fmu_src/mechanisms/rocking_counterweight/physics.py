@@ -53,12 +53,13 @@ payload events follow the project's other mechanisms: a payload added is picked 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from functools import partial
 from typing import Any, NamedTuple
 
 from fmu_src import ledger
-from fmu_src.integration import advance_controlled, ledger_accuracy
+from fmu_src.integration import advance_arm, kept_outputs, ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from fmu_src.mechanisms.rocking_counterweight.statics import (
@@ -69,7 +70,7 @@ from fmu_src.mechanisms.rocking_counterweight.statics import (
     check_linkage,
     geometry,
 )
-from fmu_src.memo import derive
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import check_ranges, parameter
 
 # ---- dynamics for the FMU ---------------------------------------------------------------
@@ -126,8 +127,10 @@ class Parameters:
 
     def __post_init__(self) -> None:
         # (fmu_src.memo) the linkage fields as one Linkage, which the dynamics read at every
-        # evaluation
-        derive(self, linkage=Linkage.of(self))
+        # evaluation; the slots of `_arm_terms`, (theta, payload, terms) keyed by identity,
+        # and of `ledger_terms`, (state, inputs, outputs) for `outputs`
+        derive(self, linkage=Linkage.of(self), _last_terms=slot((None, None, ())),
+               _kept_outputs=slot((None, None, None)))
 
     @property
     def J_fixed(self) -> float:
@@ -190,10 +193,15 @@ def _arm_moment(p: Parameters, payload: float) -> float:
 def _arm_terms(p: Parameters, payload: float, theta: float
                ) -> tuple[Geometry, float, float, float]:
     """(geometry, J [kg m^2], dJ/dtheta [kg m^2/rad], tau_gravity [N m]) at theta with the
-    payload [kg]."""
+    payload [kg]; the last ones kept with the parameters, as `ciupitu._arm_terms` keeps its."""
+    last = p._last_terms[0]
+    if last[0] is theta and last[1] is payload:
+        return last[2]
     q = geometry(p.linkage, HALF_PI - theta)
     J, dJ = _inertia(p, payload, q)
-    return q, J, dJ, p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
+    terms = (q, J, dJ, p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY))
+    p._last_terms[0] = (theta, payload, terms)   # one assignment: key and terms together
+    return terms
 
 
 def inertia(p: Parameters, payload: float, theta: float) -> tuple[float, float]:
@@ -213,25 +221,44 @@ def tau_gravity(p: Parameters, payload: float, theta: float) -> float:
     return p.g * (math.sin(theta) * _arm_moment(p, payload) + p.m2 * q.dY)
 
 
-def arm_rates(p: Parameters, payload: float, tau_drive: float, theta: float, omega: float
-              ) -> tuple[float, float]:
-    """(the angular acceleration [rad/s^2], the pivot's friction loss d_link omega^2 [W])
-    from the Lagrange equation
-    J theta'' + 1/2 (dJ/dtheta) omega^2 = tau_drive + tau_gravity - d_link omega."""
-    _, J, dJ, gravity = _arm_terms(p, payload, theta)
-    d_link = p.d_link
-    return ((tau_drive + gravity - d_link * omega - 0.5 * dJ * omega * omega) / J,
-            d_link * omega * omega)
-
-
 def acceleration(p: Parameters, payload: float, tau_drive: float, theta: float,
                  omega: float) -> float:
-    """Angular acceleration [rad/s^2] (`arm_rates`)."""
-    return arm_rates(p, payload, tau_drive, theta, omega)[0]
+    """Angular acceleration [rad/s^2] from the Lagrange equation
+    J theta'' + 1/2 (dJ/dtheta) omega^2 = tau_drive + tau_gravity - d_link omega."""
+    return _arm_rates(p, payload, tau_drive)(theta, omega)[0]
+
+
+def _arm_rates(p: Parameters, payload: float, tau_drive: float
+               ) -> Callable[[float, float], tuple[float, float]]:
+    """(theta, omega) -> (the angular acceleration [rad/s^2] (`acceleration`), the pivot's
+    friction loss d_link omega^2 [W]) with the payload and the drive torque held.
+
+    It runs four times per RK4 sub-step: the terms the parameters and the payload set are
+    computed once, and _arm_terms is written out, operation for operation (the same numbers;
+    tests/test_rocking.py checks it). At the angle _arm_terms computed last (the step's
+    start) it takes its terms.
+    """
+    k, m2, g, d_link = p.linkage, p.m2, p.g, p.d_link
+    J_held = p.J_fixed + payload * p.w ** 2
+    arm = _arm_moment(p, payload)
+    last_theta, last = ciupitu.kept_start(p._last_terms, payload)
+
+    def rates(theta: float, omega: float) -> tuple[float, float]:
+        if theta is last_theta:
+            _, J, dJ, gravity = last
+        else:
+            _, _, dX, dY, d2X, d2Y, _ = geometry(k, HALF_PI - theta)
+            J = J_held + m2 * (dX * dX + dY * dY)
+            dJ = -2.0 * m2 * (dX * d2X + dY * d2Y)
+            gravity = g * (math.sin(theta) * arm + m2 * dY)
+        return ((tau_drive + gravity - d_link * omega - 0.5 * dJ * omega * omega) / J,
+                d_link * omega * omega)
+
+    return rates
 
 
 # d/dt of the state, for constant or continuously changing inputs (docs/energy_ledger.md)
-derivatives = ledger.payload_derivatives(arm_rates, inertia, State)
+derivatives = ledger.payload_derivatives(_arm_rates, inertia, State)
 
 
 def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
@@ -244,28 +271,35 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant."""
-    return advance_controlled(partial(derivatives, p, u), partial(ledger_terms, p, u), (2,), s,
-                              dt, characteristic_rate(p, u, s), p, (u.payload,))
+    tau = u.tau_drive
+    rate = characteristic_rate(p, u, s)    # first: its terms at s.theta serve the first stage
+    return advance_arm(_arm_rates(p, u.payload, tau), s, tau, dt, rate,
+                       partial(ledger_terms, p, u), p, u.payload)
 
 
 def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
     """The signed terms of the energy ledger [J], E_p, E_kin, E_loss, -W_drive and -E_added
-    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md)."""
-    E_p, E_kin = mechanical_energies(p, u.payload, s)
-    return E_p, E_kin, s.E_loss, -s.W_drive, -s.E_added
+    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md). The outputs
+    come with them, from the same energies, kept for `outputs` (the end of a step is
+    evaluated once, for the ledger's control and the slave)."""
+    theta, payload, g, m2 = s.theta, u.payload, p.g, p.m2
+    q, _, _, gravity = _arm_terms(p, payload, theta)
+    M = _moments(payload * g, p.w, m2 * g, q.dY, math.sin(theta))  # sin(theta) = cos(phi)
+    E_p, E_kin = mechanical_energies(p, payload, s)
+    W_drive, E_loss, E_added = s.W_drive, s.E_loss, s.E_added
+    # In field order, built by tuple.__new__: Outputs(...) with keywords is a costly call.
+    p._kept_outputs[0] = (s, u, tuple.__new__(Outputs, (
+        theta, s.omega, gravity, E_p, E_kin,
+        *M, q.X, q.Y, q.psi,                            # M_g, M_b, M_u, X_cw, Y_cw, psi
+        W_drive, E_loss, E_added)))
+    return E_p, E_kin, E_loss, -W_drive, -E_added
 
 
 def mechanical_energies(p: Parameters, payload: float, s: State) -> tuple[float, float]:
     """E_p and E_kin [J] (as `outputs` reports them)."""
-    q, J, _, _ = _arm_terms(p, payload, s.theta)
-    return _energies(p, payload, s, q, J)
-
-
-def _energies(p: Parameters, payload: float, s: State, q: Geometry, J: float
-              ) -> tuple[float, float]:
-    """E_p and E_kin [J] at the state s with the counterweight geometry q and the inertia J
-    [kg m^2] there."""
-    return (p.g * (math.cos(s.theta) * _arm_moment(p, payload) + p.m2 * q.Y),
+    theta = s.theta
+    q, J, _, _ = _arm_terms(p, payload, theta)
+    return (p.g * (math.cos(theta) * _arm_moment(p, payload) + p.m2 * q.Y),
             0.5 * J * s.omega ** 2)
 
 
@@ -323,13 +357,4 @@ OUTPUT_VARIABLES = output_variables(
 )
 
 
-def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
-    """All outputs for the state s and inputs u."""
-    theta, payload, g, m2 = s.theta, u.payload, p.g, p.m2
-    q, J, _, gravity = _arm_terms(p, payload, theta)
-    M = _moments(payload * g, p.w, m2 * g, q.dY, math.sin(theta))  # sin(theta) = cos(phi)
-    # In field order, built by tuple.__new__: Outputs(...) is a Python call.
-    return tuple.__new__(Outputs, (
-        theta, s.omega, gravity, *_energies(p, payload, s, q, J),   # ..., E_p, E_kin
-        *M, q.X, q.Y, q.psi,                            # M_g, M_b, M_u, X_cw, Y_cw, psi
-        s.W_drive, s.E_loss, s.E_added))
+outputs = kept_outputs(ledger_terms)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
-from fmu_src.integration import ledger_accuracy
+from fmu_src.integration import kept_outputs, ledger_accuracy
 from fmu_src.mechanism import input_variables, output_variables, variable
 from fmu_src.mechanisms.self_regulating.design import (
     _free_length_factor,
@@ -21,6 +21,7 @@ from fmu_src.mechanisms.self_regulating.design import (
     gravity_moment,
     spring_length,
 )
+from fmu_src.memo import derive, slot
 from fmu_src.parameters import DomainError, check_ranges, parameter
 
 DEG = math.pi / 180.0
@@ -112,6 +113,16 @@ class Parameters:
     def pulley_ratio(self) -> float:
         """Counterweight travel per unit slider travel, R/r (design value w/a, eq. 13)."""
         return self.R / self.r
+
+    def __post_init__(self) -> None:
+        # the slots (fmu_src.memo) of `_link_terms`, ((payload, b), terms) keyed by equality,
+        # two entries, the latest first (a locked slider and a held payload repeat them at
+        # every step; a payload event reads them before and after it); of `ledger_terms`,
+        # (state, inputs, outputs) keyed by identity, for `outputs` of the very same state
+        # and inputs (the end of a step: the ledger's control evaluates it, then the slave
+        # reads its outputs)
+        derive(self, _link_memo=slot(((math.nan, math.nan), ()), 2),
+               _kept_outputs=slot((None, None, None)))
 
 
 def validate(params: Parameters) -> None:
@@ -261,13 +272,25 @@ def _link_terms(p: Parameters, payload: float, b: float) -> tuple[float, ...]:
     """(gravity_moment [N m], link_inertia J [kg m^2], the spring's moment amplitude k a b
     [N m], the fastest rate of the link's own dynamics but for its speed [1/s], and the
     outputs' terms balance_error = gravity_moment - k a b [N m], delta_b = b - b0 [m],
-    a^2 + b^2 and 2 a b [m^2] of the spring length) with the slider at b."""
+    a^2 + b^2 and 2 a b [m^2] of the spring length) with the slider at b: constant while the
+    slider is locked and the payload held, so the last ones are kept with the parameters and
+    reused (the same numbers as computed afresh)."""
+    memo = p._link_memo
+    key, terms = memo[0]
+    if key[0] == payload and key[1] == b:
+        return terms
+    key, terms = memo[1]
+    if key[0] == payload and key[1] == b:
+        return terms
     moment, J = gravity_moment(p, payload, b), link_inertia(p, payload, b)
     stiffness = abs(moment) + p.k * p.a * (abs(b) + p.a)
     spring = p.k * p.a * b
-    return (moment, J, spring, max(math.sqrt(stiffness / J), p.d_link / J),
-            # outputs' terms of the slider position alone
-            moment - spring, b - p.b0, p.a * p.a + b * b, 2.0 * p.a * b)
+    terms = (moment, J, spring, max(math.sqrt(stiffness / J), p.d_link / J),
+             # outputs' terms of the slider position alone
+             moment - spring, b - p.b0, p.a * p.a + b * b, 2.0 * p.a * b)
+    memo[1] = memo[0]
+    memo[0] = ((payload, b), terms)  # one assignment: key and terms change together
+    return terms
 
 
 def mechanical_energy(p: Parameters, u: Inputs, s: State) -> float:
@@ -373,32 +396,33 @@ OUTPUT_VARIABLES = output_variables(
 )
 
 
-def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
-    """All outputs for the state s and inputs u."""
+def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
+    """The signed terms of the energy ledger [J], E_t + E_cw + E_kin (in parts), E_loss,
+    -W_drive and -E_added (as `outputs` reports them): their sum is constant
+    (docs/energy_ledger.md). The outputs come with them, from the same energies, kept for
+    `outputs` (the end of a step is evaluated once, for the ledger's control and the slave)."""
     theta, omega, b, v, s_cw, W_drive, E_loss, E_added = s
     _, payload, counterweight_added, slider_locked, _ = u
     sin_t, cos_t = math.sin(theta), math.cos(theta)
     moment, J, spring, _, balance_error, delta_b, a2_b2, two_a_b = _link_terms(p, payload, b)
-    x = math.sqrt(max(a2_b2 - two_a_b * cos_t, 0.0))  # spring_length
+    x2 = a2_b2 - two_a_b * cos_t
+    x = math.sqrt(0.0 if 0.0 > x2 else x2)  # spring_length (max(x2, 0.0) without its call)
     factor = 1.0 - p.L0 / x if p.L0 > 0.0 else 1.0  # _free_length_factor, x known
     E_p = moment * cos_t
     E_e = 0.5 * p.k * (x - p.L0) ** 2
+    E_cw = -(p.M0 + counterweight_added) * p.g * s_cw
     mass = p.m_slider if slider_locked else slider_mass(p, u)
-    # Built by tuple.__new__ in field order: Outputs(...) is a Python call.
-    return _new(Outputs, (
-        theta, omega, b, delta_b, x,
-        p.k * (b - p.a * cos_t) * factor,                  # F_t
-        p.k * p.a * sin_t * factor,                        # F_n
-        (moment - spring * factor) * sin_t,                # tau_gravity
-        balance_error, E_p, E_e, E_p + E_e,
-        -(p.M0 + counterweight_added) * p.g * s_cw,        # E_cw
-        0.5 * J * omega ** 2 + 0.5 * mass * v ** 2,        # E_kin
-        slider_at_stop(p, u, s), W_drive, E_loss, E_added))
+    E_link = 0.5 * J * omega ** 2
+    E_kin = E_link + 0.5 * mass * v ** 2
+    F_t = p.k * (b - p.a * cos_t) * factor
+    F_n = p.k * p.a * sin_t * factor
+    tau_gravity = (moment - spring * factor) * sin_t
+    at_stop = not slider_locked and (b <= p.b_min or b >= p.b_max)  # slider_at_stop
+    # Built by tuple.__new__ in field order: Outputs(...) would add a Python call per step.
+    out = _new(Outputs, (theta, omega, b, delta_b, x, F_t, F_n, tau_gravity, balance_error,
+                         E_p, E_e, E_p + E_e, E_cw, E_kin, at_stop, W_drive, E_loss, E_added))
+    p._kept_outputs[0] = (s, u, out)
+    return E_p, E_e, E_cw, E_link, 0.5 * mass * v * v, E_loss, -W_drive, -E_added
 
 
-def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
-    """The signed terms of the energy ledger [J], E_t + E_cw + E_kin (in parts), E_loss,
-    -W_drive and -E_added (as `outputs` reports them): their sum is constant
-    (docs/energy_ledger.md)."""
-    mass = p.m_slider if u.slider_locked else slider_mass(p, u)
-    return (*_mechanical_energies(p, u, s, mass), s.E_loss, -s.W_drive, -s.E_added)
+outputs = kept_outputs(ledger_terms)

@@ -38,6 +38,8 @@ from functools import partial
 
 from fmu_src.integration import (
     first_substeps,
+    integrate_link_slider,
+    integrate_sine_arm,
     integrate_substeps,
     ledger_controlled,
     substeps,
@@ -235,14 +237,10 @@ def _apply_constraints(p: Parameters, u: Inputs, s: State) -> State:
 
 
 def _advance_free_slider(p: Parameters, u: Inputs, s: State, dt: float) -> State:
-    """advance with the slider free: RK4 over the state with `_apply_constraints` (the end
-    stops) after every sub-step, and the friction state held through each (see
-    _integrate_with_friction)."""
+    """advance with the slider free."""
     n = substeps(dt, characteristic_rate(p, u, s))
     if p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
-        rates, stops = _state_rates(p, u), partial(_apply_constraints, p, u)
-        return _controlled(p, u, s, dt,
-                           lambda m: integrate_substeps(rates, s, dt, m, stops), n)
+        return _controlled(p, u, s, dt, lambda m: _integrate_free_slider(p, u, s, dt, m), n)
     return _controlled(p, u, s, dt, lambda m: _integrate_with_friction(p, u, s, dt, m), n)
 
 
@@ -271,14 +269,45 @@ def _integrate_with_friction(p: Parameters, u: Inputs, s: State, dt: float, n: i
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
     """Integrate over one communication step dt [s] with inputs held constant: RK4 sub-steps
     from the rate rule, raised until the energy ledger meets p.ledger_accuracy
-    (`integration.ledger_controlled`). A clamped slider (the usual step) leaves a 1-DOF
-    link, whose rate is the link's own (b, v and s_cw have zero rates)."""
+    (`integration.ledger_controlled`).
+
+    A clamped slider (the usual step) leaves a 1-DOF link: b and s_cw stay put and v = 0, so
+    RK4 runs over the link and its ledger alone (`_integrate_locked_slider`), with the terms
+    constant over the step computed once. The same numbers, bit for bit (same operations in
+    the same order), as `integrate_substeps` over the full state with the derivatives of
+    `_state_rates`.
+    """
     if not u.slider_locked:
         return _advance_free_slider(p, u, s, dt)
-    rate = max(_link_terms(p, u.payload, s.b)[3], abs(s.omega))
-    rates = _state_rates(p, u)
-    return _controlled(p, u, s, dt, lambda n: integrate_substeps(rates, s, dt, n),
+    rate = _link_terms(p, u.payload, s.b)[3]
+    speed = abs(s.omega)
+    rate = speed if speed > rate else rate  # max(rate, speed), without the builtin's call
+    return _controlled(p, u, s, dt, lambda n: _integrate_locked_slider(p, u, s, dt, n),
                        first_substeps(dt, rate))
+
+
+def _integrate_locked_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """The link with the slider clamped over dt [s] in n RK4 sub-steps (`advance`): a link
+    of constant inertia with gravity, the spring's moment spring sin(theta) (1 - L0/x) and
+    the link damper (`integrate_sine_arm`)."""
+    theta, omega, b, _, s_cw, W_drive, E_loss, E_added = s
+    moment, J, spring = _link_terms(p, u.payload, b)[:3]
+    factor = (lambda theta: _free_length_factor(p, theta, b)) if p.L0 > 0.0 else None
+    theta, omega, W_drive, E_loss = integrate_sine_arm(
+        u.tau_drive, moment, spring, factor, p.d_link, J, theta, omega, W_drive, E_loss, dt, n)
+    return _new(State, (theta, omega, b, 0.0, s_cw, W_drive, E_loss, E_added))
+
+
+def _integrate_free_slider(p: Parameters, u: Inputs, s: State, dt: float, n: int) -> State:
+    """`integrate_substeps` (n sub-steps over dt [s]) over the state with the derivatives of
+    `_state_rates` and `_apply_constraints` after each sub-step (a free slider with no
+    friction state to hold): `integrate_link_slider` for the rates of `_slider_rates`, the
+    counterweight coupled while the pulley turns, `_apply_constraints` wherever it can change
+    something (beyond a stop, or a massless slider after every sub-step)."""
+    low, high = (p.b_min, p.b_max) if slider_mass(p, u) != 0.0 else (math.inf, -math.inf)
+    return integrate_link_slider(_slider_rates(p, u), s, u.tau_drive,
+                                 None if u.pulley_locked else p.pulley_ratio, dt, n, low, high,
+                                 _apply_constraints, p, u)
 
 
 def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> State:
