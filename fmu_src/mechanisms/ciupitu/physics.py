@@ -260,6 +260,9 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     operation (the same numbers; tests/test_ciupitu.py checks it), with the terms the
     payload sets computed once: a call and a tuple per stage cost more than the arithmetic.
     At the angle _arm_terms computed last (the step's start) it takes its terms.
+    Measured against `_arm_terms` called per stage (with integrate_arm and the slots): the
+    three save 111 k of 219 k instructions per FMU step (OA = 0; 97 k of 220 k at the
+    defaults), far above 10 % of a closed-loop step (fmu_src/integration.py).
     """
     held = _held(p, payload)
     last_theta, last = kept_start(p._last_terms, payload)

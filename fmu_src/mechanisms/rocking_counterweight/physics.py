@@ -237,6 +237,9 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     computed once, and _arm_terms is written out, operation for operation (the same numbers;
     tests/test_rocking.py checks it). At the angle _arm_terms computed last (the step's
     start) it takes its terms.
+    Measured against `_arm_terms` called per stage (with integrate_arm and the slots): the
+    three save 153 k of 390 k instructions per FMU step (payload ramping), far above 10 % of
+    a closed-loop step (fmu_src/integration.py).
     """
     k, m2, g, d_link = p.linkage, p.m2, p.g, p.d_link
     J_held = p.J_fixed + payload * p.w ** 2
