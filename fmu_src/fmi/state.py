@@ -20,6 +20,7 @@ from fmu_src.fmi.variables import VariableSlave
 
 # keys of an FMU state besides its variables' names
 STATE_MODEL, STATE_LAYOUT, STATE_HIDDEN = "__model__", "__layout__", "__hidden__"
+REGIME_SIZE = 4  # the longest regime a hidden state may hold
 # the Python types a variable's value in an FMU state may have, by its FMI type
 STATE_TYPES = {Real: (float, int), Boolean: (bool,), Integer: (int,), String: (str,)}
 
@@ -29,6 +30,9 @@ class StatefulSlave(VariableSlave):
     attributes listed in `hidden_state` (JSON-compatible once `_to_json` has converted them)."""
 
     hidden_state: tuple[str, ...] = ()
+    # hidden state that is a regime: a list of -1, 0 and 1 whose length depends on the state
+    # (a Model Exchange mode, `fmu_src.mechanism.Physics.mode`)
+    hidden_regimes: tuple[str, ...] = ("mode",)
 
     def _get_fmu_state(self) -> dict[str, Any]:
         state = super()._get_fmu_state()
@@ -99,6 +103,12 @@ class StatefulSlave(VariableSlave):
                                       f"{', '.join(self.hidden_state) or 'nothing'}")
         for name in self.hidden_state:
             value, like = hidden[name], _to_json(getattr(self, name))
+            if name in self.hidden_regimes:
+                if not (isinstance(value, list) and len(value) <= REGIME_SIZE and all(
+                        v in (-1, 0, 1) and not isinstance(v, bool) for v in value)):
+                    raise self._state_problem(f"hidden state {name} = {value!r} is not a "
+                                              f"regime (up to {REGIME_SIZE} of -1, 0 and 1)")
+                continue
             if _shape(value) != _shape(like):
                 raise self._state_problem(f"hidden state {name} = {value!r} is not of the "
                                           f"shape of {like!r} (numbers, booleans, lengths)")

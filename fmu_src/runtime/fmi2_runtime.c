@@ -1,5 +1,6 @@
-/* The FMU's linux64 binary: an FMI 2.0 Co-Simulation runtime, in C, over pythonfmu's Python
- * API (the Fmi2Slave instance and its methods). pythonfmu's own binary is not used.
+/* The FMU's linux64 binary: an FMI 2.0 Co-Simulation and Model Exchange runtime, in C, over
+ * pythonfmu's Python API (the Fmi2Slave instance and its methods; for Model Exchange the
+ * slave's me_ methods, fmu_src/fmi/model_exchange.py). pythonfmu's own binary is not used.
  *
  * Python:
  * - In a process that already has Python (Py_IsInitialized visible, e.g. FMPy), it uses that
@@ -24,9 +25,12 @@
  *   MemoryError and SystemExit give fmi2Fatal; do_step returning False gives fmi2Discard;
  * - after fmi2Fatal every call returns fmi2Fatal without entering Python (fmi2FreeInstance
  *   still releases the instance);
- * - refused without entering Python, with a message: Model Exchange, a GUID other than the
- *   FMU's, a NULL name, GUID or resource location, an unusable resource location, and
- *   stepping, setting or initialising after fmi2Terminate.
+ * - refused without entering Python, with a message: Model Exchange for a slave without it,
+ *   a GUID other than the FMU's, a NULL name, GUID or resource location, an unusable
+ *   resource location, a call in a phase that does not allow it (stepping, setting or
+ *   initialising after fmi2Terminate) and a
+ *   call of the other interface than the instance's (fmi2DoStep on a Model Exchange
+ *   instance, fmi2GetDerivatives on a Co-Simulation one).
  *
  * Logging: the slave's log queue is passed on after every call, and the runtime's own
  * messages with it; each literal % reaches the host's logger as %% (its message is a printf
@@ -105,6 +109,7 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(const char *, PyUnicode_AsUTF8AndSize, (PyObject *, Py_ssize_t *)) \
     X(PyObject *, PyUnicode_AsUTF8String, (PyObject *)) \
     X(PyObject *, PyLong_FromLong, (long)) \
+    X(PyObject *, PyLong_FromSize_t, (size_t)) \
     X(long, PyLong_AsLong, (PyObject *)) \
     X(PyObject *, PyFloat_FromDouble, (double)) \
     X(double, PyFloat_AsDouble, (PyObject *)) \
@@ -618,7 +623,26 @@ static const char *const METHOD_NAMES[METHOD_COUNT] = {
     "exit_initialization_mode", "terminate", "_get_fmu_state", "_set_fmu_state",
     "_fmu_state_to_bytes", "_fmu_state_from_bytes"};
 
-enum Phase { INSTANTIATED, INITIALIZATION_MODE, STEPPING, TERMINATED };
+/* Model Exchange's calls of the slave, looked up for a Model Exchange instance only */
+enum ModelExchangeMethod {
+    ME_SET_TIME, ME_SET_CONTINUOUS_STATES, ME_GET_CONTINUOUS_STATES, ME_GET_NOMINALS,
+    ME_GET_DERIVATIVES, ME_GET_EVENT_INDICATORS, ME_ENTER_EVENT_MODE, ME_NEW_DISCRETE_STATES,
+    ME_ENTER_CONTINUOUS_TIME_MODE, ME_COMPLETED_INTEGRATOR_STEP, ME_METHOD_COUNT
+};
+static const char *const ME_METHOD_NAMES[ME_METHOD_COUNT] = {
+    "me_set_time", "me_set_continuous_states", "me_get_continuous_states", "me_get_nominals",
+    "me_get_derivatives", "me_get_event_indicators", "me_enter_event_mode",
+    "me_new_discrete_states", "me_enter_continuous_time_mode", "me_completed_integrator_step"};
+
+/* STEPPING is Co-Simulation's slaveInitialized; EVENT_MODE and CONTINUOUS_TIME_MODE are
+ * Model Exchange's */
+enum Phase {
+    INSTANTIATED, INITIALIZATION_MODE, STEPPING, TERMINATED, EVENT_MODE, CONTINUOUS_TIME_MODE,
+    PHASE_COUNT
+};
+static const char *const PHASE_NAMES[PHASE_COUNT] = {
+    "Instantiated", "Initialization Mode", "slaveInitialized", "Terminated", "Event Mode",
+    "Continuous-Time Mode"};
 
 #define INSTANCE_TAG 0x464d5532u  /* "FMU2" */
 #define STATE_TAG 0x53544154u     /* "STAT" */
@@ -628,10 +652,13 @@ typedef struct {
     Sink sink;
     char *guid, *resources, *module;
     int visible, fatal;
+    fmi2Type type;     /* the interface it was instantiated for */
     enum Phase phase;
     double last_successful_time;
     PyObject *cls, *slave, *queue;
     PyObject *methods[METHOD_COUNT];
+    PyObject *me_methods[ME_METHOD_COUNT];  /* a Model Exchange instance's */
+    size_t state_count, indicator_count;     /* its nx and ni */
     PyObject **strings;  /* the UTF-8 bytes behind the last fmi2GetString's values */
     size_t string_count;
     char *failure;       /* the message of the current call's Python exception */
@@ -657,6 +684,7 @@ static void release_strings(Instance *in) {
 
 static void release_slave(Instance *in) {
     for (int i = 0; i < METHOD_COUNT; i++) release(&in->methods[i]);
+    for (int i = 0; i < ME_METHOD_COUNT; i++) release(&in->me_methods[i]);
     release(&in->queue);
     release(&in->slave);
     release_strings(in);
@@ -729,6 +757,31 @@ static void drain_log(Instance *in) {
     if (py.PySequence_DelSlice(in->queue, 0, count) != 0) py.PyErr_Clear();
 }
 
+/* Look the slave's Model Exchange methods and its numbers of continuous states and event
+ * indicators up (me_state_count, me_indicator_count); 0 after logging why not (a slave of
+ * Co-Simulation only). */
+static int model_exchange_methods(Instance *in) {
+    const char *missing = NULL;
+    for (int i = 0; !missing && i < ME_METHOD_COUNT; i++)
+        if (!(in->me_methods[i] = py.PyObject_GetAttrString(in->slave, ME_METHOD_NAMES[i])))
+            missing = ME_METHOD_NAMES[i];
+    const char *const counts[2] = {"me_state_count", "me_indicator_count"};
+    size_t *const values[2] = {&in->state_count, &in->indicator_count};
+    for (int i = 0; !missing && i < 2; i++) {
+        PyObject *count = py.PyObject_GetAttrString(in->slave, counts[i]);
+        long value = count ? py.PyLong_AsLong(count) : -1;
+        release(&count);
+        if (value < 0) missing = counts[i];
+        else *values[i] = (size_t)value;
+    }
+    if (!missing) return 1;
+    py.PyErr_Clear();
+    log_format(&in->sink, fmi2Error, "fmi2Instantiate: this FMU's slave implements FMI 2.0 "
+               "Co-Simulation only (it has no %s); fmuType fmi2ModelExchange refused", missing);
+    drain_log(in);
+    return 0;
+}
+
 /* Make the instance's slave (and look its methods up once); 0 after logging why. */
 static int create_slave(Instance *in) {
     PyObject *name = py.PyUnicode_FromString(in->sink.name);
@@ -746,6 +799,14 @@ static int create_slave(Instance *in) {
                                  ? py.PyObject_GetAttrString(in->slave, "_get_log_queue") : NULL;
     if (queue_getter) in->queue = py.PyObject_CallFunctionObjArgs(queue_getter, NULL);
     release(&queue_getter);
+    if (in->queue && in->type == fmi2ModelExchange && !model_exchange_methods(in)) {
+        release_slave(in);
+        release(&name);
+        release(&resources);
+        release(&module);
+        release(&visible);
+        return 0;
+    }
     release(&name);
     release(&resources);
     release(&module);
@@ -794,9 +855,10 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                    : !fmuGUID ? "fmuGUID" : "fmuResourceLocation");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
-        log_format(&sink, fmi2Error, "fmi2Instantiate: this FMU implements FMI 2.0 "
-                   "Co-Simulation only; fmuType %d (Model Exchange) refused", (int)fmuType);
+    if (fmuType != fmi2CoSimulation && fmuType != fmi2ModelExchange) {
+        log_format(&sink, fmi2Error, "fmi2Instantiate: fmuType %d is neither "
+                   "fmi2ModelExchange (%d) nor fmi2CoSimulation (%d)", (int)fmuType,
+                   (int)fmi2ModelExchange, (int)fmi2CoSimulation);
         return NULL;
     }
     if (record.guid[0] && strcmp(fmuGUID, record.guid) != 0) {
@@ -818,6 +880,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         in->resources = folder;
         in->module = module;
         in->visible = visible != fmi2False;
+        in->type = fmuType;
         in->phase = INSTANTIATED;
         folder = module = NULL;
     } else if (!why.length) {
@@ -850,7 +913,7 @@ void fmi2FreeInstance(fmi2Component c) {
 }
 
 /* ---- calls ---------------------------------------------------------------------------- */
-#define ANY_PHASE 0xFu
+#define ANY_PHASE ((1u << PHASE_COUNT) - 1u)
 #define NOT_TERMINATED (ANY_PHASE & ~(1u << TERMINATED))
 
 /* Check an instance may take the call: not after fmi2Fatal, in a phase that allows it. */
@@ -862,8 +925,29 @@ static fmi2Status admit(Instance *in, const char *function, unsigned phases) {
         return fmi2Fatal;
     }
     if (!(phases & (1u << in->phase))) {
-        log_format(&in->sink, fmi2Error, "%s refused: not allowed after fmi2Terminate (only "
-                   "fmi2Reset, fmi2FreeInstance and the getters are)", function);
+        if (in->phase == TERMINATED)
+            log_format(&in->sink, fmi2Error, "%s refused: not allowed after fmi2Terminate "
+                       "(only fmi2Reset, fmi2FreeInstance and the getters are)", function);
+        else
+            log_format(&in->sink, fmi2Error, "%s refused: not allowed in %s (FMI 2.0 state "
+                       "machine)", function, PHASE_NAMES[in->phase]);
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+/* Check an instance may take a call of one interface (fmi2CoSimulation or
+ * fmi2ModelExchange) in the phases given: as admit, and refused for an instance of the
+ * other interface. */
+static fmi2Status admit_type(Instance *in, const char *function, fmi2Type type,
+                             unsigned phases) {
+    fmi2Status refused = admit(in, function, phases);
+    if (refused != fmi2OK) return refused;
+    if (in->type != type) {
+        log_format(&in->sink, fmi2Error, "%s refused: it is a %s call, and this instance was "
+                   "instantiated for %s", function, type == fmi2ModelExchange
+                   ? "Model Exchange" : "Co-Simulation", in->type == fmi2ModelExchange
+                   ? "Model Exchange" : "Co-Simulation");
         return fmi2Error;
     }
     return fmi2OK;
@@ -978,8 +1062,11 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Instance *in = (Instance *)c;  /* Model Exchange goes on in Event Mode */
+    enum Phase next = in && in->tag == INSTANCE_TAG && in->type == fmi2ModelExchange
+                          ? EVENT_MODE : STEPPING;
     return life_cycle(c, "fmi2ExitInitializationMode", EXIT_INITIALIZATION_MODE,
-                      NOT_TERMINATED, STEPPING);
+                      NOT_TERMINATED, next);
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
@@ -1001,6 +1088,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     (void)noSetFMUStatePriorToCurrentPoint;
+    { fmi2Status refused = admit_type((Instance *)c, "fmi2DoStep", fmi2CoSimulation,
+                                      NOT_TERMINATED);
+      if (refused != fmi2OK) return refused; }
     BEGIN("fmi2DoStep", NOT_TERMINATED);
     PyObject *now = py.PyFloat_FromDouble(currentCommunicationPoint);
     PyObject *step = py.PyFloat_FromDouble(communicationStepSize);
@@ -1087,11 +1177,11 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 }
 
 /* The setters: call the method with the value references and a list of converted values. */
-#define SETTER(Type, fmiType, method, convert) \
+#define SETTER(Type, fmiType, method, phases, convert) \
     fmi2Status fmi2Set##Type(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, \
                              const fmiType value[]) { \
-        if (nvr == 0) return admit((Instance *)c, "fmi2Set" #Type, NOT_TERMINATED); \
-        BEGIN("fmi2Set" #Type, NOT_TERMINATED); \
+        if (nvr == 0) return admit((Instance *)c, "fmi2Set" #Type, phases); \
+        BEGIN("fmi2Set" #Type, phases); \
         PyObject *refs = vr && value ? reference_list(vr, nvr) : NULL; \
         PyObject *values = refs ? py.PyList_New((Py_ssize_t)nvr) : NULL; \
         for (size_t i = 0; values && i < nvr; i++) { \
@@ -1107,10 +1197,14 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
         END(); \
     }
 
-SETTER(Real, fmi2Real, SET_REAL, py.PyFloat_FromDouble(value[i]))
-SETTER(Integer, fmi2Integer, SET_INTEGER, py.PyLong_FromLong(value[i]))
-SETTER(Boolean, fmi2Boolean, SET_BOOLEAN, py.PyBool_FromLong(value[i] != fmi2False))
-SETTER(String, fmi2String, SET_STRING,
+/* In Continuous-Time Mode the slave refuses a discrete input set to another value (FMI 2.0
+ * allows no discrete variable to be set there; FMPy's CVode sets every input again, to the
+ * same value, in its root function, so the same value is let through) */
+SETTER(Real, fmi2Real, SET_REAL, NOT_TERMINATED, py.PyFloat_FromDouble(value[i]))
+SETTER(Integer, fmi2Integer, SET_INTEGER, NOT_TERMINATED, py.PyLong_FromLong(value[i]))
+SETTER(Boolean, fmi2Boolean, SET_BOOLEAN, NOT_TERMINATED,
+       py.PyBool_FromLong(value[i] != fmi2False))
+SETTER(String, fmi2String, SET_STRING, NOT_TERMINATED,
        value[i] ? py.PyUnicode_FromString(value[i]) : py.PyUnicode_FromString(""))
 
 /* ---- FMU states ----------------------------------------------------------------------- */
@@ -1288,7 +1382,8 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
                                        size_t nvr, const fmi2Integer order[],
                                        const fmi2Real value[]) {
     (void)vr, (void)nvr, (void)order, (void)value;
-    fmi2Status refused = admit((Instance *)c, "fmi2SetRealInputDerivatives", ANY_PHASE);
+    fmi2Status refused = admit_type((Instance *)c, "fmi2SetRealInputDerivatives",
+                                    fmi2CoSimulation, ANY_PHASE);
     return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2SetRealInputDerivatives");
 }
 
@@ -1296,13 +1391,15 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
                                         size_t nvr, const fmi2Integer order[],
                                         fmi2Real value[]) {
     (void)vr, (void)nvr, (void)order, (void)value;
-    fmi2Status refused = admit((Instance *)c, "fmi2GetRealOutputDerivatives", ANY_PHASE);
+    fmi2Status refused = admit_type((Instance *)c, "fmi2GetRealOutputDerivatives",
+                                    fmi2CoSimulation, ANY_PHASE);
     return refused != fmi2OK ? refused
                              : no_call((Instance *)c, "fmi2GetRealOutputDerivatives");
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
-    fmi2Status refused = admit((Instance *)c, "fmi2CancelStep", ANY_PHASE);
+    fmi2Status refused = admit_type((Instance *)c, "fmi2CancelStep", fmi2CoSimulation,
+                                    ANY_PHASE);
     return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2CancelStep");
 }
 
@@ -1317,7 +1414,8 @@ static fmi2Status no_status(Instance *in, const char *function, fmi2StatusKind k
 #define NO_STATUS(Type, fmiType) \
     fmi2Status fmi2Get##Type(fmi2Component c, const fmi2StatusKind s, fmiType *value) { \
         (void)value; \
-        fmi2Status refused = admit((Instance *)c, "fmi2Get" #Type, ANY_PHASE); \
+        fmi2Status refused = admit_type((Instance *)c, "fmi2Get" #Type, fmi2CoSimulation, \
+                                        ANY_PHASE); \
         return refused != fmi2OK ? refused : no_status((Instance *)c, "fmi2Get" #Type, s); \
     }
 
@@ -1326,7 +1424,8 @@ NO_STATUS(IntegerStatus, fmi2Integer)
 NO_STATUS(StringStatus, fmi2String)
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    fmi2Status refused = admit((Instance *)c, "fmi2GetRealStatus", ANY_PHASE);
+    fmi2Status refused = admit_type((Instance *)c, "fmi2GetRealStatus", fmi2CoSimulation,
+                                    ANY_PHASE);
     if (refused != fmi2OK) return refused;
     if (s != fmi2LastSuccessfulTime || !value)
         return no_status((Instance *)c, "fmi2GetRealStatus", s);
@@ -1337,7 +1436,8 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
 /* fmi2Terminated is false: a refused step (fmi2Discard) leaves the slave as it was, ready for
  * a shorter step or another input. */
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    fmi2Status refused = admit((Instance *)c, "fmi2GetBooleanStatus", ANY_PHASE);
+    fmi2Status refused = admit_type((Instance *)c, "fmi2GetBooleanStatus", fmi2CoSimulation,
+                                    ANY_PHASE);
     if (refused != fmi2OK) return refused;
     if (s != fmi2Terminated || !value)
         return no_status((Instance *)c, "fmi2GetBooleanStatus", s);
@@ -1348,3 +1448,209 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 
 const char *fmi2GetVersion(void) { return fmi2Version; }
+
+/* ==== Model Exchange ========================================================================
+ * The FMI 2.0 Model Exchange calls over the slave's me_ methods (fmu_src/fmi/model_exchange.py),
+ * for an instance made with fmuType fmi2ModelExchange. The phases they are allowed in follow
+ * the standard's state machine (FMI 2.0.4, section 3.2.3); fmi2ExitInitializationMode leads to
+ * Event Mode, fmi2EnterEventMode from Event or Continuous-Time Mode to Event Mode, and
+ * fmi2EnterContinuousTimeMode from Event Mode to Continuous-Time Mode. This section keeps its
+ * own phase checks (admit_type) until the runtime's state-machine table covers Model Exchange.
+ * The runtime never reads or writes past the model's nx or ni (me_state_count,
+ * me_indicator_count): a host's other count is refused before its array is touched. */
+
+#define EVENT_OR_CONTINUOUS ((1u << EVENT_MODE) | (1u << CONTINUOUS_TIME_MODE))
+/* fmi2GetContinuousStates, fmi2GetDerivatives, fmi2GetEventIndicators */
+#define MODEL_INQUIRY ((1u << INITIALIZATION_MODE) | EVENT_OR_CONTINUOUS | (1u << TERMINATED))
+
+/* Enter Python for a Model Exchange call (BEGIN, refused for a Co-Simulation instance). */
+#define BEGIN_ME(function, phases) \
+    { fmi2Status refused = admit_type((Instance *)c, function, fmi2ModelExchange, phases); \
+      if (refused != fmi2OK) return refused; } \
+    BEGIN(function, phases)
+
+/* Call a Model Exchange method with the arguments given (or none: CALL_ME(method, NULL)). */
+#define CALL_ME(method, ...) \
+    py.PyObject_CallFunctionObjArgs(in->me_methods[method], __VA_ARGS__, NULL)
+
+/* fmi2Error with the message "<function>: <what> = <given> is not <the model's count>". */
+static fmi2Status wrong_count(Instance *in, const char *function, const char *what,
+                              size_t given, size_t count) {
+    Message m = {{0}, 0};
+    append(&m, "%s: %s = %zu is not this FMU's number of %s, %zu", function, what, given,
+           what[0] == 'n' && what[1] == 'x' ? "continuous states" : "event indicators", count);
+    free(in->failure);
+    in->failure = strdup(m.text);
+    return fmi2Error;
+}
+
+/* Copy a method's result, a sequence of n numbers, into values (n checked by the caller). */
+static fmi2Status take_numbers(Instance *in, const char *function, PyObject *result,
+                               fmi2Real values[], size_t n) {
+    if (!result) return python_failure(in, function);
+    if (py.PySequence_Size(result) != (Py_ssize_t)n) {
+        py.PyErr_Clear();
+        return wrong_result(in, function, "result: a wrong number of values");
+    }
+    for (size_t i = 0; i < n; i++) {
+        PyObject *item = py.PySequence_GetItem(result, (Py_ssize_t)i);
+        values[i] = item ? py.PyFloat_AsDouble(item) : 0.0;
+        release(&item);
+        if (py.PyErr_Occurred()) return python_failure(in, function);
+    }
+    return fmi2OK;
+}
+
+/* One of the inquiries that fill an array of the model's nx or ni numbers. */
+static fmi2Status inquire(fmi2Component c, const char *function, unsigned phases,
+                          enum ModelExchangeMethod method, const char *what, fmi2Real values[],
+                          size_t n) {
+    BEGIN_ME(function, phases);
+    size_t count = what[1] == 'x' ? in->state_count : in->indicator_count;
+    if (n != count) status = wrong_count(in, function_name, what, n, count);
+    else if (n && !values) status = wrong_result(in, function_name, "arguments: a NULL array");
+    else {
+        PyObject *size = py.PyLong_FromSize_t(n);
+        PyObject *result = size ? CALL_ME(method, size) : NULL;
+        status = take_numbers(in, function_name, result, values, n);
+        release(&result);
+        release(&size);
+    }
+    END();
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
+    return inquire(c, "fmi2GetContinuousStates", MODEL_INQUIRY, ME_GET_CONTINUOUS_STATES, "nx",
+                   x, nx);
+}
+
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
+    return inquire(c, "fmi2GetDerivatives", MODEL_INQUIRY, ME_GET_DERIVATIVES, "nx",
+                   derivatives, nx);
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
+    return inquire(c, "fmi2GetEventIndicators", MODEL_INQUIRY, ME_GET_EVENT_INDICATORS, "ni",
+                   eventIndicators, ni);
+}
+
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[],
+                                             size_t nx) {
+    return inquire(c, "fmi2GetNominalsOfContinuousStates", ANY_PHASE, ME_GET_NOMINALS, "nx",
+                   x_nominal, nx);
+}
+
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
+    BEGIN_ME("fmi2SetTime", EVENT_OR_CONTINUOUS);
+    PyObject *value = py.PyFloat_FromDouble(time);
+    PyObject *result = value ? CALL_ME(ME_SET_TIME, value) : NULL;
+    if (!result) status = python_failure(in, function_name);
+    release(&result);
+    release(&value);
+    END();
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
+    BEGIN_ME("fmi2SetContinuousStates", 1u << CONTINUOUS_TIME_MODE);
+    PyObject *values = NULL;
+    if (nx != in->state_count) status = wrong_count(in, function_name, "nx", nx,
+                                                    in->state_count);
+    else if (nx && !x) status = wrong_result(in, function_name, "arguments: a NULL array");
+    else if (!(values = py.PyList_New((Py_ssize_t)nx))) status = python_failure(in, function_name);
+    for (size_t i = 0; values && status == fmi2OK && i < nx; i++) {
+        PyObject *item = py.PyFloat_FromDouble(x[i]);
+        if (!item || py.PyList_SetItem(values, (Py_ssize_t)i, item) != 0)
+            status = python_failure(in, function_name);
+    }
+    if (status == fmi2OK) {
+        PyObject *result = CALL_ME(ME_SET_CONTINUOUS_STATES, values);
+        if (!result) status = python_failure(in, function_name);
+        release(&result);
+    }
+    release(&values);
+    END();
+}
+
+/* A Model Exchange call that takes no argument and changes the phase to next on success. */
+static fmi2Status change_mode(fmi2Component c, const char *function, unsigned phases,
+                              enum ModelExchangeMethod method, enum Phase next) {
+    BEGIN_ME(function, phases);
+    PyObject *result = CALL_ME(method, NULL);
+    if (!result) status = python_failure(in, function_name);
+    else in->phase = next;
+    release(&result);
+    END();
+}
+
+fmi2Status fmi2EnterEventMode(fmi2Component c) {
+    return change_mode(c, "fmi2EnterEventMode", EVENT_OR_CONTINUOUS, ME_ENTER_EVENT_MODE,
+                       EVENT_MODE);
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
+    return change_mode(c, "fmi2EnterContinuousTimeMode", 1u << EVENT_MODE,
+                       ME_ENTER_CONTINUOUS_TIME_MODE, CONTINUOUS_TIME_MODE);
+}
+
+/* The truth of item i of a result sequence (-1 with the exception pending). */
+static int truth(PyObject *result, Py_ssize_t i) {
+    PyObject *item = py.PySequence_GetItem(result, i);
+    int value = item ? py.PyObject_IsTrue(item) : -1;
+    release(&item);
+    return value;
+}
+
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
+    BEGIN_ME("fmi2NewDiscreteStates", 1u << EVENT_MODE);
+    PyObject *result = eventInfo ? CALL_ME(ME_NEW_DISCRETE_STATES, NULL) : NULL;
+    int flags[5] = {0};
+    if (!eventInfo) status = wrong_result(in, function_name, "argument: eventInfo is NULL");
+    else if (!result) status = python_failure(in, function_name);
+    else if (py.PySequence_Size(result) != 6) {
+        py.PyErr_Clear();
+        status = wrong_result(in, function_name, "result: not the six fields of fmi2EventInfo");
+    }
+    for (int i = 0; status == fmi2OK && i < 5; i++)
+        if ((flags[i] = truth(result, i)) < 0) status = python_failure(in, function_name);
+    if (status == fmi2OK) {
+        PyObject *next = py.PySequence_GetItem(result, 5);
+        double next_time = next ? py.PyFloat_AsDouble(next) : 0.0;
+        release(&next);
+        if (py.PyErr_Occurred()) status = python_failure(in, function_name);
+        else {
+            eventInfo->newDiscreteStatesNeeded = flags[0] ? fmi2True : fmi2False;
+            eventInfo->terminateSimulation = flags[1] ? fmi2True : fmi2False;
+            eventInfo->nominalsOfContinuousStatesChanged = flags[2] ? fmi2True : fmi2False;
+            eventInfo->valuesOfContinuousStatesChanged = flags[3] ? fmi2True : fmi2False;
+            eventInfo->nextEventTimeDefined = flags[4] ? fmi2True : fmi2False;
+            eventInfo->nextEventTime = next_time;
+        }
+    }
+    release(&result);
+    END();
+}
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c,
+                                       fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi2Boolean *enterEventMode,
+                                       fmi2Boolean *terminateSimulation) {
+    (void)noSetFMUStatePriorToCurrentPoint;
+    BEGIN_ME("fmi2CompletedIntegratorStep", 1u << CONTINUOUS_TIME_MODE);
+    PyObject *result = enterEventMode && terminateSimulation
+                           ? CALL_ME(ME_COMPLETED_INTEGRATOR_STEP, NULL) : NULL;
+    int enter = 0, terminate = 0;
+    if (!enterEventMode || !terminateSimulation)
+        status = wrong_result(in, function_name, "arguments: a NULL pointer");
+    else if (!result) status = python_failure(in, function_name);
+    else if (py.PySequence_Size(result) != 2) {
+        py.PyErr_Clear();
+        status = wrong_result(in, function_name, "result: not (enterEventMode, terminate)");
+    } else if ((enter = truth(result, 0)) < 0 || (terminate = truth(result, 1)) < 0) {
+        status = python_failure(in, function_name);
+    } else {
+        *enterEventMode = enter ? fmi2True : fmi2False;
+        *terminateSimulation = terminate ? fmi2True : fmi2False;
+    }
+    release(&result);
+    END();
+}

@@ -14,7 +14,7 @@ inputs are constant or ramps. """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from types import ModuleType
 from typing import Any
@@ -22,10 +22,15 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from fmu_src.units.drive.dc_motor import armature_rate, armature_voltage, drive_powers
+from fmu_src.units.drive.dc_motor import (
+    DriveEnergies,
+    armature_rate,
+    armature_voltage,
+    drive_powers,
+)
 from harness import registry
 from harness.errors import UserError
-from harness.run.controller import ControllerDesign, design_pid
+from harness.run.controller import ControllerDesign, PIDGains, design_pid
 from harness.run.drive import MotorParameters, motors
 from harness.run.metrics import ENERGIES, run_metrics
 from harness.run.scenario_files import Scenario, Variant, ramp
@@ -112,17 +117,13 @@ def simulate(scenario: Scenario, variant: Variant,
             mech = y[:n_mech]
             efforts, d_drive, d_energy = [], [], []
             for j, (m, g) in enumerate(zip(drives, gains, strict=True)):
-                current, integral, filtered = y[n_mech + DRIVE_STATES * j:
-                                                n_mech + DRIVE_STATES * (j + 1)]
-                error = ramp(*targets[j], "quintic", s) - mech[position_index[j]]
-                voltage = g.Kp * error + integral + g.Kd / g.T_f * (error - filtered)
-                voltage = min(max(voltage, -m.V_supply), m.V_supply)
-                speed = mech[speed_index[j]]
-                effort = m.torque_per_amp * current
+                effort, rates, powers = drive_rates(
+                    m, g, y[n_mech + DRIVE_STATES * j:n_mech + DRIVE_STATES * (j + 1)],
+                    ramp(*targets[j], "quintic", s) - mech[position_index[j]],
+                    mech[speed_index[j]])
                 efforts.append(effort)
-                d_drive += [armature_rate(m, voltage, current, speed), g.Ki * error,
-                            (error - filtered) / g.T_f]
-                d_energy += drive_powers(m, voltage, current, effort, speed)
+                d_drive += rates
+                d_energy += powers
             u = _inputs(physics, joints, segment, s, efforts)
             rates = _input_rates(physics, segment, s, t1 - t0)
             return np.array([*physics.derivatives(p, u, physics.State(*mech), rates),
@@ -140,6 +141,21 @@ def simulate(scenario: Scenario, variant: Variant,
     per_joint = {joint.name: dict(zip(ENERGIES, row.tolist(), strict=True))
                  for joint, row in zip(joints, energies, strict=True)}
     return ReferenceResult(run_metrics(per_joint), np.array(times), np.array(positions).T)
+
+
+def drive_rates(m: MotorParameters, g: PIDGains, drive: Sequence[float], error: float,
+                speed: float) -> tuple[float, list[float], DriveEnergies]:
+    """A joint's drive as one ODE: its effort [N m or N], the rates of its DRIVE_STATES
+    (armature current i [A], the PID's integral [V] and its filtered error [rad or m]) and
+    the rates of its energies (`drive_powers`) [W], for the drive's state, the tracking
+    error (reference less position) and the joint's speed [rad/s or m/s]."""
+    current, integral, filtered = drive
+    voltage = g.Kp * error + integral + g.Kd / g.T_f * (error - filtered)
+    voltage = min(max(voltage, -m.V_supply), m.V_supply)
+    effort = m.torque_per_amp * current
+    return (effort, [armature_rate(m, voltage, current, speed), g.Ki * error,
+                     (error - filtered) / g.T_f],
+            drive_powers(m, voltage, current, effort, speed))
 
 
 def _input_rates(physics: ModuleType, segment: dict[str, tuple], s: float,

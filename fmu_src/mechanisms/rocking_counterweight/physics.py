@@ -60,7 +60,15 @@ from typing import Any, NamedTuple
 
 from fmu_src import ledger
 from fmu_src.integration import advance_arm, kept_outputs, ledger_accuracy
-from fmu_src.mechanism import input_variables, output_variables, variable
+from fmu_src.mechanism import (
+    input_variables,
+    no_event_indicators,
+    no_event_update,
+    no_mode,
+    output_variables,
+    state_variables,
+    variable,
+)
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from fmu_src.mechanisms.rocking_counterweight.statics import (
     HALF_PI,
@@ -316,6 +324,7 @@ def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
 switch_inputs = ledger.payload_switch(inertia)
 
 
+
 class Outputs(NamedTuple):
     """Observable quantities (README.md; SI units)."""
 
@@ -361,3 +370,10 @@ OUTPUT_VARIABLES = output_variables(
 
 
 outputs = kept_outputs(ledger_terms)
+
+
+# Model Exchange: one smooth regime, no state events (a payload changes in event mode)
+STATE_VARIABLES = state_variables(State, Outputs)   # every state is an output
+EVENT_INDICATORS = ()
+mode, event_indicators, event_update = no_mode, no_event_indicators, no_event_update
+state_nominals = ledger.arm_state_nominals
