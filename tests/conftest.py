@@ -3,9 +3,12 @@ regression checks against the committed results."""
 
 from __future__ import annotations
 
+import contextlib
+import sys
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -31,6 +34,14 @@ SRB = "SelfRegulatingBalancer"
 def srb_fmu() -> Path:
     """The built SelfRegulatingBalancer FMU (rebuilt if its sources changed)."""
     return fmu_build.fmu_path(SRB)
+
+
+def bundled(module: str) -> list[ModuleType]:
+    """The modules of this dotted name (`SelfRegulatingBalancer`, `fmu_src.integration`) that
+    the FMUs opened in this process run: the runtime imports each FMU's bundle as a package
+    _fmu_bundle_<digest of its files> (docs/build.md), one per content."""
+    return [found for name, found in list(sys.modules.items())
+            if name.startswith("_fmu_bundle_") and name.partition(".")[2] == module]
 
 
 def open_fmu(path: Path, parameters: Mapping[str, float | bool | str] | None = None,
@@ -107,18 +118,50 @@ def refusal(message: str, function: str) -> str:
     return words
 
 
+def serialized_state(fmu: CoSimFMU) -> tuple[bytes, bytes, bytes]:
+    """A serialised FMU state of the instance now, in its three parts: the runtime's line
+    naming the FMU ("pythonfmu state of FMU <GUID>"), its line of the state machine state and
+    time, and the slave's bytes (fmu_src/runtime/fmi2_runtime.c)."""
+    state = fmu.slave.getFMUstate()
+    try:
+        serialized = bytes(fmu.slave.serializeFMUstate(state))
+    finally:
+        fmu.slave.freeFMUstate(state)
+    header, machine, body = serialized.split(b"\n", 2)
+    assert header == b"pythonfmu state of FMU " + fmu.model_description.guid.encode()
+    return header, machine, body
+
+
+@contextlib.contextmanager
+def resumed(fmu: CoSimFMU) -> Iterator[None]:
+    """Around a call that must be refused (fmi2Discard or fmi2Error): the slave's state must
+    be the same bytes after it, and the FMU state taken before it is set again after, as FMI
+    2.0 asks of a host that goes on after such a call (the instance is in the stepFailed or
+    error state until then)."""
+    taken = fmu.slave.getFMUstate()
+    try:
+        before = serialized_state(fmu)[2]
+        yield
+        assert serialized_state(fmu)[2] == before  # the refused call changed nothing
+        fmu.slave.setFMUstate(taken)
+    finally:
+        fmu.slave.freeFMUstate(taken)
+
+
 def refused_set(fmu: CoSimFMU, values: Mapping[str, float | bool | str],
                 function: str = "fmi2SetReal") -> str:
-    """Set variables that must be refused: fmi2Error (the instance usable), one Error message
-    without a traceback, the values as they were; the slave's words in that message."""
+    """Set variables of an initialised instance that must be refused: fmi2Error, one Error
+    message without a traceback, the values and the slave's state as they were (`resumed`,
+    which lets the run go on); the slave's words in that message."""
     logged = len(fmu.messages)
     before = fmu.get(values)
-    with pytest.raises(FMICallException) as failure:
-        fmu.set(values)
-    assert failure.value.status == FMI_ERROR and not fmu.fatal
-    (message,) = [m.message for m in fmu.messages[logged:] if m.status == "Error"]
-    assert "Traceback" not in message
-    assert fmu.get(values) == before
+    with resumed(fmu):
+        with pytest.raises(FMICallException) as failure:
+            fmu.set(values)
+        assert failure.value.status == FMI_ERROR and not fmu.fatal
+        (message,) = [m.message for m in fmu.messages[logged:] if m.status == "Error"]
+        assert "Traceback" not in message
+        assert fmu.get(values) == before
     return refusal(message, function)
 
 
@@ -184,13 +227,15 @@ STEP_TIME_LIMIT = 5.0
 
 def refused_step(fmu: CoSimFMU, time_point: float = 0.0, step_size: float = 1e-3) -> str:
     """Take a step that must be refused with Discard within STEP_TIME_LIMIT, logging one
-    Error message without a traceback; that message."""
+    Error message without a traceback and leaving the slave's state as it was (`resumed`,
+    which lets the run go on); that message."""
     logged = len(fmu.messages)
-    start = time.perf_counter()
-    with pytest.raises(FMICallException) as failure:
-        fmu.step(time_point, step_size)
-    assert time.perf_counter() - start < STEP_TIME_LIMIT
-    assert failure.value.status == FMI_DISCARD
+    with resumed(fmu):
+        start = time.perf_counter()
+        with pytest.raises(FMICallException) as failure:
+            fmu.step(time_point, step_size)
+        assert time.perf_counter() - start < STEP_TIME_LIMIT
+        assert failure.value.status == FMI_DISCARD
     new = [m.message for m in fmu.messages[logged:] if m.status == "Error"]
     assert len(new) == 1
     assert "Traceback" not in new[0]

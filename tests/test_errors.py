@@ -23,7 +23,7 @@ from fmu_src.parameters import DomainError
 from harness.errors import UserError
 from harness.fmu.loader import CoSimFMU, FMICallException, FMUCallError, LogMessage
 from harness.sweeps.paths import PathError, RefusedValueError
-from tests.conftest import FMI_ERROR, SRB, open_fmu
+from tests.conftest import FMI_ERROR, SRB, bundled, open_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -115,7 +115,8 @@ def terminate_refused(srb_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     def terminate(_slave: object) -> None:
         raise RuntimeError("could not flush the log")
 
-    monkeypatch.setattr(sys.modules[SRB].SelfRegulatingBalancer, "terminate", terminate)
+    for module in bundled(SRB):
+        monkeypatch.setattr(module.SelfRegulatingBalancer, "terminate", terminate)
 
 
 def test_close_raises_a_refused_terminate_after_freeing(srb_fmu: Path,

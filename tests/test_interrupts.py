@@ -15,7 +15,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -25,7 +25,7 @@ from harness import interrupts
 from harness.errors import UserError
 from harness.run import cosim, results
 from harness.run import scenario_files as scenarios
-from tests.conftest import SRB
+from tests.conftest import SRB, bundled
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -83,17 +83,18 @@ def slave_raising_sigint(srb_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None
     do_step, in the slave's own Python code (as a Ctrl-C mostly lands: there the time goes)."""
     from harness.fmu.loader import CoSimFMU
     CoSimFMU(srb_fmu).close()  # the slave module imported into this interpreter
-    slave_class = sys.modules[SRB].SelfRegulatingBalancer
-    do_step = slave_class.do_step
     calls = []
+    for module in bundled(SRB):
+        slave_class = module.SelfRegulatingBalancer
 
-    def interrupted_step(self: object, *args: object) -> bool:
-        calls.append(None)
-        if len(calls) == 200:
-            signal.raise_signal(signal.SIGINT)
-        return do_step(self, *args)
+        def interrupted_step(self: object, *args: object,
+                             do_step: Callable = slave_class.do_step) -> bool:
+            calls.append(None)
+            if len(calls) == 200:
+                signal.raise_signal(signal.SIGINT)
+            return do_step(self, *args)
 
-    monkeypatch.setattr(slave_class, "do_step", interrupted_step)
+        monkeypatch.setattr(slave_class, "do_step", interrupted_step)
 
 
 def test_a_sigint_inside_the_fmu_is_the_interrupt_not_an_fmu_failure(

@@ -14,11 +14,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import failed_initialisation, open_fmu, refused_set, refused_step, run, warnings
+from conftest import (
+    FMI_ERROR,
+    errors,
+    failed_initialisation,
+    open_fmu,
+    refusal,
+    refused_set,
+    refused_step,
+    run,
+    warnings,
+)
 from fmpy import read_model_description
 
 from harness import cli, registry
-from harness.fmu.loader import CoSimFMU
+from harness.fmu.loader import CoSimFMU, FMICallException
 
 # Paper, Table 1
 M, C, W, A, B0, R_CW, R_WIRE, K, G = 3.0, 0.2, 0.35, 0.1, 0.06, 0.035, 0.01, 981.0, 9.81
@@ -387,15 +397,24 @@ def test_bad_input_is_refused_when_set(srb_fmu: Path, inputs: dict[str, float],
 
 
 def test_bad_initial_input_fails_at_set(srb_fmu: Path) -> None:
-    """An input start value set before initialisation is checked the same way: refused when
-    set, and initialisation then uses the previous (default) value."""
+    """An input start value set in initialisation is checked the same way: refused when set
+    (fmi2Error naming it), the value as it was. The instance is then in the error state, as
+    after any fmi2Error (FMI 2.0): initialisation is refused too, and after fmi2Reset a new
+    one runs with the default value."""
     fmu = CoSimFMU(srb_fmu)
     try:
         fmu.slave.setupExperiment(startTime=0.0)
         fmu.slave.enterInitializationMode()
-        assert refused_set(fmu, {"payload": -1.0}) == (
+        with pytest.raises(FMICallException) as failure:
+            fmu.set({"payload": -1.0})
+        assert failure.value.status == FMI_ERROR
+        assert refusal(errors(fmu)[-1], "fmi2SetReal") == (
             "input payload = -1.0 kg is outside [0.0, inf]")
-        fmu.slave.exitInitializationMode()
+        assert fmu.get(["payload"]) == {"payload": 0.0}
+        with pytest.raises(FMICallException):
+            fmu.slave.exitInitializationMode()
+        fmu.reset()
+        fmu.initialize()
         assert fmu.get(["payload"]) == {"payload": 0.0}
     finally:
         fmu.close()

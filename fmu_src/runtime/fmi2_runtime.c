@@ -8,8 +8,9 @@
  *   named by BALANCER_FMU_LIBPYTHON if set (and only that one), else the one the FMU was built
  *   with (resources/python.txt), else a libpython 3.8 or later the dynamic linker finds, and
  *   starts it with Py_InitializeFromConfig, which returns a status instead of ending the
- *   process. For the recorded library it sets PYTHONHOME to the recorded prefix when the host
- *   has none. A failure gives NULL and a message naming what was tried, PYTHONHOME included.
+ *   process. For the recorded library it passes the recorded prefix as the home (PyConfig, not
+ *   the environment) when the host has no PYTHONHOME. A failure gives NULL and a message
+ *   naming what was tried, PYTHONHOME included. It never changes the host's environment.
  * - An interpreter it started stays running: nothing calls Py_Finalize, so no library
  *   destructor touches Python. It installs no signal handlers and leaves the host's locale
  *   environment alone.
@@ -23,14 +24,18 @@
  * Status:
  * - a Python exception gives fmi2Error and one log line "<function>: <type>: <message>";
  *   MemoryError and SystemExit give fmi2Fatal; do_step returning False gives fmi2Discard;
+ * - the FMI 2.0 state machine (fmi2_states.h, the standard's tables) decides which calls an
+ *   instance takes: any other is refused with fmi2Error and a message, and after fmi2Error
+ *   the instance is in the error state (reads, FMU states, fmi2Reset and fmi2FreeInstance
+ *   only), after fmi2Discard of a step in stepFailed; fmi2SetFMUstate takes it back to the
+ *   state machine state and time its FMU state was taken in;
+ * - fmi2DoStep's currentCommunicationPoint must be the FMU's time (the start time, or where
+ *   the last step ended) within TIME_TOLERANCE: otherwise fmi2Error;
  * - after fmi2Fatal every call returns fmi2Fatal without entering Python (fmi2FreeInstance
  *   still releases the instance);
- * - refused without entering Python, with a message: Model Exchange for a slave without it,
- *   a GUID other than the FMU's, a NULL name, GUID or resource location, an unusable
- *   resource location, a call in a phase that does not allow it (stepping, setting or
- *   initialising after fmi2Terminate) and a
- *   call of the other interface than the instance's (fmi2DoStep on a Model Exchange
- *   instance, fmi2GetDerivatives on a Co-Simulation one).
+ * - refused without entering Python, with a message: Model Exchange of a slave without it, a
+ *   GUID other than the FMU's, a NULL name, GUID or resource location, an unusable resource
+ *   location.
  *
  * Logging: the slave's log queue is passed on after every call, and the runtime's own
  * messages with it; each literal % reaches the host's logger as %% (its message is a printf
@@ -43,6 +48,7 @@
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <errno.h>
+#include <link.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -57,15 +63,24 @@
 #include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
+#include <math.h>
 #include "fmi2Functions.h"
+#include "fmi2_states.h"
 
 #define OVERRIDE_VARIABLE "BALANCER_FMU_LIBPYTHON"
 #define RECORD_FILE "python.txt"   /* in the FMU's resources: key=value lines */
 #define SLAVE_MODULE_FILE "slavemodule.txt"
-#define STATE_HEADER "pythonfmu state of FMU "  /* + GUID + "\n", before the slave's bytes */
+#define STATE_HEADER "pythonfmu state of FMU "  /* + GUID + "\n": a serialised state's start */
+/* after the state machine state: the time's bits, written and read */
+#define TIME_BITS " at time 0x%016llx (IEEE 754 bits)"
+#define READ_TIME_BITS " at time 0x%16llx (IEEE 754 bits)%n"
 #define MESSAGE_SIZE 8192
 #define PATH_SIZE 4096
 #define CONFIG_SIZE 16384  /* bytes reserved for a PyConfig: larger than any CPython's */
+/* fmi2DoStep's currentCommunicationPoint may differ from the FMU's time by this much, relative
+ * to the larger of that time and the step size */
+#define TIME_TOLERANCE 1e-9
+#define MAX_LOGGER_DEPTH 8  /* nested calls of the host's logger (through calls it makes) */
 
 /* sonames the dynamic linker may find when the recorded library is absent, newest first */
 static const char *const FALLBACK_SONAMES[] = {
@@ -89,6 +104,7 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(PyStatus, Py_PreInitialize, (const void *)) \
     X(void, PyConfig_InitPythonConfig, (void *)) \
     X(PyStatus, Py_InitializeFromConfig, (const void *)) \
+    X(PyStatus, PyConfig_SetBytesString, (void *, void *, const char *)) \
     X(void, PyConfig_Clear, (void *)) \
     X(int, PyStatus_Exception, (PyStatus)) \
     X(void *, PyEval_SaveThread, (void)) \
@@ -98,8 +114,15 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(PyGILState_STATE, PyGILState_Ensure, (void)) \
     X(void, PyGILState_Release, (PyGILState_STATE)) \
     X(void *, PyGILState_GetThisThreadState, (void)) \
+    X(int, PyGILState_Check, (void)) \
+    X(void, PyOS_BeforeFork, (void)) \
+    X(void, PyOS_AfterFork_Parent, (void)) \
+    X(void, PyOS_AfterFork_Child, (void)) \
     X(void, Py_DecRef, (PyObject *)) \
     X(PyObject *, PyImport_ImportModule, (const char *)) \
+    X(PyObject *, PyImport_AddModule, (const char *)) \
+    X(PyObject *, PyModule_GetDict, (PyObject *)) \
+    X(void, Py_IncRef, (PyObject *)) \
     X(PyObject *, PyObject_GetAttrString, (PyObject *, const char *)) \
     X(PyObject *, PyObject_CallFunctionObjArgs, (PyObject *, ...)) \
     X(PyObject *, PyObject_Str, (PyObject *)) \
@@ -117,8 +140,10 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(PyObject *, PyList_New, (Py_ssize_t)) \
     X(int, PyList_SetItem, (PyObject *, Py_ssize_t, PyObject *)) \
     X(Py_ssize_t, PySequence_Size, (PyObject *)) \
+    X(Py_ssize_t, PyObject_Size, (PyObject *)) \
     X(PyObject *, PySequence_GetItem, (PyObject *, Py_ssize_t)) \
     X(int, PySequence_DelSlice, (PyObject *, Py_ssize_t, Py_ssize_t)) \
+    X(PyObject *, PySequence_GetSlice, (PyObject *, Py_ssize_t, Py_ssize_t)) \
     X(PyObject *, PyBytes_FromStringAndSize, (const char *, Py_ssize_t)) \
     X(int, PyBytes_AsStringAndSize, (PyObject *, char **, Py_ssize_t *)) \
     X(PyObject *, PyErr_Occurred, (void)) \
@@ -140,19 +165,115 @@ static struct {
 } py;
 #undef DECLARE
 
-/* The Python side of the runtime: find the slave class, make a slave. Run once per load of
- * this library into a private namespace. */
+/* The Python side of the runtime: find the slave class, make a slave. Its module lives once
+ * per process, in sys.modules under HELPER_MODULE (named by the digest of this text), shared
+ * by every FMU and every load of this library.
+ *
+ * Each FMU's Python code is imported from its own resources folder as the package
+ * _fmu_bundle_<digest of the bundle's Python files> (a meta path finder bound to that folder
+ * runs those modules with an __import__ that maps the bundle's top-level names, fmu_src,
+ * pythonfmu and the slave module, into that package). So an FMU runs the code it carries,
+ * whatever else the process imported: another FMU, another version of the same one, or a
+ * host's own fmu_src. FMUs of the same content share their modules. */
 static const char HELPER_SOURCE[] =
-    "import importlib, sys\n"
+    "import builtins\n"
+    "import hashlib\n"
+    "import importlib\n"
+    "import importlib.abc\n"
+    "import importlib.machinery\n"
+    "import os\n"
+    "import sys\n"
+    "import types\n"
+    "\n"
+    "# Each bundle's code is imported as the package PREFIX + <digest of its Python files>:\n"
+    "# FMUs of other content never share a module, FMUs of the same content share them all.\n"
+    "PREFIX = '_fmu_bundle_'\n"
+    "\n"
+    "\n"
+    "def _digest(resources):\n"
+    "    '''SHA-256 (32 hex digits) of the Python files below the resources folder: their paths\n"
+    "    and bytes, in sorted order (compiled caches left out).'''\n"
+    "    sha = hashlib.sha256()\n"
+    "    for folder, folders, files in os.walk(resources):\n"
+    "        folders[:] = sorted(name for name in folders if name != '__pycache__')\n"
+    "        for name in sorted(files):\n"
+    "            if name.endswith('.py'):\n"
+    "                path = os.path.join(folder, name)\n"
+    "                with open(path, 'rb') as file:\n"
+    "                    data = file.read()\n"
+    "                for part in (os.fsencode(os.path.relpath(path, resources)), data):\n"
+    "                    sha.update(len(part).to_bytes(8, 'big'))\n"
+    "                    sha.update(part)\n"
+    "    return sha.hexdigest()[:32]\n"
+    "\n"
+    "\n"
+    "def _bundle_import(package, tops):\n"
+    "    '''An __import__ for the modules of one bundle: an absolute import of one of its\n"
+    "    top-level names (fmu_src, pythonfmu, the slave module) is one of the bundle's package.'''\n"
+    "    real = builtins.__import__\n"
+    "\n"
+    "    def bundle_import(name, globals=None, locals=None, fromlist=(), level=0):\n"
+    "        top = name.partition('.')[0]\n"
+    "        if level == 0 and top in tops:\n"
+    "            module = real(package + '.' + name, globals, locals, fromlist, 0)\n"
+    "            return module if fromlist else sys.modules[package + '.' + top]\n"
+    "        return real(name, globals, locals, fromlist, level)\n"
+    "    return bundle_import\n"
+    "\n"
+    "\n"
+    "class _BundleLoader(importlib.machinery.SourceFileLoader):\n"
+    "    '''Runs a module of a bundle with the bundle's builtins (its __import__).'''\n"
+    "\n"
+    "    def exec_module(self, module):\n"
+    "        package = sys.modules[module.__name__.partition('.')[0]]\n"
+    "        module.__dict__['__builtins__'] = package._bundle_builtins\n"
+    "        super().exec_module(module)\n"
+    "\n"
+    "\n"
+    "class _BundleFinder(importlib.abc.MetaPathFinder):\n"
+    "    '''Finds the modules of the bundles' packages in their resources folders.'''\n"
+    "\n"
+    "    def find_spec(self, name, path, target=None):\n"
+    "        if not name.startswith(PREFIX) or '.' not in name:\n"
+    "            return None\n"
+    "        spec = importlib.machinery.PathFinder.find_spec(name, path)\n"
+    "        if spec is not None and type(spec.loader) is importlib.machinery.SourceFileLoader:\n"
+    "            spec.loader = _BundleLoader(spec.loader.name, spec.loader.path)\n"
+    "        return spec\n"
+    "\n"
+    "\n"
+    "def _package(resources):\n"
+    "    '''The package of the bundle in the resources folder, made on first use.'''\n"
+    "    name = PREFIX + _digest(resources)\n"
+    "    package = sys.modules.get(name)\n"
+    "    if package is not None:\n"
+    "        package.__path__[:] = [resources]  # earlier copies of this content may be deleted\n"
+    "        return package\n"
+    "    package = types.ModuleType(name, 'The Python code of the FMUs whose resources hold '\n"
+    "                                     'these files: ' + resources)\n"
+    "    package.__path__ = [resources]\n"
+    "    package.__spec__ = importlib.machinery.ModuleSpec(name, None, is_package=True)\n"
+    "    package.__spec__.submodule_search_locations = package.__path__\n"
+    "    tops = frozenset(entry[:-3] if entry.endswith('.py') else entry\n"
+    "                     for entry in os.listdir(resources)\n"
+    "                     if entry.endswith('.py') or (entry != '__pycache__' and os.path.isdir(\n"
+    "                         os.path.join(resources, entry))))\n"
+    "    package._bundle_builtins = dict(vars(builtins), __import__=_bundle_import(name, tops))\n"
+    "    if not any(type(finder).__name__ == '_BundleFinder' for finder in sys.meta_path):\n"
+    "        sys.meta_path.insert(0, _BundleFinder())\n"
+    "    return sys.modules.setdefault(name, package)  # another thread may have made it\n"
+    "\n"
+    "\n"
     "def _depth(cls):\n"
     "    names = [base.__name__ for base in getattr(cls, '__mro__', ())]\n"
     "    return names.index('Fmi2Slave') if 'Fmi2Slave' in names[1:] else -1\n"
+    "\n"
+    "\n"
     "def slave_class(resources, module_name):\n"
-    "    '''The Fmi2Slave subclass of the slave module (pythonfmu's rule: of the concrete\n"
-    "    classes the module defines, the one deepest below Fmi2Slave).'''\n"
-    "    if module_name not in sys.modules and resources not in sys.path:\n"
-    "        sys.path.insert(0, resources)\n"
-    "    module = importlib.import_module(module_name)\n"
+    "    '''The Fmi2Slave subclass of the slave module of the FMU whose resources folder this is,\n"
+    "    imported from it (pythonfmu's rule: of the concrete classes the module defines, the one\n"
+    "    deepest below Fmi2Slave).'''\n"
+    "    module = importlib.import_module(_package(resources).__name__ + '.' + module_name)\n"
     "    members = [m for m in vars(module).values() if isinstance(m, type) and _depth(m) > 0\n"
     "               and not getattr(m, '__abstractmethods__', None)]\n"
     "    own = [m for m in members if m.__module__ == module.__name__] or members\n"
@@ -160,6 +281,8 @@ static const char HELPER_SOURCE[] =
     "        raise TypeError(f'module {module_name} ({module.__file__}) defines no concrete '\n"
     "                        'subclass of pythonfmu.Fmi2Slave')\n"
     "    return max(own, key=_depth)\n"
+    "\n"
+    "\n"
     "def new_slave(cls, instance_name, resources, visible):\n"
     "    return cls(instance_name=instance_name, resources=resources, visible=bool(visible))\n";
 
@@ -186,6 +309,7 @@ typedef struct {
     int logging_on;
     char **categories;  /* NULL: every category */
     size_t category_count;
+    int depth;          /* calls of the logger under way: a logger may call the FMU again */
 } Sink;
 
 static int category_enabled(const Sink *sink, const char *category) {
@@ -200,10 +324,11 @@ static const char *const STATUS_CATEGORIES[] = {"logAll", "logStatusWarning",
                                                "logStatusFatal", "logAll"};
 
 /* Pass text to the host's logger as a printf format that prints it as it is: each % as %%,
- * each line break as a space (one message, one line). */
-static void log_text(const Sink *sink, fmi2Status status, const char *category,
-                     const char *text) {
-    if (!sink->callbacks.logger) return;
+ * each line break as a space (one message, one line). A logger that calls the FMU, whose
+ * call logs, and so on, is cut off MAX_LOGGER_DEPTH calls deep (the deeper messages are
+ * dropped) instead of running out of stack. */
+static void log_text(Sink *sink, fmi2Status status, const char *category, const char *text) {
+    if (!sink->callbacks.logger || sink->depth >= MAX_LOGGER_DEPTH) return;
     if (status < fmi2Error && !(sink->logging_on && category_enabled(sink, category))) return;
     size_t length = strlen(text), percents = 0;
     for (size_t i = 0; i < length; i++) percents += text[i] == '%';
@@ -216,12 +341,14 @@ static void log_text(const Sink *sink, fmi2Status status, const char *category,
         *out++ = (ch == '\n' || ch == '\r') ? ' ' : ch;
     }
     *out = '\0';
+    sink->depth++;
     sink->callbacks.logger(sink->callbacks.componentEnvironment, sink->name, status,
                            category ? category : STATUS_CATEGORIES[status], escaped);
+    sink->depth--;
     free(escaped);
 }
 
-static void log_format(const Sink *sink, fmi2Status status, const char *format, ...) {
+static void log_format(Sink *sink, fmi2Status status, const char *format, ...) {
     Message m = {{0}, 0};
     va_list args;
     va_start(args, format);
@@ -290,17 +417,27 @@ static void read_record(void) {
     fclose(file);
 }
 
-/* A Python host, or a libpython loaded before (by this FMU or another). */
-static int python_in_process(void) { return dlsym(RTLD_DEFAULT, "Py_IsInitialized") != NULL; }
+/* ---- the Python of the process --------------------------------------------------------- */
+static void *python_library;  /* the handle the Python C API is resolved from */
+static int host_python;       /* that Python was running before this runtime looked */
+
+/* The CPython major and minor version of a library's Py_GetVersion, or 0. */
+static int python_version(void *library, int *minor) {
+    const char *(*version)(void) = (const char *(*)(void))dlsym(library, "Py_GetVersion");
+    int major = 0;
+    *minor = 0;
+    if (!version || sscanf(version(), "%d.%d", &major, minor) != 2) return 0;
+    return major;
+}
 
 /* dlopen a libpython (RTLD_GLOBAL), a regular file or a soname, and check it is CPython 3.8
- * or later; on failure add why to the message and return 0. */
-static int open_libpython(const char *path, Message *why) {
+ * or later; its handle, or NULL after adding why to the message. */
+static void *open_libpython(const char *path, Message *why) {
     if (strchr(path, '/') && !regular_file(path)) {
         struct stat info;
         append(why, "\n  %s: %s", path, stat(path, &info) != 0 ? "no such file"
                                           : "not a regular file (not opened)");
-        return 0;
+        return NULL;
     }
     void *handle = dlopen(path, RTLD_NOW | RTLD_GLOBAL);
     if (!handle) {
@@ -309,42 +446,145 @@ static int open_libpython(const char *path, Message *why) {
         if (strncmp(error, path, length) == 0 && strncmp(error + length, ": ", 2) == 0)
             error += length + 2;
         append(why, "\n  %s: %s", path, error);
-        return 0;
+        return NULL;
     }
-    const char *(*version)(void) = (const char *(*)(void))dlsym(handle, "Py_GetVersion");
-    int major = 0, minor = 0;
-    if (!version || sscanf(version(), "%d.%d", &major, &minor) != 2 || major != 3 || minor < 8) {
+    int minor, major = python_version(handle, &minor);
+    if (major != 3 || minor < 8) {
+        const char *(*version)(void) = (const char *(*)(void))dlsym(handle, "Py_GetVersion");
         append(why, "\n  %s: not a CPython 3.8 or later library (%s)", path,
                version ? version() : "no Py_GetVersion");
         dlclose(handle);
-        return 0;
+        return NULL;
     }
-    return 1;
+    return handle;
 }
 
-/* What PYTHONHOME is for a Python this runtime starts, for messages. */
-static char home_note[PATH_SIZE + 128];
-static int host_python;  /* Python was in the process before this runtime looked */
+/* The objects mapped in the process (dl_iterate_phdr), as found: a name (empty for the
+ * program) and the address ranges of its loaded segments. */
+#define MAX_OBJECTS 1024
+#define MAX_SEGMENTS 8
+typedef struct {
+    char name[PATH_SIZE];
+    size_t segments;
+    uintptr_t start[MAX_SEGMENTS], end[MAX_SEGMENTS];
+} MappedObject;
 
-/* Load libpython as the header comment says; 0 with the paths tried in why on failure. */
-static int load_libpython(Message *why) {
-    if (python_in_process()) {
-        host_python = 1;
-        return 1;
+typedef struct {
+    MappedObject *objects;
+    size_t count;
+} MappedObjects;
+
+static int note_object(struct dl_phdr_info *info, size_t size, void *data) {
+    (void)size;
+    MappedObjects *found = data;
+    if (found->count == MAX_OBJECTS) return 1;
+    MappedObject *object = &found->objects[found->count++];
+    snprintf(object->name, sizeof object->name, "%s", info->dlpi_name ? info->dlpi_name : "");
+    object->segments = 0;
+    for (int i = 0; i < info->dlpi_phnum && object->segments < MAX_SEGMENTS; i++) {
+        if (info->dlpi_phdr[i].p_type != PT_LOAD) continue;
+        uintptr_t start = (uintptr_t)info->dlpi_addr + (uintptr_t)info->dlpi_phdr[i].p_vaddr;
+        object->start[object->segments] = start;
+        object->end[object->segments++] = start + (uintptr_t)info->dlpi_phdr[i].p_memsz;
     }
+    return 0;
+}
+
+static int holds(const MappedObject *object, const void *address) {
+    for (size_t i = 0; i < object->segments; i++)
+        if ((uintptr_t)address >= object->start[i] && (uintptr_t)address < object->end[i])
+            return 1;
+    return 0;
+}
+
+/* A CPython already in the process, however it came (the host's program, a libpython loaded
+ * RTLD_GLOBAL or RTLD_LOCAL by the host or a plugin, or by another FMU): every mapped object
+ * that defines Py_IsInitialized itself. The one to use: a running CPython 3.8 or later, else
+ * one not started yet. Its handle (made global if it was loaded RTLD_LOCAL, so that its
+ * extension modules find its symbols), or NULL: none there (*refused 0), or none usable
+ * (*refused 1, why in the message). */
+static void *mapped_python(Message *why, int *refused) {
+    MappedObjects found = {calloc(MAX_OBJECTS, sizeof(MappedObject)), 0};
+    void *chosen = NULL;
+    int chosen_running = 0, chosen_program = 0, pythons = 0;
+    char chosen_name[PATH_SIZE] = "", other[PATH_SIZE + 64] = "";
+    *refused = 0;
+    if (!found.objects) return NULL;
+    dl_iterate_phdr(note_object, &found);  /* the objects noted first: no dlopen under its lock */
+    for (size_t i = 0; i < found.count; i++) {
+        const char *name = found.objects[i].name[0] ? found.objects[i].name : NULL;
+        if (i > 0 && !name) continue;  /* the program is the first object; others have names */
+        void *handle = dlopen(name, RTLD_LAZY | RTLD_NOLOAD);
+        void *symbol = handle ? dlsym(handle, "Py_IsInitialized") : NULL;
+        if (!symbol || !holds(&found.objects[i], symbol)) {
+            if (handle) dlclose(handle);
+            continue;
+        }
+        pythons++;
+        int minor, major = python_version(handle, &minor);
+        int running = ((int (*)(void))symbol)();
+        const char *label = name ? name : "the host program";
+        if (major != 3 || minor < 8) {
+            snprintf(other, sizeof other, "%s (CPython %d.%d)", label, major, minor);
+            dlclose(handle);
+        } else if (!chosen || (running && !chosen_running)) {
+            if (chosen) dlclose(chosen);
+            chosen = handle;
+            chosen_running = running;
+            chosen_program = !name;
+            snprintf(chosen_name, sizeof chosen_name, "%s", label);
+        } else {
+            snprintf(other, sizeof other, "%s", label);
+            dlclose(handle);
+        }
+    }
+    free(found.objects);
+    if (!chosen && pythons) {
+        append(why, "a CPython older than 3.8 is already in this process, %s: the FMU needs "
+               "3.8 or later and loads no second interpreter beside it", other);
+        *refused = 1;
+        return NULL;
+    }
+    if (!chosen) return NULL;
+    void *symbol = dlsym(chosen, "Py_IsInitialized");
+    if (dlsym(RTLD_DEFAULT, "Py_IsInitialized") != symbol) {  /* loaded RTLD_LOCAL */
+        if (pythons > 1) {
+            append(why, "CPython %s is in this process but not visible to the libraries it "
+                   "loads (RTLD_LOCAL), and another one is there too, %s: the FMU will not "
+                   "make one of them visible beside the other", chosen_name, other);
+            dlclose(chosen);
+            *refused = 1;
+            return NULL;
+        }
+        if (!chosen_program) dlopen(chosen_name, RTLD_LAZY | RTLD_NOLOAD | RTLD_GLOBAL);
+    }
+    host_python = chosen_running;
+    return chosen;
+}
+
+/* What PYTHONHOME is for a Python this runtime starts, for messages; and the home it passes
+ * to that Python (PyConfig.home), if any. */
+static char home_note[PATH_SIZE + 128];
+static const char *python_home;
+
+/* Find or load the Python as the header comment says (python_library); 0 with the paths tried
+ * in why on failure (*refused 1 when a Python in the process rules the others out). */
+static int load_libpython(Message *why, int *refused) {
+    if ((python_library = mapped_python(why, refused))) return 1;
+    if (*refused) return 0;
     const char *override = getenv(OVERRIDE_VARIABLE);
     const char *home = getenv("PYTHONHOME");
     if (home) snprintf(home_note, sizeof home_note, "PYTHONHOME=%s (from the environment)", home);
     else snprintf(home_note, sizeof home_note, "PYTHONHOME unset");
     if (override && override[0]) {
         append(why, "no Python for this FMU; tried %s=%s:", OVERRIDE_VARIABLE, override);
-        return open_libpython(override, why);
+        return (python_library = open_libpython(override, why)) != NULL;
     }
     append(why, "no Python for this FMU; tried (%s unset):", OVERRIDE_VARIABLE);
     if (record.libpython[0]) {
-        if (open_libpython(record.libpython, why)) {
+        if ((python_library = open_libpython(record.libpython, why))) {
             if (!home && record.prefix[0] && is_directory(record.prefix)) {
-                setenv("PYTHONHOME", record.prefix, 0);
+                python_home = record.prefix;  /* through PyConfig: the environment stays */
                 snprintf(home_note, sizeof home_note,
                          "PYTHONHOME=%s (the prefix recorded at build time)", record.prefix);
             }
@@ -354,22 +594,25 @@ static int load_libpython(Message *why) {
         append(why, "\n  resources/" RECORD_FILE ": no libpython recorded");
     }
     for (size_t i = 0; i < sizeof FALLBACK_SONAMES / sizeof *FALLBACK_SONAMES; i++)
-        if (open_libpython(FALLBACK_SONAMES[i], why)) return 1;
+        if ((python_library = open_libpython(FALLBACK_SONAMES[i], why))) return 1;
     return 0;
 }
 
+/* The Python C API from python_library: the CPython this runtime uses, whatever else is
+ * mapped in the process. */
 static int resolve_python_api(Message *why) {
+    void *library = python_library;
 #define RESOLVE(result, name, arguments) \
-    if (!(*(void **)&py.name = dlsym(RTLD_DEFAULT, #name))) { \
+    if (!(*(void **)&py.name = dlsym(library, #name))) { \
         append(why, "the Python C API function " #name " is not in this process"); return 0; }
     PYTHON_API(RESOLVE)
 #undef RESOLVE
-    *(void **)&py.IsFinalizing = dlsym(RTLD_DEFAULT, "Py_IsFinalizing");
-    if (!py.IsFinalizing) *(void **)&py.IsFinalizing = dlsym(RTLD_DEFAULT, "_Py_IsFinalizing");
-    py.None = (PyObject *)dlsym(RTLD_DEFAULT, "_Py_NoneStruct");
-    PyObject **memory = dlsym(RTLD_DEFAULT, "PyExc_MemoryError");
-    PyObject **exit = dlsym(RTLD_DEFAULT, "PyExc_SystemExit");
-    PyObject **interrupt = dlsym(RTLD_DEFAULT, "PyExc_KeyboardInterrupt");
+    *(void **)&py.IsFinalizing = dlsym(library, "Py_IsFinalizing");
+    if (!py.IsFinalizing) *(void **)&py.IsFinalizing = dlsym(library, "_Py_IsFinalizing");
+    py.None = (PyObject *)dlsym(library, "_Py_NoneStruct");
+    PyObject **memory = dlsym(library, "PyExc_MemoryError");
+    PyObject **exit = dlsym(library, "PyExc_SystemExit");
+    PyObject **interrupt = dlsym(library, "PyExc_KeyboardInterrupt");
     if (!py.None || !memory || !exit || !interrupt) {
         append(why, "the Python C API's None and exception types are not in this process");
         return 0;
@@ -398,6 +641,19 @@ static int failed_status(PyStatus status, const char *step, Message *why) {
  * ending the process. Its configuration is Python's usual one (PYTHONHOME, PYTHONPATH read
  * from the environment), less the C locale coercion (which would set LC_CTYPE in the host's
  * environment) and the signal handlers (the host keeps SIGINT). */
+/* offsetof(PyConfig, home) of each CPython 3.8 and later (x86_64) by minor version; 0 for
+ * a version not listed. tests/test_native_host.py checks them against the headers of every
+ * CPython installed. */
+static size_t config_home_offset(void) {
+    static const size_t OFFSETS[] = {[8] = 240, [9] = 240, [10] = 256, [11] = 280,
+                                     [12] = 288, [13] = 296};
+    int major = 0, minor = 0;
+    if (sscanf(py.Py_GetVersion(), "%d.%d", &major, &minor) != 2 || major != 3 || minor < 0 ||
+        (size_t)minor >= sizeof OFFSETS / sizeof *OFFSETS)
+        return 0;
+    return OFFSETS[minor];
+}
+
 static int start_python_now(Message *why) {
     if (py.Py_IsInitialized()) return 1;
     int pre[64] = {0};  /* a PyPreConfig: ints only, fewer than 16 in any CPython */
@@ -412,7 +668,16 @@ static int start_python_now(Message *why) {
     py.PyConfig_InitPythonConfig(config);
     if (config[0] == PY_CONFIG_INIT_PYTHON && config[4] == 1)
         config[4] = 0;  /* install_signal_handlers, the fifth int in every CPython 3.8+ */
-    PyStatus status = py.Py_InitializeFromConfig(config);
+    PyStatus status = {0, NULL, NULL, 0};
+    size_t home = python_home ? config_home_offset() : 0;
+    if (python_home && !home)  /* a CPython newer than this runtime: its built-in prefix */
+        snprintf(home_note, sizeof home_note, "PYTHONHOME unset (the recorded prefix %s not "
+                 "passed: the runtime does not know the PyConfig of CPython %.10s)",
+                 python_home, py.Py_GetVersion());
+    if (home)
+        status = py.PyConfig_SetBytesString(config, (void *)((char *)config + home),
+                                            python_home);
+    if (!py.PyStatus_Exception(status)) status = py.Py_InitializeFromConfig(config);
     py.PyConfig_Clear(config);
     free(config);
     if (failed_status(status, "initialisation", why)) return 0;
@@ -474,29 +739,97 @@ static void hold_thread_state(void) {
     }
 }
 
-static int make_helper(Message *why) {
+/* The helper's module: HELPER_MODULE_PREFIX and the FNV-1a digest of HELPER_SOURCE, so that
+ * runtimes of one source share it and others do not. */
+static void helper_module_name(char *name, size_t size) {
+    uint64_t hash = 14695981039346656037ull;
+    for (const char *ch = HELPER_SOURCE; *ch; ch++)
+        hash = (hash ^ (unsigned char)*ch) * 1099511628211ull;
+    snprintf(name, size, "_fmu_runtime_helper_%016llx", (unsigned long long)hash);
+}
+
+/* Find the helper's functions in its module, running HELPER_SOURCE there first if this is
+ * the first load in the process: one FMU at a time (HELPER_SOURCE releases the GIL while it
+ * imports, and a second run of it would replace the functions a first took). This load keeps
+ * a reference to each function (never released: see the header). */
+static int make_helper_now(Message *why) {
+    char name[64];
+    helper_module_name(name, sizeof name);
     PyGILState_STATE gil = py.PyGILState_Ensure();
-    PyObject *namespace = py.PyDict_New(), *builtins = py.PyImport_ImportModule("builtins");
-    PyObject *result = NULL;
-    if (namespace && builtins && py.PyDict_SetItemString(namespace, "__builtins__", builtins) == 0)
-        result = py.PyRun_StringFlags(HELPER_SOURCE, PY_FILE_INPUT, namespace, namespace, NULL);
-    if (result) {
-        /* borrowed from the namespace, which is kept (never released: see the header) */
+    PyObject *module = py.PyImport_AddModule(name);  /* borrowed: sys.modules holds it */
+    PyObject *namespace = module ? py.PyModule_GetDict(module) : NULL;
+    PyObject *builtins = NULL, *result = NULL;
+    int ready = namespace && py.PyDict_GetItemString(namespace, "new_slave");
+    if (namespace && !ready) {
+        builtins = py.PyImport_ImportModule("builtins");
+        if (builtins && py.PyDict_SetItemString(namespace, "__builtins__", builtins) == 0)
+            result = py.PyRun_StringFlags(HELPER_SOURCE, PY_FILE_INPUT, namespace, namespace,
+                                          NULL);
+        ready = result != NULL;
+    }
+    if (ready) {
         helper_slave_class = py.PyDict_GetItemString(namespace, "slave_class");
         helper_new_slave = py.PyDict_GetItemString(namespace, "new_slave");
-        py.Py_DecRef(result);
-    } else {
-        py.PyErr_Clear();
-        if (namespace) py.Py_DecRef(namespace);
-        namespace = NULL;
+        if (helper_slave_class) py.Py_IncRef(helper_slave_class);
+        if (helper_new_slave) py.Py_IncRef(helper_new_slave);
     }
+    py.PyErr_Clear();
+    if (result) py.Py_DecRef(result);
     if (builtins) py.Py_DecRef(builtins);
     py.PyGILState_Release(gil);
-    if (!namespace || !helper_slave_class || !helper_new_slave) {
+    if (!helper_slave_class || !helper_new_slave) {
         append(why, "the runtime's Python helper did not compile");
         return 0;
     }
     return 1;
+}
+
+static int make_helper(Message *why) {
+    int lock = lock_process();
+    int made = make_helper_now(why);
+    if (lock >= 0) close(lock);
+    return made;
+}
+
+/* ---- fork ------------------------------------------------------------------------------- */
+/* A host thread may fork while another is inside an FMU call, holding the GIL: the child would
+ * wait for ever on a GIL no thread of its own holds. Around every fork of the process, the
+ * forking thread takes the GIL first (waiting for the call under way to let go of it) and
+ * readies Python for the fork (PyOS_BeforeFork); parent and child go on from a consistent
+ * interpreter (PyOS_AfterFork_Parent/_Child) and release the GIL. A fork from Python code
+ * (os.fork) holds the GIL already and does this itself. Each copy of the runtime (one per FMU)
+ * registers the handlers; the first to run in a fork acts for all. */
+static int fork_prepared;  /* this copy took the GIL for the fork under way */
+/* Its address names this copy's fork handlers to glibc (__register_atfork), which forgets them
+ * when the library is unloaded (__cxa_finalize, called from the library's destructor): a fork
+ * after that must not call into unmapped code. (pthread_atfork, as linked for glibc 2.17, keeps
+ * them for good.) */
+static char fork_handlers;
+static int fork_handlers_registered;
+extern int __register_atfork(void (*)(void), void (*)(void), void (*)(void), void *);
+extern void __cxa_finalize(void *);
+
+static void before_fork(void) {
+    fork_prepared = 0;
+    if (!python_usable() || py.PyGILState_Check()) return;
+    hold_thread_state();
+    py.PyEval_RestoreThread(py.PyGILState_GetThisThreadState());
+    py.PyOS_BeforeFork();
+    fork_prepared = 1;
+}
+
+static void after_fork_in_parent(void) {
+    if (!fork_prepared) return;
+    fork_prepared = 0;
+    py.PyOS_AfterFork_Parent();
+    py.PyEval_SaveThread();
+}
+
+static void after_fork_in_child(void) {
+    if (!fork_prepared) return;
+    fork_prepared = 0;
+    py.PyOS_AfterFork_Child();
+    py.PyEval_SaveThread();
 }
 
 /* Make loaded true, or write why not. */
@@ -504,13 +837,19 @@ static int load(Message *why) {
     pthread_mutex_lock(&load_lock);
     if (!loaded && !load_failure.length) {
         Message attempt = {{0}, 0};
-        if (!load_libpython(&attempt))
-            append(&attempt, "\nThis FMU runs its model in CPython 3.8 or later: set %s to the "
-                             "path of a libpython3.X.so.1.0 shared library.", OVERRIDE_VARIABLE);
-        else if (resolve_python_api(&attempt) && start_python(&attempt)) {
+        int refused = 0;
+        if (!load_libpython(&attempt, &refused)) {
+            if (!refused)
+                append(&attempt, "\nThis FMU runs its model in CPython 3.8 or later: set %s to "
+                       "the path of a libpython3.X.so.1.0 shared library.", OVERRIDE_VARIABLE);
+        } else if (resolve_python_api(&attempt) && start_python(&attempt)) {
             loaded = 1;
             if (!make_helper(&attempt)) loaded = 0;
-            else thread_key_made = pthread_key_create(&thread_key, release_thread_state) == 0;
+            else {
+                thread_key_made = pthread_key_create(&thread_key, release_thread_state) == 0;
+                fork_handlers_registered = __register_atfork(
+                    before_fork, after_fork_in_parent, after_fork_in_child, &fork_handlers) == 0;
+            }
         }
         /* a Python that did not start cannot be started again in this process */
         if (!loaded && py.Py_IsInitialized) load_failure = attempt;
@@ -523,9 +862,10 @@ static int load(Message *why) {
     return ok;
 }
 
-/* A thread-exit destructor must not run once this library is unloaded. */
+/* A thread-exit destructor or a fork handler must not run once this library is unloaded. */
 __attribute__((destructor)) static void unload(void) {
     if (thread_key_made) pthread_key_delete(thread_key);
+    if (fork_handlers_registered) __cxa_finalize(&fork_handlers);
 }
 
 /* ---- resource location ---------------------------------------------------------------- */
@@ -634,16 +974,6 @@ static const char *const ME_METHOD_NAMES[ME_METHOD_COUNT] = {
     "me_get_derivatives", "me_get_event_indicators", "me_enter_event_mode",
     "me_new_discrete_states", "me_enter_continuous_time_mode", "me_completed_integrator_step"};
 
-/* STEPPING is Co-Simulation's slaveInitialized; EVENT_MODE and CONTINUOUS_TIME_MODE are
- * Model Exchange's */
-enum Phase {
-    INSTANTIATED, INITIALIZATION_MODE, STEPPING, TERMINATED, EVENT_MODE, CONTINUOUS_TIME_MODE,
-    PHASE_COUNT
-};
-static const char *const PHASE_NAMES[PHASE_COUNT] = {
-    "Instantiated", "Initialization Mode", "slaveInitialized", "Terminated", "Event Mode",
-    "Continuous-Time Mode"};
-
 #define INSTANCE_TAG 0x464d5532u  /* "FMU2" */
 #define STATE_TAG 0x53544154u     /* "STAT" */
 
@@ -651,22 +981,25 @@ typedef struct {
     unsigned tag;
     Sink sink;
     char *guid, *resources, *module;
-    int visible, fatal;
-    fmi2Type type;     /* the interface it was instantiated for */
-    enum Phase phase;
-    double last_successful_time;
+    int visible;
+    fmi2Type type;
+    Fmi2State state;              /* of the FMI 2.0 state machine (fmi2_states.h) */
+    double last_successful_time;  /* the FMU's time [s]: where the next step must start */
     PyObject *cls, *slave, *queue;
     PyObject *methods[METHOD_COUNT];
     PyObject *me_methods[ME_METHOD_COUNT];  /* a Model Exchange instance's */
     size_t state_count, indicator_count;     /* its nx and ni */
     PyObject **strings;  /* the UTF-8 bytes behind the last fmi2GetString's values */
     size_t string_count;
+    size_t variable_count;  /* the slave's variables: no call names more value references */
     char *failure;       /* the message of the current call's Python exception */
 } Instance;
 
 typedef struct {
     unsigned tag;
     char *guid;        /* of the FMU that made it */
+    Fmi2State taken_in;  /* the instance's state machine state and time when it was taken */
+    double time;
     PyObject *state;   /* the slave's state object */
 } State;
 
@@ -729,15 +1062,18 @@ static fmi2Status python_failure(Instance *in, const char *function) {
     return status;
 }
 
-/* Pass the slave's queued log messages on and empty its queue (the GIL held). */
+/* Pass the slave's queued log messages on (the GIL held): taken out of the queue first, so
+ * that a call the host's logger makes back into the FMU passes on only its own messages. */
 static void drain_log(Instance *in) {
     Py_ssize_t count = in->queue ? py.PySequence_Size(in->queue) : 0;
-    if (count <= 0) {
-        if (count < 0) py.PyErr_Clear();
+    PyObject *messages = count > 0 ? py.PySequence_GetSlice(in->queue, 0, count) : NULL;
+    if (messages && py.PySequence_DelSlice(in->queue, 0, count) != 0) release(&messages);
+    if (!messages) {
+        py.PyErr_Clear();
         return;
     }
     for (Py_ssize_t i = 0; i < count; i++) {
-        PyObject *message = py.PySequence_GetItem(in->queue, i);
+        PyObject *message = py.PySequence_GetItem(messages, i);
         PyObject *status = message ? py.PyObject_GetAttrString(message, "status") : NULL;
         PyObject *category = message ? py.PyObject_GetAttrString(message, "category") : NULL;
         PyObject *msg = message ? py.PyObject_GetAttrString(message, "msg") : NULL;
@@ -754,7 +1090,7 @@ static void drain_log(Instance *in) {
         release(&status);
         release(&message);
     }
-    if (py.PySequence_DelSlice(in->queue, 0, count) != 0) py.PyErr_Clear();
+    release(&messages);
 }
 
 /* Look the slave's Model Exchange methods and its numbers of continuous states and event
@@ -799,18 +1135,19 @@ static int create_slave(Instance *in) {
                                  ? py.PyObject_GetAttrString(in->slave, "_get_log_queue") : NULL;
     if (queue_getter) in->queue = py.PyObject_CallFunctionObjArgs(queue_getter, NULL);
     release(&queue_getter);
-    if (in->queue && in->type == fmi2ModelExchange && !model_exchange_methods(in)) {
-        release_slave(in);
-        release(&name);
-        release(&resources);
-        release(&module);
-        release(&visible);
-        return 0;
-    }
+    PyObject *variables = in->queue ? py.PyObject_GetAttrString(in->slave, "vars") : NULL;
+    Py_ssize_t count = variables ? py.PyObject_Size(variables) : -1;
+    in->variable_count = count >= 0 ? (size_t)count : SIZE_MAX;  /* not pythonfmu's: unknown */
+    py.PyErr_Clear();
+    release(&variables);
     release(&name);
     release(&resources);
     release(&module);
     release(&visible);
+    if (in->queue && in->type == fmi2ModelExchange && !model_exchange_methods(in)) {
+        release_slave(in);
+        return 0;
+    }
     if (in->queue) return 1;
     fmi2Status status = python_failure(in, in->slave ? "fmi2Instantiate (the slave's methods)"
                                                      : "fmi2Instantiate (the slave class)");
@@ -881,7 +1218,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         in->module = module;
         in->visible = visible != fmi2False;
         in->type = fmuType;
-        in->phase = INSTANTIATED;
+        in->state = FMI2_INSTANTIATED;
         folder = module = NULL;
     } else if (!why.length) {
         append(&why, "out of memory");
@@ -912,65 +1249,74 @@ void fmi2FreeInstance(fmi2Component c) {
     free_instance(in);
 }
 
-/* ---- calls ---------------------------------------------------------------------------- */
-#define ANY_PHASE ((1u << PHASE_COUNT) - 1u)
-#define NOT_TERMINATED (ANY_PHASE & ~(1u << TERMINATED))
+/* ---- the state machine: every call checked against the FMI 2.0 tables (fmi2_states.h) -- */
+/* Whether a call may go ahead: fmi2OK, or fmi2Error for a call the instance's state does not
+ * allow (with a message, and the instance in the error state, as after any fmi2Error), or
+ * fmi2Fatal for any call after fmi2Fatal (the standard allows none then). */
+/* fmi2SetInteger, fmi2SetBoolean and fmi2SetString in Continuous-Time Mode, which the
+ * standard does not allow: FMPy's CVode sets every input again in its root function, there
+ * and past an input event it has not reached yet. They go to the slave, which takes a
+ * discrete input's new value at the next event only (fmu_src/fmi/model_exchange.py). */
+static int discrete_set_again(const Instance *in, Fmi2Call call) {
+    return in->type == fmi2ModelExchange && in->state == FMI2_CONTINUOUS_TIME_MODE &&
+           (call == FMI2_SET_INTEGER || call == FMI2_SET_BOOLEAN || call == FMI2_SET_STRING);
+}
 
-/* Check an instance may take the call: not after fmi2Fatal, in a phase that allows it. */
-static fmi2Status admit(Instance *in, const char *function, unsigned phases) {
+static fmi2Status check_call(Instance *in, Fmi2Call call) {
     if (!in || in->tag != INSTANCE_TAG) return fmi2Error;
-    if (in->fatal) {
+    if (in->state == FMI2_FATAL) {
         log_format(&in->sink, fmi2Fatal, "%s refused: an earlier call on this instance "
-                   "returned fmi2Fatal", function);
+                   "returned fmi2Fatal", fmi2_call_name(call));
         return fmi2Fatal;
     }
-    if (!(phases & (1u << in->phase))) {
-        if (in->phase == TERMINATED)
-            log_format(&in->sink, fmi2Error, "%s refused: not allowed after fmi2Terminate "
-                       "(only fmi2Reset, fmi2FreeInstance and the getters are)", function);
-        else
-            log_format(&in->sink, fmi2Error, "%s refused: not allowed in %s (FMI 2.0 state "
-                       "machine)", function, PHASE_NAMES[in->phase]);
+    if (!fmi2_allowed(in->type, in->state, call) && !discrete_set_again(in, call)) {
+        char refusal[1024];
+        fmi2_refusal(in->type, in->state, call, refusal, sizeof refusal);
+        in->state = FMI2_ERROR;
+        log_format(&in->sink, fmi2Error, "%s", refusal);
         return fmi2Error;
     }
     return fmi2OK;
 }
 
-/* Check an instance may take a call of one interface (fmi2CoSimulation or
- * fmi2ModelExchange) in the phases given: as admit, and refused for an instance of the
- * other interface. */
-static fmi2Status admit_type(Instance *in, const char *function, fmi2Type type,
-                             unsigned phases) {
-    fmi2Status refused = admit(in, function, phases);
+/* Move the instance on after a call that returned status. */
+static void finish_call(Instance *in, Fmi2Call call, fmi2Status status) {
+    in->state = fmi2_next_state(in->type, in->state, call, status);
+}
+
+/* A call answered without Python: checked, the answer's status taken, the instance moved on. */
+static fmi2Status answer(fmi2Component c, Fmi2Call call, fmi2Status status) {
+    Instance *in = (Instance *)c;
+    fmi2Status refused = check_call(in, call);
     if (refused != fmi2OK) return refused;
-    if (in->type != type) {
-        log_format(&in->sink, fmi2Error, "%s refused: it is a %s call, and this instance was "
-                   "instantiated for %s", function, type == fmi2ModelExchange
-                   ? "Model Exchange" : "Co-Simulation", in->type == fmi2ModelExchange
-                   ? "Model Exchange" : "Co-Simulation");
-        return fmi2Error;
-    }
-    return fmi2OK;
+    finish_call(in, call, status);
+    return status;
 }
 
+/* ---- calls ---------------------------------------------------------------------------- */
 /* Enter Python for a call: the GIL taken (and the failure message of the call cleared). */
-#define BEGIN(function, phases) \
+#define BEGIN(call) \
     Instance *in = (Instance *)c; \
-    const char *const function_name = function; \
-    { fmi2Status refused = admit(in, function_name, phases); \
+    const Fmi2Call this_call = call; \
+    const char *const function_name = fmi2_call_name(this_call); \
+    (void)function_name; \
+    { fmi2Status refused = check_call(in, this_call); \
       if (refused != fmi2OK) return refused; } \
     hold_thread_state(); \
     PyGILState_STATE gil = py.PyGILState_Ensure(); \
     fmi2Status status = fmi2OK
 
-/* Leave Python: the slave's messages, then the failure's, passed on; the GIL given back. */
+/* Leave Python: the instance moved on, then the slave's messages and the failure's passed on
+ * (a call the host's logger makes back into the FMU sees the instance as this call left it),
+ * the GIL given back. */
 #define END() \
+    finish_call(in, this_call, status); \
     drain_log(in); \
-    if (status >= fmi2Error && in->failure) log_text(&in->sink, status, NULL, in->failure); \
-    free(in->failure); \
-    in->failure = NULL; \
+    { char *failure = in->failure; \
+      in->failure = NULL; \
+      if (status >= fmi2Error && failure) log_text(&in->sink, status, NULL, failure); \
+      free(failure); } \
     py.PyGILState_Release(gil); \
-    if (status == fmi2Fatal) in->fatal = 1; \
     return status
 
 /* Call a method; the result (new reference) or NULL with status set from the exception. */
@@ -986,6 +1332,19 @@ static fmi2Status wrong_result(Instance *in, const char *function, const char *w
     return fmi2Error;
 }
 
+/* nvr no larger than the FMU's number of variables (a larger one can only be a host's mistake:
+ * the length of another array, a negative number cast), checked before any array is read;
+ * otherwise 0 with the call's failure message set. */
+static int references_fit(Instance *in, size_t nvr, const char *function) {
+    if (nvr <= in->variable_count) return 1;
+    Message m = {{0}, 0};
+    append(&m, "%s: nvr = %zu value references, more than the %zu variables of this FMU",
+           function, nvr, in->variable_count);
+    free(in->failure);
+    in->failure = strdup(m.text);
+    return 0;
+}
+
 static PyObject *reference_list(const fmi2ValueReference vr[], size_t nvr) {
     PyObject *list = py.PyList_New((Py_ssize_t)nvr);
     for (size_t i = 0; list && i < nvr; i++) {
@@ -995,18 +1354,24 @@ static PyObject *reference_list(const fmi2ValueReference vr[], size_t nvr) {
     return list;
 }
 
-static fmi2Status no_call(Instance *in, const char *function) {
-    log_format(&in->sink, fmi2Error, "%s: not supported by this FMU", function);
+/* A call this FMU does not implement (its model description says so): fmi2Error. */
+static fmi2Status no_call(fmi2Component c, Fmi2Call call) {
+    fmi2Status refused = check_call((Instance *)c, call);
+    if (refused != fmi2OK) return refused;
+    log_format(&((Instance *)c)->sink, fmi2Error, "%s: not supported by this FMU",
+               fmi2_call_name(call));
+    finish_call((Instance *)c, call, fmi2Error);
     return fmi2Error;
 }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     Instance *in = (Instance *)c;
-    fmi2Status refused = admit(in, "fmi2SetDebugLogging", ANY_PHASE);
+    fmi2Status refused = check_call(in, FMI2_SET_DEBUG_LOGGING);
     if (refused != fmi2OK) return refused;
     if (nCategories && !categories) {
         log_format(&in->sink, fmi2Error, "fmi2SetDebugLogging: categories is NULL");
+        finish_call(in, FMI2_SET_DEBUG_LOGGING, fmi2Error);
         return fmi2Error;
     }
     for (size_t i = 0; i < in->sink.category_count; i++) free(in->sink.categories[i]);
@@ -1016,7 +1381,10 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     in->sink.logging_on = loggingOn != fmi2False;
     if (nCategories) {
         in->sink.categories = calloc(nCategories, sizeof *in->sink.categories);
-        if (!in->sink.categories) return fmi2Error;
+        if (!in->sink.categories) {
+            finish_call(in, FMI2_SET_DEBUG_LOGGING, fmi2Error);
+            return fmi2Error;
+        }
         for (size_t i = 0; i < nCategories; i++)
             in->sink.categories[i] = strdup(categories[i] ? categories[i] : "");
         in->sink.category_count = nCategories;
@@ -1025,22 +1393,18 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
 }
 
 /* Call a method without arguments but self (the life-cycle calls). */
-static fmi2Status life_cycle(fmi2Component c, const char *function, enum Method method,
-                             unsigned phases, enum Phase next) {
-    BEGIN(function, phases);
+static fmi2Status life_cycle(fmi2Component c, Fmi2Call call, enum Method method) {
+    BEGIN(call);
     PyObject *result = py.PyObject_CallFunctionObjArgs(in->methods[method], NULL);
     if (!result) status = python_failure(in, function_name);
-    else {
-        release(&result);
-        in->phase = next;
-    }
+    release(&result);
     END();
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                                fmi2Real tolerance, fmi2Real startTime,
                                fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    BEGIN("fmi2SetupExperiment", NOT_TERMINATED);
+    BEGIN(FMI2_SETUP_EXPERIMENT);
     PyObject *start = py.PyFloat_FromDouble(startTime);
     PyObject *stop = stopTimeDefined ? py.PyFloat_FromDouble(stopTime) : NULL;
     PyObject *tol = toleranceDefined ? py.PyFloat_FromDouble(tolerance) : NULL;
@@ -1057,46 +1421,53 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    return life_cycle(c, "fmi2EnterInitializationMode", ENTER_INITIALIZATION_MODE,
-                      NOT_TERMINATED, INITIALIZATION_MODE);
+    return life_cycle(c, FMI2_ENTER_INITIALIZATION_MODE, ENTER_INITIALIZATION_MODE);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    Instance *in = (Instance *)c;  /* Model Exchange goes on in Event Mode */
-    enum Phase next = in && in->tag == INSTANCE_TAG && in->type == fmi2ModelExchange
-                          ? EVENT_MODE : STEPPING;
-    return life_cycle(c, "fmi2ExitInitializationMode", EXIT_INITIALIZATION_MODE,
-                      NOT_TERMINATED, next);
+    return life_cycle(c, FMI2_EXIT_INITIALIZATION_MODE, EXIT_INITIALIZATION_MODE);
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    return life_cycle(c, "fmi2Terminate", TERMINATE, NOT_TERMINATED, TERMINATED);
+    return life_cycle(c, FMI2_TERMINATE, TERMINATE);
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-    BEGIN("fmi2Reset", ANY_PHASE);
+    BEGIN(FMI2_RESET);
     release_slave(in);
     if (!create_slave(in)) status = fmi2Fatal;  /* no slave left: logged by create_slave */
-    else {
-        in->phase = INSTANTIATED;
-        in->last_successful_time = 0.0;
-    }
+    else in->last_successful_time = 0.0;
     END();
+}
+
+/* Whether a step starts at the FMU's time (the previous step's end, or the start time):
+ * within TIME_TOLERANCE of it relative to the larger of that time and the step size, which
+ * covers a host's rounding (t0 + k h against a running sum) and refuses a skipped or
+ * repeated step. Otherwise 0 with the call's failure message set. */
+static int at_fmu_time(Instance *in, double point, double step_size) {
+    double tolerance = TIME_TOLERANCE * fmax(fabs(in->last_successful_time), step_size);
+    if (fabs(point - in->last_successful_time) <= tolerance) return 1;  /* false for NaN */
+    Message m = {{0}, 0};
+    append(&m, "fmi2DoStep: currentCommunicationPoint = %.17g s is not the FMU's time "
+           "%.17g s (where its last step ended, or the start time of fmi2SetupExperiment; "
+           "allowed deviation %.3g s)", point, in->last_successful_time, tolerance);
+    free(in->failure);
+    in->failure = strdup(m.text);
+    return 0;
 }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     (void)noSetFMUStatePriorToCurrentPoint;
-    { fmi2Status refused = admit_type((Instance *)c, "fmi2DoStep", fmi2CoSimulation,
-                                      NOT_TERMINATED);
-      if (refused != fmi2OK) return refused; }
-    BEGIN("fmi2DoStep", NOT_TERMINATED);
-    PyObject *now = py.PyFloat_FromDouble(currentCommunicationPoint);
-    PyObject *step = py.PyFloat_FromDouble(communicationStepSize);
+    BEGIN(FMI2_DO_STEP);
+    int on_time = at_fmu_time(in, currentCommunicationPoint, communicationStepSize);
+    PyObject *now = on_time ? py.PyFloat_FromDouble(currentCommunicationPoint) : NULL;
+    PyObject *step = now ? py.PyFloat_FromDouble(communicationStepSize) : NULL;
     PyObject *result = now && step ? CALL(DO_STEP, now, step) : NULL;
     int taken = result ? py.PyObject_IsTrue(result) : -1;
-    if (taken < 0) status = python_failure(in, function_name);
+    if (!on_time) status = fmi2Error;  /* at_fmu_time said why */
+    else if (taken < 0) status = python_failure(in, function_name);
     else if (taken) in->last_successful_time = currentCommunicationPoint + communicationStepSize;
     else status = fmi2Discard;  /* refused by the slave, which logged why */
     release(&result);
@@ -1106,13 +1477,17 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
 }
 
 /* The getters: call the method with the value references, convert each item of its result. */
-#define GETTER(Type, fmiType, method, convert) \
+#define GETTER(Type, fmiType, call, method, convert) \
     fmi2Status fmi2Get##Type(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, \
                              fmiType value[]) { \
-        if (nvr == 0) return admit((Instance *)c, "fmi2Get" #Type, ANY_PHASE); \
-        BEGIN("fmi2Get" #Type, ANY_PHASE); \
+        if (nvr == 0) return answer(c, call, fmi2OK); \
+        BEGIN(call); \
         if (!vr || !value) { \
             status = wrong_result(in, function_name, "arguments: NULL arrays"); \
+            END(); \
+        } \
+        if (!references_fit(in, nvr, function_name)) { \
+            status = fmi2Error; \
             END(); \
         } \
         PyObject *refs = reference_list(vr, nvr); \
@@ -1135,10 +1510,10 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         END(); \
     }
 
-GETTER(Real, fmi2Real, GET_REAL, value[i] = py.PyFloat_AsDouble(item))
-GETTER(Boolean, fmi2Boolean, GET_BOOLEAN,
+GETTER(Real, fmi2Real, FMI2_GET_REAL, GET_REAL, value[i] = py.PyFloat_AsDouble(item))
+GETTER(Boolean, fmi2Boolean, FMI2_GET_BOOLEAN, GET_BOOLEAN,
        { int truth = py.PyObject_IsTrue(item); value[i] = truth > 0 ? fmi2True : fmi2False; })
-GETTER(Integer, fmi2Integer, GET_INTEGER, {
+GETTER(Integer, fmi2Integer, FMI2_GET_INTEGER, GET_INTEGER, {
     long number = py.PyLong_AsLong(item);
     if (number < INT32_MIN || number > INT32_MAX) {
         status = wrong_result(in, function_name, "get_integer value is beyond 32 bits");
@@ -1147,13 +1522,15 @@ GETTER(Integer, fmi2Integer, GET_INTEGER, {
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                          fmi2String value[]) {
-    if (nvr == 0) return admit((Instance *)c, "fmi2GetString", ANY_PHASE);
-    BEGIN("fmi2GetString", ANY_PHASE);
-    PyObject *refs = vr && value ? reference_list(vr, nvr) : NULL;
+    if (nvr == 0) return answer(c, FMI2_GET_STRING, fmi2OK);
+    BEGIN(FMI2_GET_STRING);
+    int fit = references_fit(in, nvr, function_name);
+    PyObject *refs = vr && value && fit ? reference_list(vr, nvr) : NULL;
     PyObject *result = refs ? CALL(GET_STRING, refs) : NULL;
     release(&refs);
     release_strings(in);
-    if (!vr || !value) status = wrong_result(in, function_name, "arguments: NULL arrays");
+    if (!fit) status = fmi2Error;
+    else if (!vr || !value) status = wrong_result(in, function_name, "arguments: NULL arrays");
     else if (!result) status = python_failure(in, function_name);
     else if (py.PySequence_Size(result) != (Py_ssize_t)nvr) {
         py.PyErr_Clear();
@@ -1177,19 +1554,22 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 }
 
 /* The setters: call the method with the value references and a list of converted values. */
-#define SETTER(Type, fmiType, method, phases, convert) \
+#define SETTER(Type, fmiType, call, method, convert) \
     fmi2Status fmi2Set##Type(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, \
                              const fmiType value[]) { \
-        if (nvr == 0) return admit((Instance *)c, "fmi2Set" #Type, phases); \
-        BEGIN("fmi2Set" #Type, phases); \
-        PyObject *refs = vr && value ? reference_list(vr, nvr) : NULL; \
+        if (nvr == 0) return answer(c, call, fmi2OK); \
+        BEGIN(call); \
+        int fit = references_fit(in, nvr, function_name); \
+        PyObject *refs = vr && value && fit ? reference_list(vr, nvr) : NULL; \
         PyObject *values = refs ? py.PyList_New((Py_ssize_t)nvr) : NULL; \
         for (size_t i = 0; values && i < nvr; i++) { \
             PyObject *item = convert; \
             if (!item || py.PyList_SetItem(values, (Py_ssize_t)i, item) != 0) release(&values); \
         } \
         PyObject *result = values ? CALL(method, refs, values) : NULL; \
-        if (!vr || !value) status = wrong_result(in, function_name, "arguments: NULL arrays"); \
+        if (!fit) status = fmi2Error; \
+        else if (!vr || !value) \
+            status = wrong_result(in, function_name, "arguments: NULL arrays"); \
         else if (!result) status = python_failure(in, function_name); \
         release(&result); \
         release(&values); \
@@ -1197,14 +1577,11 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
         END(); \
     }
 
-/* In Continuous-Time Mode the slave refuses a discrete input set to another value (FMI 2.0
- * allows no discrete variable to be set there; FMPy's CVode sets every input again, to the
- * same value, in its root function, so the same value is let through) */
-SETTER(Real, fmi2Real, SET_REAL, NOT_TERMINATED, py.PyFloat_FromDouble(value[i]))
-SETTER(Integer, fmi2Integer, SET_INTEGER, NOT_TERMINATED, py.PyLong_FromLong(value[i]))
-SETTER(Boolean, fmi2Boolean, SET_BOOLEAN, NOT_TERMINATED,
+SETTER(Real, fmi2Real, FMI2_SET_REAL, SET_REAL, py.PyFloat_FromDouble(value[i]))
+SETTER(Integer, fmi2Integer, FMI2_SET_INTEGER, SET_INTEGER, py.PyLong_FromLong(value[i]))
+SETTER(Boolean, fmi2Boolean, FMI2_SET_BOOLEAN, SET_BOOLEAN,
        py.PyBool_FromLong(value[i] != fmi2False))
-SETTER(String, fmi2String, SET_STRING, NOT_TERMINATED,
+SETTER(String, fmi2String, FMI2_SET_STRING, SET_STRING,
        value[i] ? py.PyUnicode_FromString(value[i]) : py.PyUnicode_FromString(""))
 
 /* ---- FMU states ----------------------------------------------------------------------- */
@@ -1226,7 +1603,7 @@ static State *state_of(Instance *in, fmi2FMUstate state, const char *function) {
 }
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    BEGIN("fmi2GetFMUstate", ANY_PHASE);
+    BEGIN(FMI2_GET_FMU_STATE);
     State *s = NULL;
     PyObject *result = state ? py.PyObject_CallFunctionObjArgs(in->methods[GET_FMU_STATE],
                                                                NULL) : NULL;
@@ -1240,6 +1617,8 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
     }
     if (status == fmi2OK) {
         s->tag = STATE_TAG;
+        s->taken_in = in->state;
+        s->time = in->last_successful_time;
         release(&s->state);
         s->state = result;  /* owned by the state now */
         result = NULL;
@@ -1250,18 +1629,22 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
-    BEGIN("fmi2SetFMUstate", ANY_PHASE);
+    BEGIN(FMI2_SET_FMU_STATE);
     State *s = state_of(in, state, function_name);
     PyObject *result = s ? CALL(SET_FMU_STATE, s->state) : NULL;
     if (!s) status = fmi2Error;
     else if (!result) status = python_failure(in, function_name);
+    else {  /* back where the state was taken: its state machine state and time */
+        in->state = s->taken_in;
+        in->last_successful_time = s->time;
+    }
     release(&result);
     END();
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    if (!state || !*state) return admit((Instance *)c, "fmi2FreeFMUstate", ANY_PHASE);
-    BEGIN("fmi2FreeFMUstate", ANY_PHASE);
+    if (!state || !*state) return answer(c, FMI2_FREE_FMU_STATE, fmi2OK);
+    BEGIN(FMI2_FREE_FMU_STATE);
     State *s = (State *)*state;
     if (s->tag != STATE_TAG) status = wrong_result(in, function_name, "argument: not a state");
     else {
@@ -1274,11 +1657,14 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
     END();
 }
 
-/* The serialised state: STATE_HEADER, the GUID, a line break, then the slave's bytes. A new
- * reference to the slave's bytes, or NULL with status set. */
+/* The serialised state: two lines of text, then the slave's bytes. The first line is
+ * STATE_HEADER and the GUID, the second the state machine state and the time [s] the state
+ * was taken in, "<state> at time 0x<the double's 64 bits in hex> (IEEE 754 bits)": exact, and
+ * read the same whatever the host's locale. A new reference to the slave's bytes (and in
+ * *taken the state they belong to), or NULL with status set. */
 static PyObject *state_bytes(Instance *in, fmi2FMUstate state, const char *function,
-                             fmi2Status *status) {
-    State *s = state_of(in, state, function);
+                             fmi2Status *status, State **taken) {
+    State *s = *taken = state_of(in, state, function);
     PyObject *bytes = s ? CALL(STATE_TO_BYTES, s->state) : NULL;
     char *data;
     if (!s) *status = fmi2Error;
@@ -1289,63 +1675,110 @@ static PyObject *state_bytes(Instance *in, fmi2FMUstate state, const char *funct
     return bytes;
 }
 
-static size_t header_size(const Instance *in) {
-    return strlen(STATE_HEADER) + strlen(in->guid) + 1;
+/* The two lines before the slave's bytes into text (at most size bytes with the NUL, which
+ * is not part of them); their length. */
+static size_t state_lines(const Instance *in, const State *s, char *text, size_t size) {
+    uint64_t bits;
+    memcpy(&bits, &s->time, sizeof bits);
+    int n = snprintf(text, size, STATE_HEADER "%s\n%s" TIME_BITS "\n", in->guid,
+                     fmi2_state_name(s->taken_in), (unsigned long long)bits);
+    return n > 0 ? (size_t)n : 0;
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size) {
-    BEGIN("fmi2SerializedFMUstateSize", ANY_PHASE);
-    PyObject *bytes = size ? state_bytes(in, state, function_name, &status) : NULL;
+    BEGIN(FMI2_SERIALIZED_FMU_STATE_SIZE);
+    State *s = NULL;
+    PyObject *bytes = size ? state_bytes(in, state, function_name, &status, &s) : NULL;
     char *data;
     Py_ssize_t length;
     if (!size) status = wrong_result(in, function_name, "argument: size is NULL");
     else if (bytes && py.PyBytes_AsStringAndSize(bytes, &data, &length) == 0)
-        *size = header_size(in) + (size_t)length;
+        *size = state_lines(in, s, NULL, 0) + (size_t)length;
     release(&bytes);
     END();
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte serialized[],
                                  size_t size) {
-    BEGIN("fmi2SerializeFMUstate", ANY_PHASE);
-    PyObject *bytes = serialized ? state_bytes(in, state, function_name, &status) : NULL;
-    char *data;
+    BEGIN(FMI2_SERIALIZE_FMU_STATE);
+    State *s = NULL;
+    PyObject *bytes = serialized ? state_bytes(in, state, function_name, &status, &s) : NULL;
+    char *data, *lines = NULL;
     Py_ssize_t length;
     if (!serialized) status = wrong_result(in, function_name, "argument: the array is NULL");
     else if (bytes && py.PyBytes_AsStringAndSize(bytes, &data, &length) == 0) {
-        size_t header = header_size(in);
+        size_t header = state_lines(in, s, NULL, 0);
         if (size < header + (size_t)length) {
             status = wrong_result(in, function_name,
                                   "state needs more bytes than given (fmi2SerializedFMUstateSize)");
+        } else if (!(lines = malloc(header + 1))) {
+            status = wrong_result(in, function_name, "state: out of memory");
         } else {
-            snprintf(serialized, header + 1, STATE_HEADER "%s\n", in->guid);
+            state_lines(in, s, lines, header + 1);
+            memcpy(serialized, lines, header);
             memcpy(serialized + header, data, (size_t)length);
         }
     }
+    free(lines);
     release(&bytes);
     END();
 }
 
+/* The length of the two lines that begin a serialised state of this instance's FMU, with
+ * the state machine state and time they name; 0 if they are not such lines (why in m). */
+static size_t parse_state_lines(const Instance *in, const char *bytes, size_t size,
+                                Fmi2State *taken_in, double *time, Message *m,
+                                const char *function) {
+    size_t prefix = strlen(STATE_HEADER), guid = strlen(in->guid);
+    const char *end = size > prefix ? memchr(bytes + prefix, '\n', size - prefix) : NULL;
+    if (!end || memcmp(bytes, STATE_HEADER, prefix) != 0) {
+        append(m, "%s: the bytes are not a serialised FMU state of this runtime", function);
+        return 0;
+    }
+    if ((size_t)(end - bytes) != prefix + guid || memcmp(bytes + prefix, in->guid, guid) != 0) {
+        append(m, "%s: the bytes are a state of another FMU (GUID %.*s, this one %s)",
+               function, (int)(end - bytes - (ptrdiff_t)prefix), bytes + prefix, in->guid);
+        return 0;
+    }
+    const char *record = end + 1;
+    const char *record_end = memchr(record, '\n', size - (size_t)(record - bytes));
+    char line[128];
+    size_t length = record_end ? (size_t)(record_end - record) : 0;
+    if (record_end && length < sizeof line) {
+        memcpy(line, record, length);
+        line[length] = '\0';
+        for (int state = 0; state < FMI2_STATE_COUNT; state++) {
+            const char *name = fmi2_state_name((Fmi2State)state);
+            size_t n = strlen(name);
+            unsigned long long bits;
+            int read = 0;
+            if (strncmp(line, name, n) != 0 ||
+                sscanf(line + n, READ_TIME_BITS, &bits, &read) != 1 ||
+                line[n + (size_t)read] != '\0') continue;
+            uint64_t exact = bits;
+            memcpy(time, &exact, sizeof *time);
+            *taken_in = (Fmi2State)state;
+            if (isfinite(*time) && fmi2_allowed(in->type, *taken_in, FMI2_GET_FMU_STATE))
+                return (size_t)(record_end + 1 - bytes);
+        }
+    }
+    append(m, "%s: the bytes are not a serialised FMU state of this runtime (no state "
+           "machine state and time on their second line)", function);
+    return 0;
+}
+
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serialized[], size_t size,
                                    fmi2FMUstate *state) {
-    BEGIN("fmi2DeSerializeFMUstate", ANY_PHASE);
-    size_t header = header_size(in), prefix = strlen(STATE_HEADER);
+    BEGIN(FMI2_DESERIALIZE_FMU_STATE);
     State *s = NULL;
+    Fmi2State taken_in = FMI2_START_END;
+    double time = 0.0;
+    Message m = {{0}, 0};
+    size_t header = serialized && state ? parse_state_lines(in, serialized, size, &taken_in,
+                                                            &time, &m, function_name) : 0;
     if (!serialized || !state) {
         status = wrong_result(in, function_name, "arguments: NULL");
-    } else if (size < header || memcmp(serialized, STATE_HEADER, prefix) != 0 ||
-               serialized[header - 1] != '\n' ||
-               memcmp(serialized + prefix, in->guid, header - prefix - 1) != 0) {
-        const char *end = size >= prefix ? memchr(serialized + prefix, '\n', size - prefix)
-                                         : NULL;
-        Message m = {{0}, 0};
-        if (size >= prefix && memcmp(serialized, STATE_HEADER, prefix) == 0 && end)
-            append(&m, "%s: the bytes are a state of another FMU (GUID %.*s, this one %s)",
-                   function_name, (int)(end - serialized - prefix), serialized + prefix,
-                   in->guid);
-        else
-            append(&m, "%s: the bytes are not a serialised FMU state of this runtime",
-                   function_name);
+    } else if (!header) {
         free(in->failure);
         in->failure = strdup(m.text);
         status = fmi2Error;
@@ -1361,6 +1794,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serialized[],
             status = wrong_result(in, function_name, "state: out of memory");
         } else {
             s->tag = STATE_TAG;
+            s->taken_in = taken_in;
+            s->time = time;
             s->state = result;
             *state = s;
         }
@@ -1374,75 +1809,61 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
                                         size_t nKnown, const fmi2Real dvKnown[],
                                         fmi2Real dvUnknown[]) {
     (void)unknown, (void)nUnknown, (void)known, (void)nKnown, (void)dvKnown, (void)dvUnknown;
-    fmi2Status refused = admit((Instance *)c, "fmi2GetDirectionalDerivative", ANY_PHASE);
-    return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2GetDirectionalDerivative");
+    return no_call(c, FMI2_GET_DIRECTIONAL_DERIVATIVE);
 }
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
                                        size_t nvr, const fmi2Integer order[],
                                        const fmi2Real value[]) {
     (void)vr, (void)nvr, (void)order, (void)value;
-    fmi2Status refused = admit_type((Instance *)c, "fmi2SetRealInputDerivatives",
-                                    fmi2CoSimulation, ANY_PHASE);
-    return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2SetRealInputDerivatives");
+    return no_call(c, FMI2_SET_REAL_INPUT_DERIVATIVES);
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
                                         size_t nvr, const fmi2Integer order[],
                                         fmi2Real value[]) {
     (void)vr, (void)nvr, (void)order, (void)value;
-    fmi2Status refused = admit_type((Instance *)c, "fmi2GetRealOutputDerivatives",
-                                    fmi2CoSimulation, ANY_PHASE);
-    return refused != fmi2OK ? refused
-                             : no_call((Instance *)c, "fmi2GetRealOutputDerivatives");
+    return no_call(c, FMI2_GET_REAL_OUTPUT_DERIVATIVES);
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) {
-    fmi2Status refused = admit_type((Instance *)c, "fmi2CancelStep", fmi2CoSimulation,
-                                    ANY_PHASE);
-    return refused != fmi2OK ? refused : no_call((Instance *)c, "fmi2CancelStep");
-}
+fmi2Status fmi2CancelStep(fmi2Component c) { return no_call(c, FMI2_CANCEL_STEP); }
 
-/* Steps are synchronous: no step is ever pending. */
-static fmi2Status no_status(Instance *in, const char *function, fmi2StatusKind kind) {
-    log_format(&in->sink, fmi2Discard, "%s: status kind %d is not provided (steps are "
-               "synchronous)", function, (int)kind);
+/* Steps are synchronous: no step is ever pending. An inquiry not answered is fmi2Discard
+ * (FMI 2.0, section 4.2.3), which leaves the state as it was. */
+static fmi2Status no_status(fmi2Component c, Fmi2Call call, fmi2StatusKind kind) {
+    fmi2Status refused = check_call((Instance *)c, call);
+    if (refused != fmi2OK) return refused;
+    log_format(&((Instance *)c)->sink, fmi2Discard, "%s: status kind %d is not provided "
+               "(steps are synchronous)", fmi2_call_name(call), (int)kind);
+    finish_call((Instance *)c, call, fmi2Discard);
     return fmi2Discard;
 }
 
 /* The inquiries this FMU does not answer: every kind of a type. */
-#define NO_STATUS(Type, fmiType) \
+#define NO_STATUS(Type, fmiType, call) \
     fmi2Status fmi2Get##Type(fmi2Component c, const fmi2StatusKind s, fmiType *value) { \
         (void)value; \
-        fmi2Status refused = admit_type((Instance *)c, "fmi2Get" #Type, fmi2CoSimulation, \
-                                        ANY_PHASE); \
-        return refused != fmi2OK ? refused : no_status((Instance *)c, "fmi2Get" #Type, s); \
+        return no_status(c, call, s); \
     }
 
-NO_STATUS(Status, fmi2Status)
-NO_STATUS(IntegerStatus, fmi2Integer)
-NO_STATUS(StringStatus, fmi2String)
+NO_STATUS(Status, fmi2Status, FMI2_GET_STATUS)
+NO_STATUS(IntegerStatus, fmi2Integer, FMI2_GET_INTEGER_STATUS)
+NO_STATUS(StringStatus, fmi2String, FMI2_GET_STRING_STATUS)
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    fmi2Status refused = admit_type((Instance *)c, "fmi2GetRealStatus", fmi2CoSimulation,
-                                    ANY_PHASE);
-    if (refused != fmi2OK) return refused;
-    if (s != fmi2LastSuccessfulTime || !value)
-        return no_status((Instance *)c, "fmi2GetRealStatus", s);
-    *value = ((Instance *)c)->last_successful_time;
-    return fmi2OK;
+    if (s != fmi2LastSuccessfulTime || !value) return no_status(c, FMI2_GET_REAL_STATUS, s);
+    fmi2Status status = answer(c, FMI2_GET_REAL_STATUS, fmi2OK);
+    if (status == fmi2OK) *value = ((Instance *)c)->last_successful_time;
+    return status;
 }
 
 /* fmi2Terminated is false: a refused step (fmi2Discard) leaves the slave as it was, ready for
  * a shorter step or another input. */
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    fmi2Status refused = admit_type((Instance *)c, "fmi2GetBooleanStatus", fmi2CoSimulation,
-                                    ANY_PHASE);
-    if (refused != fmi2OK) return refused;
-    if (s != fmi2Terminated || !value)
-        return no_status((Instance *)c, "fmi2GetBooleanStatus", s);
-    *value = fmi2False;
-    return fmi2OK;
+    if (s != fmi2Terminated || !value) return no_status(c, FMI2_GET_BOOLEAN_STATUS, s);
+    fmi2Status status = answer(c, FMI2_GET_BOOLEAN_STATUS, fmi2OK);
+    if (status == fmi2OK) *value = fmi2False;
+    return status;
 }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -1451,34 +1872,23 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 
 /* ==== Model Exchange ========================================================================
  * The FMI 2.0 Model Exchange calls over the slave's me_ methods (fmu_src/fmi/model_exchange.py),
- * for an instance made with fmuType fmi2ModelExchange. The phases they are allowed in follow
- * the standard's state machine (FMI 2.0.4, section 3.2.3); fmi2ExitInitializationMode leads to
- * Event Mode, fmi2EnterEventMode from Event or Continuous-Time Mode to Event Mode, and
- * fmi2EnterContinuousTimeMode from Event Mode to Continuous-Time Mode. This section keeps its
- * own phase checks (admit_type) until the runtime's state-machine table covers Model Exchange.
- * The runtime never reads or writes past the model's nx or ni (me_state_count,
- * me_indicator_count): a host's other count is refused before its array is touched. */
+ * for an instance made with fmuType fmi2ModelExchange; the state machine (fmi2_states.c)
+ * admits them, and refuses them on a Co-Simulation instance (and fmi2DoStep on a Model
+ * Exchange one). The runtime never reads or writes past the model's nx or ni
+ * (me_state_count, me_indicator_count): a host's other count is refused before its array is
+ * touched. */
 
-#define EVENT_OR_CONTINUOUS ((1u << EVENT_MODE) | (1u << CONTINUOUS_TIME_MODE))
-/* fmi2GetContinuousStates, fmi2GetDerivatives, fmi2GetEventIndicators */
-#define MODEL_INQUIRY ((1u << INITIALIZATION_MODE) | EVENT_OR_CONTINUOUS | (1u << TERMINATED))
-
-/* Enter Python for a Model Exchange call (BEGIN, refused for a Co-Simulation instance). */
-#define BEGIN_ME(function, phases) \
-    { fmi2Status refused = admit_type((Instance *)c, function, fmi2ModelExchange, phases); \
-      if (refused != fmi2OK) return refused; } \
-    BEGIN(function, phases)
-
-/* Call a Model Exchange method with the arguments given (or none: CALL_ME(method, NULL)). */
+/* Call a Model Exchange method with the arguments given (none: CALL_ME(method, NULL)). */
 #define CALL_ME(method, ...) \
     py.PyObject_CallFunctionObjArgs(in->me_methods[method], __VA_ARGS__, NULL)
 
 /* fmi2Error with the message "<function>: <what> = <given> is not <the model's count>". */
-static fmi2Status wrong_count(Instance *in, const char *function, const char *what,
-                              size_t given, size_t count) {
+static fmi2Status wrong_count(Instance *in, const char *function, int states, size_t given,
+                              size_t count) {
     Message m = {{0}, 0};
-    append(&m, "%s: %s = %zu is not this FMU's number of %s, %zu", function, what, given,
-           what[0] == 'n' && what[1] == 'x' ? "continuous states" : "event indicators", count);
+    append(&m, "%s: %s = %zu is not this FMU's number of %s, %zu", function,
+           states ? "nx" : "ni", given, states ? "continuous states" : "event indicators",
+           count);
     free(in->failure);
     in->failure = strdup(m.text);
     return fmi2Error;
@@ -1501,13 +1911,12 @@ static fmi2Status take_numbers(Instance *in, const char *function, PyObject *res
     return fmi2OK;
 }
 
-/* One of the inquiries that fill an array of the model's nx or ni numbers. */
-static fmi2Status inquire(fmi2Component c, const char *function, unsigned phases,
-                          enum ModelExchangeMethod method, const char *what, fmi2Real values[],
-                          size_t n) {
-    BEGIN_ME(function, phases);
-    size_t count = what[1] == 'x' ? in->state_count : in->indicator_count;
-    if (n != count) status = wrong_count(in, function_name, what, n, count);
+/* One of the inquiries that fill an array of the model's nx (states) or ni numbers. */
+static fmi2Status inquire(fmi2Component c, Fmi2Call call, enum ModelExchangeMethod method,
+                          int states, fmi2Real values[], size_t n) {
+    BEGIN(call);
+    size_t count = states ? in->state_count : in->indicator_count;
+    if (n != count) status = wrong_count(in, function_name, states, n, count);
     else if (n && !values) status = wrong_result(in, function_name, "arguments: a NULL array");
     else {
         PyObject *size = py.PyLong_FromSize_t(n);
@@ -1520,28 +1929,26 @@ static fmi2Status inquire(fmi2Component c, const char *function, unsigned phases
 }
 
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
-    return inquire(c, "fmi2GetContinuousStates", MODEL_INQUIRY, ME_GET_CONTINUOUS_STATES, "nx",
-                   x, nx);
+    return inquire(c, FMI2_GET_CONTINUOUS_STATES, ME_GET_CONTINUOUS_STATES, 1, x, nx);
 }
 
 fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
-    return inquire(c, "fmi2GetDerivatives", MODEL_INQUIRY, ME_GET_DERIVATIVES, "nx",
-                   derivatives, nx);
+    return inquire(c, FMI2_GET_DERIVATIVES, ME_GET_DERIVATIVES, 1, derivatives, nx);
 }
 
 fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
-    return inquire(c, "fmi2GetEventIndicators", MODEL_INQUIRY, ME_GET_EVENT_INDICATORS, "ni",
-                   eventIndicators, ni);
+    return inquire(c, FMI2_GET_EVENT_INDICATORS, ME_GET_EVENT_INDICATORS, 0, eventIndicators,
+                   ni);
 }
 
 fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[],
                                              size_t nx) {
-    return inquire(c, "fmi2GetNominalsOfContinuousStates", ANY_PHASE, ME_GET_NOMINALS, "nx",
-                   x_nominal, nx);
+    return inquire(c, FMI2_GET_NOMINALS_OF_CONTINUOUS_STATES, ME_GET_NOMINALS, 1, x_nominal,
+                   nx);
 }
 
 fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
-    BEGIN_ME("fmi2SetTime", EVENT_OR_CONTINUOUS);
+    BEGIN(FMI2_SET_TIME);
     PyObject *value = py.PyFloat_FromDouble(time);
     PyObject *result = value ? CALL_ME(ME_SET_TIME, value) : NULL;
     if (!result) status = python_failure(in, function_name);
@@ -1551,10 +1958,10 @@ fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
 }
 
 fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
-    BEGIN_ME("fmi2SetContinuousStates", 1u << CONTINUOUS_TIME_MODE);
+    BEGIN(FMI2_SET_CONTINUOUS_STATES);
     PyObject *values = NULL;
-    if (nx != in->state_count) status = wrong_count(in, function_name, "nx", nx,
-                                                    in->state_count);
+    if (nx != in->state_count)
+        status = wrong_count(in, function_name, 1, nx, in->state_count);
     else if (nx && !x) status = wrong_result(in, function_name, "arguments: a NULL array");
     else if (!(values = py.PyList_New((Py_ssize_t)nx))) status = python_failure(in, function_name);
     for (size_t i = 0; values && status == fmi2OK && i < nx; i++) {
@@ -1571,25 +1978,21 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
     END();
 }
 
-/* A Model Exchange call that takes no argument and changes the phase to next on success. */
-static fmi2Status change_mode(fmi2Component c, const char *function, unsigned phases,
-                              enum ModelExchangeMethod method, enum Phase next) {
-    BEGIN_ME(function, phases);
+/* A Model Exchange call that takes no argument (the state machine moves the instance on). */
+static fmi2Status change_mode(fmi2Component c, Fmi2Call call, enum ModelExchangeMethod method) {
+    BEGIN(call);
     PyObject *result = CALL_ME(method, NULL);
     if (!result) status = python_failure(in, function_name);
-    else in->phase = next;
     release(&result);
     END();
 }
 
 fmi2Status fmi2EnterEventMode(fmi2Component c) {
-    return change_mode(c, "fmi2EnterEventMode", EVENT_OR_CONTINUOUS, ME_ENTER_EVENT_MODE,
-                       EVENT_MODE);
+    return change_mode(c, FMI2_ENTER_EVENT_MODE, ME_ENTER_EVENT_MODE);
 }
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
-    return change_mode(c, "fmi2EnterContinuousTimeMode", 1u << EVENT_MODE,
-                       ME_ENTER_CONTINUOUS_TIME_MODE, CONTINUOUS_TIME_MODE);
+    return change_mode(c, FMI2_ENTER_CONTINUOUS_TIME_MODE, ME_ENTER_CONTINUOUS_TIME_MODE);
 }
 
 /* The truth of item i of a result sequence (-1 with the exception pending). */
@@ -1601,7 +2004,7 @@ static int truth(PyObject *result, Py_ssize_t i) {
 }
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
-    BEGIN_ME("fmi2NewDiscreteStates", 1u << EVENT_MODE);
+    BEGIN(FMI2_NEW_DISCRETE_STATES);
     PyObject *result = eventInfo ? CALL_ME(ME_NEW_DISCRETE_STATES, NULL) : NULL;
     int flags[5] = {0};
     if (!eventInfo) status = wrong_result(in, function_name, "argument: eventInfo is NULL");
@@ -1635,7 +2038,7 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component c,
                                        fmi2Boolean *enterEventMode,
                                        fmi2Boolean *terminateSimulation) {
     (void)noSetFMUStatePriorToCurrentPoint;
-    BEGIN_ME("fmi2CompletedIntegratorStep", 1u << CONTINUOUS_TIME_MODE);
+    BEGIN(FMI2_COMPLETED_INTEGRATOR_STEP);
     PyObject *result = enterEventMode && terminateSimulation
                            ? CALL_ME(ME_COMPLETED_INTEGRATOR_STEP, NULL) : NULL;
     int enter = 0, terminate = 0;

@@ -5,10 +5,12 @@ reading the imports), staged as the package `fmu_src` in the FMU's resources, so
 runs in any Python interpreter with nothing but the standard library and pythonfmu's own
 embedded files.
 
-`fmu_src` is a namespace package (no __init__.py) on purpose: pythonfmu runs every FMU of a
-process in one interpreter, each adding its resources folder to sys.path. A namespace
-package's search path follows sys.path, so a second FMU finds its own modules even when an
-earlier FMU imported `fmu_src` first (from a folder that may be deleted since).
+In a process, every FMU of our runtime imports the modules of its own bundle: the runtime
+imports them as a package named after the digest of the bundle's Python files, with an
+import hook bound to its resources folder (fmu_src/runtime/fmi2_runtime.c, HELPER_SOURCE;
+docs/build.md says why). `fmu_src` stays a namespace package (no __init__.py): under
+pythonfmu's own binary (win64), which puts each FMU's resources folder on sys.path, its
+search path follows sys.path.
 
 Every FMU carries `documentation/index.html`, generated from the built FMU by
 `harness.fmu.docs`. A build writes a temporary file in the destination folder and renames it
@@ -80,12 +82,14 @@ DEFAULT_SCENARIO = "franchetti2021"  # the scenario the sequencer of `make fmu` 
 # where the sequencer FMU's scenario module goes in the staged package fmu_src
 EMBEDDED_SCENARIO = Path(*EMBEDDED_MODULE[1:])
 RUNTIME_SOURCE = SOURCE_DIR / "runtime" / "fmi2_runtime.c"
+# the FMI 2.0 state machine, compiled into the runtime (its header beside it, see compile_inputs)
+STATE_MACHINE_SOURCE = RUNTIME_SOURCE.with_name("fmi2_states.c")
 # the minimal C FMI host that runs an FMU outside any Python process (bench, tests)
 HOST_SOURCE = Path(__file__).resolve().parent / "host" / "fmi2_host.c"
 RUNTIME_BUILD = DEFAULT_DEST.parent / "runtime" / "fmi2_runtime.so"
 # the oldest glibc the runtime runs on (pythonfmu's own binary needs 2.32)
 RUNTIME_TARGET = "x86_64-linux-gnu.2.17"
-RUNTIME_OPTIONS = ("-shared", "-fPIC", "-s")
+RUNTIME_OPTIONS = ("-shared", "-fPIC", "-s", STATE_MACHINE_SOURCE)
 PYTHON_RECORD = "resources/python.txt"  # read by the runtime: keep the keys in step
 INPUTS_RECORD = "resources/build_inputs.sha256"  # fmu_inputs of the FMU's build
 # the code that writes an FMU besides its fmu_src modules, and the tools whose output it holds
@@ -159,7 +163,7 @@ def embedded_module(model: str, sequencer_scenario: str | Path | None = None) ->
         raise UserError(f"{scenarios.scenario_file(scenario).name}: {error}") from None
 
 
-def zig_cc(source: Path, output: Path, *options: str) -> Path:
+def zig_cc(source: Path, output: Path, *options: str | Path) -> Path:
     """Compile a C file with `python -m ziglang cc` (a registry package, no system compiler)
     for RUNTIME_TARGET, FMPy's FMI 2.0 headers on the include path; written atomically."""
     return write_atomic(output, lambda partial: subprocess.run(
@@ -202,13 +206,16 @@ def stale(output: Path, inputs: str) -> bool:
     return not output.exists() or recorded_inputs(output) != inputs
 
 
-def compile_inputs(source: Path, *options: str) -> str:
-    """Digest of what `zig_cc(source, output, *options)` depends on: the source, the options,
-    the target, the tools (ziglang, FMPy's headers) and this module (zig_cc's own flags)."""
-    return digest(source, RUNTIME_TARGET, *options, tool_versions(), Path(__file__))
+def compile_inputs(source: Path, *options: str | Path) -> str:
+    """Digest of what `zig_cc(source, output, *options)` depends on: the source and the
+    headers beside it, the options (a file among them, such as a second source, by its
+    content), the target, the tools (ziglang, FMPy's headers) and this module (zig_cc's own
+    flags)."""
+    return digest(source, *sorted(source.parent.glob("*.h")), RUNTIME_TARGET, *options,
+                  tool_versions(), Path(__file__))
 
 
-def compiled(source: Path, output: Path, *options: str) -> Path:
+def compiled(source: Path, output: Path, *options: str | Path) -> Path:
     """output compiled from source by zig_cc, unless the digest recorded beside it
     (<output>.sha256) says it was compiled from the same inputs (compile_inputs)."""
     inputs = compile_inputs(source, *options)

@@ -85,6 +85,8 @@ class CoSimFMU:
                                instanceName=instance_name)
         self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
         self.fatal = False  # after fmi2Fatal the standard allows no further call
+        # where the messages of the run since the last initialize() begin; None before it
+        self._run_start: int | None = None
 
     def _log(self, _env: Any, _instance: bytes, status: int, category: bytes,
              message: bytes) -> None:
@@ -154,6 +156,7 @@ class CoSimFMU:
             if parameters:
                 self._set(parameters)
             self.slave.exitInitializationMode()
+        self._run_start = len(self.messages)
 
     def step(self, time: float, step_size: float) -> None:
         with self._watch_fatal():
@@ -172,6 +175,15 @@ class CoSimFMU:
 
     def reset(self) -> None:
         self.slave.reset()
+        self._run_start = None
+
+    def _terminable(self) -> bool:
+        """Whether fmi2Terminate may end the run: the instance was initialised and no call
+        of the run failed since (FMI 2.0 allows fmi2Terminate only after a completed or
+        refused step; after fmi2Error only a stored state or fmi2Reset goes on). A failed
+        call, made here or straight through the FMU's functions, logs an Error message."""
+        return (self._run_start is not None and not self.fatal and not any(
+            m.status in ("Error", "Fatal") for m in self.messages[self._run_start:]))
 
     def names(self, causality: str) -> list[str]:
         """Names of the variables of one causality, in model-description order."""
@@ -179,15 +191,16 @@ class CoSimFMU:
                 if v.causality == causality]
 
     def close(self) -> None:
-        """Terminate, free the instance and delete the extracted files. A refused
-        fmi2Terminate (the FMU could not end its run cleanly) raises FMUCallError with the
-        FMU's messages once the instance is freed and the files deleted.
+        """Terminate (when the run may be ended so, see `_terminable`), free the instance and
+        delete the extracted files. A refused fmi2Terminate (the FMU could not end its run
+        cleanly) raises FMUCallError with the FMU's messages once the instance is freed and
+        the files deleted.
 
         After fmi2Fatal the instance is left alone: FMI 2.0 allows no further call, and
         pythonfmu 0.7.0 can crash the process if freeInstance follows a Fatal.
         """
         try:
-            if not self.fatal:
+            if self._terminable():
                 with self._watch_fatal():
                     self.slave.terminate()
         finally:

@@ -132,6 +132,7 @@ def check(case: dict[str, Any], report: dict[str, Any]) -> None:
             assert same(step["after"], step["before"]), (case, step)
     refused = sum(step["status"] != "ok" for step in report["steps"])
     assert len(errors) >= refused, report
+    assert set(report["restored"]) <= {"ok"}, report  # the run goes on from the state before
 
 
 @pytest.mark.parametrize("model", MODELS)

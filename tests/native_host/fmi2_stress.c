@@ -16,6 +16,8 @@
  * usage: fmi2_stress cycles N STEPS FMU...       N times: each FMU dlopen, instantiate,
  *                                                run, state round trip, free, dlclose
  *        fmi2_stress rss N FMU                   RSS growth per instance cycle
+ *        fmi2_stress reload N FMU                RSS growth per cycle of dlopen,
+ *                                                instantiate, 10 steps, free, dlclose
  *        fmi2_stress threads FMU_A FMU_B         two host threads, one instance each
  *        fmi2_stress serial FMU_A FMU_B          the same work in the main thread
  *        fmi2_stress short-threads N FMU         RSS growth per short-lived host thread
@@ -28,6 +30,31 @@
  *        fmi2_stress instantiate FMU [--uri URI] [--guid G] [--type me|cs] [--null-name]
  *                    [--null-guid] [--null-uri] [--after-terminate]
  *                                                one instance with these arguments
+ *        fmi2_stress environment FMU [-- PROGRAM ARG...]
+ *                                                run 10 steps, print whether the process
+ *                                                environment changed (each change on a
+ *                                                line), then run PROGRAM as a child and
+ *                                                print its exit status
+ *        fmi2_stress beside LIBPYTHON lazy|now start|idle FMU
+ *                                                a host holding a CPython of its own, as a
+ *                                                plugin loads one: LIBPYTHON opened
+ *                                                RTLD_LOCAL (binding lazily or now), started
+ *                                                by the host or not; then the FMU runs 100
+ *                                                steps and its values are printed, and the
+ *                                                host runs Python code ("host python OK")
+ *        fmi2_stress fork N FMU [FMU_B]          fork N times while a second host thread
+ *                                                steps an instance; each child steps and
+ *                                                reads another instance (of FMU_B if given),
+ *                                                10 s at the most; prints how many children
+ *                                                finished, and forks once more after
+ *                                                unloading the FMUs
+ *        fmi2_stress huge-nvr FMU                one step, fmi2SetReal and fmi2GetReal with
+ *                                                nvr = 2^40 (the arrays one element long),
+ *                                                then fmi2GetReal of one value: the statuses
+ *        fmi2_stress reentrant DEPTH FMU         one step, the logger calling fmi2GetReal
+ *                                                of the FMU's first r: reference for each
+ *                                                message, DEPTH calls deep at most (-1: no
+ *                                                limit)
  * exit status: 0 done, 1 a failed call, 2 usage, 3 a binary or function not loaded
  * build: cc -I<fmpy>/c-code fmi2_stress.c -ldl -lpthread -o fmi2_stress
  */
@@ -37,6 +64,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include "fmi2Functions.h"
 
@@ -102,12 +130,37 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
 
 static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
 
+/* reentrant: the instance the logger calls back into, and how deep */
+static struct {
+    Fmu *fmu;
+    fmi2Component c;
+    long depth, limit;
+} reentry;
+
+static void reentrant_logger(fmi2ComponentEnvironment env, fmi2String instance,
+                             fmi2Status status, fmi2String category, fmi2String message, ...) {
+    va_list args;
+    char text[8192];
+    va_start(args, message);
+    vsnprintf(text, sizeof text, message ? message : "(null)", args);
+    va_end(args);
+    logger(env, instance, status, category, "%s", text);
+    if (reentry.c && (reentry.limit < 0 || reentry.depth < reentry.limit)) {
+        fmi2Real value;
+        reentry.depth++;
+        reentry.fmu->api.getReal(reentry.c, reentry.fmu->reads, 1, &value);
+        reentry.depth--;
+    }
+}
+
 static void usage(const char *program) {
     fprintf(stderr,
-            "usage: %s cycles N STEPS FMU... | rss N FMU | threads FMU_A FMU_B | "
+            "usage: %s cycles N STEPS FMU... | rss N FMU | reload N FMU | threads FMU_A FMU_B | "
             "serial FMU_A FMU_B | short-threads N FMU | fatal N FMU | instantiate FMU "
             "[--uri URI] [--guid G] [--type me|cs] [--null-name] [--null-guid] [--null-uri] "
-            "[--after-terminate]\n  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
+            "[--after-terminate] | reentrant DEPTH FMU | environment FMU [-- PROGRAM ARG...] "
+            "| beside LIBPYTHON lazy|now start|idle FMU | fork N FMU [FMU_B] | huge-nvr FMU\n"
+            "  FMU = DIR MODEL GUID [r:VR] [d:VR=VALUE] [i:VR=VALUE]\n",
             program);
     exit(2);
 }
@@ -358,6 +411,24 @@ static int mode_rss(int argc, char **argv) {
     double after = resident_bytes();
     printf("rss_bytes_per_cycle %.6g\n", (after - before) / (double)n);
     unload(&fmu);
+    return 0;
+}
+
+static void reload_cycle(Fmu *fmu) {
+    load(fmu);
+    instance_cycle(fmu);
+    unload(fmu);
+}
+
+static int mode_reload(int argc, char **argv) {
+    Fmu fmu;
+    long n = count_and_fmu(argc, argv, 1, &fmu);
+    unload(&fmu);
+    for (int k = 0; k < WARM_UP; k++) reload_cycle(&fmu);
+    double before = resident_bytes();
+    for (long k = 0; k < n; k++) reload_cycle(&fmu);
+    double after = resident_bytes();
+    printf("rss_bytes_per_reload %.6g\n", (after - before) / (double)n);
     return 0;
 }
 
@@ -643,22 +714,250 @@ static int mode_me_cycles(int argc, char **argv) {
         }
         must("fmi2GetReal", fmu.api.getReal(c, fmu.reads, fmu.n_reads, x));
         state_round_trip(&fmu, c);
-        /* hostile calls, each refused with fmi2Error and a message */
+        /* hostile calls, each refused with fmi2Error and a message; an error leaves the
+         * instance in the error state, so the FMU state taken before puts it back (and in
+         * Continuous-Time Mode) for the next */
+        fmi2FMUstate before = NULL;
+        must("fmi2GetFMUstate", fmu.api.getFMUstate(c, &before));
         must("fmi2GetContinuousStates", me.getContinuousStates(c, x, nx));
         refused("fmi2GetDerivatives nx + 1", me.getDerivatives(c, dx, nx + 1));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
         refused("fmi2GetEventIndicators ni + 1", me.getEventIndicators(c, z, nz + 1));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
         refused("fmi2SetContinuousStates NULL", me.setContinuousStates(c, NULL, nx));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
         x[0] = 0.0 / 0.0;
         refused("fmi2SetContinuousStates NaN", me.setContinuousStates(c, x, nx));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
         refused("fmi2SetTime before the last event", me.setTime(c, -1.0));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
         refused("fmi2DoStep on a Model Exchange instance",
                 fmu.api.doStep(c, t, STEP, fmi2True));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
         fmi2EventInfo info;
         refused("fmi2NewDiscreteStates in Continuous-Time Mode", me.newDiscreteStates(c, &info));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        must("fmi2GetDerivatives", me.getDerivatives(c, dx, nx));  /* alive and usable */
+        must("fmi2FreeFMUstate", fmu.api.freeFMUstate(c, &before));
         fmu.api.freeInstance(c);
         unload(&fmu);
     }
     printf("me cycles done\n");
+    return 0;
+}
+
+extern char **environ;
+
+static int in_list(char **list, const char *entry) {
+    for (; *list; list++)
+        if (strcmp(*list, entry) == 0) return 1;
+    return 0;
+}
+
+static int mode_environment(int argc, char **argv) {
+    Fmu fmu;
+    int a = 2, program = argc;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a < argc && strcmp(argv[a], "--") == 0 && a + 1 < argc) program = a + 1;
+    else if (a != argc) usage(argv[0]);
+    size_t count = 0;
+    while (environ[count]) count++;
+    char **before = calloc(count + 1, sizeof *before);
+    for (size_t i = 0; i < count; i++) before[i] = strdup(environ[i]);
+    load(&fmu);
+    fmi2Component c = start(&fmu, "environment");
+    steps(&fmu, c, 10, NULL);
+    finish(&fmu, c);
+    int same = 1;
+    for (char **entry = environ; *entry; entry++)
+        if (!in_list(before, *entry)) printf("added %s\n", *entry), same = 0;
+    for (size_t i = 0; i < count; i++)
+        if (!in_list(environ, before[i])) printf("removed %s\n", before[i]), same = 0;
+    printf("environment %s\n", same ? "unchanged" : "changed");
+    fflush(stdout);
+    if (program < argc) {
+        pid_t child = fork();
+        if (child == 0) {
+            execv(argv[program], &argv[program]);
+            _exit(127);
+        }
+        int status = 0;
+        waitpid(child, &status, 0);
+        printf("child exit %d\n", WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    }
+    for (size_t i = 0; i < count; i++) free(before[i]);
+    free(before);
+    unload(&fmu);
+    return 0;
+}
+
+/* The host's own Python: run code in it (the host's thread taking the GIL); 0 when done. */
+static int host_python(void *python, const char *code) {
+    int (*initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    int (*ensure)(void) = (int (*)(void))dlsym(python, "PyGILState_Ensure");
+    void (*release)(int) = (void (*)(int))dlsym(python, "PyGILState_Release");
+    int (*run)(const char *) = (int (*)(const char *))dlsym(python, "PyRun_SimpleString");
+    if (!initialized || !ensure || !release || !run || !initialized()) return -1;
+    int gil = ensure();
+    int failed = run(code);
+    release(gil);
+    return failed;
+}
+
+static int mode_beside(int argc, char **argv) {
+    if (argc < 8) usage(argv[0]);
+    int lazy = strcmp(argv[3], "lazy") == 0, started = strcmp(argv[4], "start") == 0;
+    if ((!lazy && strcmp(argv[3], "now") != 0) || (!started && strcmp(argv[4], "idle") != 0))
+        usage(argv[0]);
+    void *python = dlopen(argv[2], (lazy ? RTLD_LAZY : RTLD_NOW) | RTLD_LOCAL);
+    if (!python) {
+        fprintf(stderr, "%s\n", dlerror());
+        return 3;
+    }
+    if (started) {  /* as an embedding host does: start it, then let other threads in */
+        void (*initialize)(int) = (void (*)(int))dlsym(python, "Py_InitializeEx");
+        void *(*save)(void) = (void *(*)(void))dlsym(python, "PyEval_SaveThread");
+        if (!initialize || !save) return 3;
+        initialize(0);
+        save();
+        if (host_python(python, "import sys\nassert sum([1, 1]) == 2\n") != 0)
+            return 1;
+    }
+    Fmu fmu;
+    int a = 5;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a != argc) usage(argv[0]);
+    load(&fmu);
+    fmi2Real values[MAX_REFS];
+    fmi2Component c = start(&fmu, "beside");
+    steps(&fmu, c, 100, NULL);
+    must("fmi2GetReal", fmu.api.getReal(c, fmu.reads, fmu.n_reads, values));
+    for (size_t r = 0; r < fmu.n_reads; r++) printf("value %.17g\n", values[r]);
+    finish(&fmu, c);
+    unload(&fmu);
+    if (started || host_python(python, "pass") == 0) {
+        int failed = host_python(python, "import json, math\n"
+                                         "assert json.loads(json.dumps([math.pi]))[0] == math.pi\n");
+        printf("host python %s\n", failed == 0 ? "OK" : "failed");
+    }
+    fflush(stdout);
+    return 0;
+}
+
+typedef struct {
+    Fmu *fmu;
+    fmi2Component c;
+    volatile int stop, steps;
+} Stepper;
+
+static void *step_until_stopped(void *argument) {
+    Stepper *stepper = argument;
+    fmi2Real value;
+    for (long k = 0; !stepper->stop; k++) {
+        must("fmi2DoStep", stepper->fmu->api.doStep(stepper->c, (double)k * STEP, STEP,
+                                                    fmi2True));
+        must("fmi2GetReal", stepper->fmu->api.getReal(stepper->c, stepper->fmu->reads, 1,
+                                                      &value));
+        stepper->steps++;
+    }
+    return NULL;
+}
+
+static int mode_fork(int argc, char **argv) {
+    Fmu fmus[2];
+    if (argc < 6) usage(argv[0]);
+    long n = parse_count(argv[2], argv[0]);
+    int a = 3;
+    parse_fmu(argc, argv, &a, &fmus[0]);
+    Fmu *second = &fmus[0];
+    if (a < argc) parse_fmu(argc, argv, &a, second = &fmus[1]);
+    if (a != argc) usage(argv[0]);
+    load(&fmus[0]);
+    if (second != &fmus[0]) load(second);
+    Fmu fmu = *second;  /* the children's */
+    fmi2Component other = start(&fmu, "forked");
+    Stepper stepper = {&fmus[0], start(&fmus[0], "stepping"), 0, 0};
+    pthread_t thread;
+    if (pthread_create(&thread, NULL, step_until_stopped, &stepper) != 0) return 3;
+    while (stepper.steps < 10) usleep(1000);  /* the thread is in its calls by now */
+    long finished = 0;
+    for (long k = 0; k < n; k++) {
+        fflush(stdout);
+        fflush(stderr);
+        pid_t child = fork();
+        if (child < 0) return 3;
+        if (child == 0) {  /* a second thread was inside an FMU call at the fork */
+            fmi2Real value;
+            alarm(10);
+            int ok = fmu.api.doStep(other, 0.0, STEP, fmi2True) == fmi2OK &&
+                     fmu.api.getReal(other, fmu.reads, 1, &value) == fmi2OK;
+            _exit(ok ? 0 : 1);
+        }
+        int status = 0;
+        waitpid(child, &status, 0);
+        finished += WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    }
+    stepper.stop = 1;
+    pthread_join(thread, NULL);
+    printf("children finished %ld of %ld\n", finished, n);
+    finish(&fmus[0], stepper.c);
+    finish(second, other);
+    if (second != &fmus[0]) unload(second);
+    unload(&fmus[0]);
+    fflush(stdout);
+    pid_t child = fork();  /* no handler of an unloaded runtime may run */
+    if (child == 0) _exit(0);
+    int status = -1;
+    if (child > 0) waitpid(child, &status, 0);
+    printf("fork after unloading: %s\n", status == 0 ? "OK" : "failed");
+    return 0;
+}
+
+static int mode_huge_nvr(int argc, char **argv) {
+    Fmu fmu;
+    int a = 2;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a != argc) usage(argv[0]);
+    load(&fmu);
+    fmi2Component c = start(&fmu, "huge");
+    steps(&fmu, c, 1, NULL);
+    fmi2Real value = 0.0;
+    const size_t huge = (size_t)1 << 40;
+    printf("setReal huge status %d\n", fmu.api.setReal(c, fmu.reads, huge, &value));
+    printf("getReal huge status %d\n", fmu.api.getReal(c, fmu.reads, huge, &value));
+    printf("getReal status %d\n", fmu.api.getReal(c, fmu.reads, 1, &value));
+    fmu.api.freeInstance(c);
+    unload(&fmu);
+    return 0;
+}
+
+static int mode_reentrant(int argc, char **argv) {
+    Fmu fmu;
+    long limit = argc > 2 ? strtol(argv[2], NULL, 10) : 0;
+    int a = 3;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a != argc) usage(argv[0]);
+    load(&fmu);
+    const fmi2CallbackFunctions reentrant = {reentrant_logger, calloc, free, NULL, NULL};
+    fmi2Component c = fmu.api.instantiate("reentrant", fmi2CoSimulation, fmu.guid, fmu.uri,
+                                          &reentrant, fmi2False, fmi2True);
+    if (!c) {
+        fprintf(stderr, "fmi2Instantiate returned NULL\n");
+        return 1;
+    }
+    must("fmi2SetupExperiment", fmu.api.setupExperiment(c, fmi2False, 0.0, 0.0, fmi2False,
+                                                        0.0));
+    must("fmi2EnterInitializationMode", fmu.api.enterInitializationMode(c));
+    must("fmi2SetReal/fmi2SetInteger", set_values(&fmu, c));
+    must("fmi2ExitInitializationMode", fmu.api.exitInitializationMode(c));
+    reentry.fmu = &fmu;
+    reentry.c = c;
+    reentry.limit = limit;
+    fmi2Status status = fmu.api.doStep(c, 0.0, STEP, fmi2True);
+    reentry.c = NULL;
+    printf("doStep status %d\n", status);
+    fmu.api.freeInstance(c);
+    unload(&fmu);
     return 0;
 }
 
@@ -667,12 +966,18 @@ int main(int argc, char **argv) {
     const char *mode = argv[1];
     if (strcmp(mode, "cycles") == 0) return mode_cycles(argc, argv);
     if (strcmp(mode, "rss") == 0) return mode_rss(argc, argv);
+    if (strcmp(mode, "reload") == 0) return mode_reload(argc, argv);
     if (strcmp(mode, "threads") == 0) return mode_threads(argc, argv, 1);
     if (strcmp(mode, "serial") == 0) return mode_threads(argc, argv, 0);
     if (strcmp(mode, "short-threads") == 0) return mode_short_threads(argc, argv);
     if (strcmp(mode, "fatal") == 0) return mode_fatal(argc, argv);
     if (strcmp(mode, "instantiate") == 0) return mode_instantiate(argc, argv);
     if (strcmp(mode, "me-cycles") == 0) return mode_me_cycles(argc, argv);
+    if (strcmp(mode, "reentrant") == 0) return mode_reentrant(argc, argv);
+    if (strcmp(mode, "environment") == 0) return mode_environment(argc, argv);
+    if (strcmp(mode, "beside") == 0) return mode_beside(argc, argv);
+    if (strcmp(mode, "fork") == 0) return mode_fork(argc, argv);
+    if (strcmp(mode, "huge-nvr") == 0) return mode_huge_nvr(argc, argv);
     usage(argv[0]);
     return 2;
 }
