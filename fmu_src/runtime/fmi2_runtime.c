@@ -1135,11 +1135,13 @@ static int create_slave(Instance *in) {
                                  ? py.PyObject_GetAttrString(in->slave, "_get_log_queue") : NULL;
     if (queue_getter) in->queue = py.PyObject_CallFunctionObjArgs(queue_getter, NULL);
     release(&queue_getter);
-    PyObject *variables = in->queue ? py.PyObject_GetAttrString(in->slave, "vars") : NULL;
-    Py_ssize_t count = variables ? py.PyObject_Size(variables) : -1;
-    in->variable_count = count >= 0 ? (size_t)count : SIZE_MAX;  /* not pythonfmu's: unknown */
-    py.PyErr_Clear();
-    release(&variables);
+    if (in->queue) {  /* the failure of a step before is kept for its message */
+        PyObject *variables = py.PyObject_GetAttrString(in->slave, "vars");
+        Py_ssize_t count = variables ? py.PyObject_Size(variables) : -1;
+        in->variable_count = count >= 0 ? (size_t)count : SIZE_MAX;  /* not pythonfmu's */
+        py.PyErr_Clear();
+        release(&variables);
+    }
     release(&name);
     release(&resources);
     release(&module);
