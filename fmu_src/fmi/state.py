@@ -12,7 +12,7 @@ import math
 from functools import cached_property
 from typing import Any
 
-from pythonfmu import Boolean, Integer, Real, String
+from pythonfmu import Boolean, Fmi2Causality, Integer, Real, String
 from pythonfmu.variables import ScalarVariable
 
 from fmu_src.fmi.failures import arithmetic_problem, domain_failure
@@ -35,7 +35,9 @@ class StatefulSlave(VariableSlave):
     hidden_regimes: tuple[str, ...] = ("mode",)
 
     def _get_fmu_state(self) -> dict[str, Any]:
-        state = super()._get_fmu_state()
+        # the variables that hold a value of their own (not the local variables computed
+        # from the hidden state: Model Exchange's continuous states and their derivatives)
+        state = {var.name: var.getter() for var in self._saved_variables().values()}
         state[STATE_MODEL] = type(self).__name__
         state[STATE_LAYOUT] = self.state_layout
         state[STATE_HIDDEN] = {name: _to_json(getattr(self, name))
@@ -56,7 +58,7 @@ class StatefulSlave(VariableSlave):
         values of the right types, finite numbers, inputs in their ranges and hidden state of
         this slave's shape, and then as a fresh initialisation would: its parameters in range
         (a ValueError names the variable). A refused state changes nothing."""
-        variables = {var.name: var for var in self.vars.values()}
+        variables = self._saved_variables()
         hidden = self._checked_state(state, variables)
         saved = dict(self.__dict__)
         try:
@@ -65,6 +67,12 @@ class StatefulSlave(VariableSlave):
             self.__dict__.clear()  # the same dict: the setters' closures hold it
             self.__dict__.update(saved)
             raise
+
+    def _saved_variables(self) -> dict[str, ScalarVariable]:
+        """The variables an FMU state holds, by name: all but the local ones (computed from
+        the hidden state)."""
+        return {var.name: var for var in self.vars.values()
+                if var.causality != Fmi2Causality.local}
 
     def _checked_state(self, state: Any, variables: dict[str, ScalarVariable]
                        ) -> dict[str, Any]:
