@@ -3,8 +3,11 @@
  * slave's me_ methods, fmu_src/fmi/model_exchange.py). pythonfmu's own binary is not used.
  *
  * Python:
- * - In a process that already has Python (Py_IsInitialized visible, e.g. FMPy), it uses that
- *   interpreter. Otherwise, on the first fmi2Instantiate, it loads (RTLD_GLOBAL) the libpython
+ * - In a process that already holds a CPython 3.8 or later (the host program, as FMPy's, or a
+ *   libpython loaded RTLD_GLOBAL or RTLD_LOCAL: every mapped object is looked at), it uses
+ *   that interpreter (made global if it was local, started if it was not) and loads no second
+ *   one; an older CPython there is refused. Otherwise, on the first fmi2Instantiate, it loads
+ *   (RTLD_GLOBAL) the libpython
  *   named by BALANCER_FMU_LIBPYTHON if set (and only that one), else the one the FMU was built
  *   with (resources/python.txt), else a libpython 3.8 or later the dynamic linker finds, and
  *   starts it with Py_InitializeFromConfig, which returns a status instead of ending the
@@ -16,6 +19,9 @@
  *   environment alone.
  * - Every call holds the GIL through PyGILState_Ensure/Release. A host thread that arrives
  *   without a Python thread state gets one for its lifetime, released when the thread ends.
+ * - Around a fork of the process the forking thread takes the GIL (PyOS_BeforeFork,
+ *   PyOS_AfterFork_Parent/_Child), so that the child has a GIL it can take.
+ * - Each FMU imports the Python code of its own bundle (HELPER_SOURCE).
  *
  * References: every new reference is held by one owner and released once (Py_DecRef);
  * borrowed ones are never released. The instance owns its slave, the slave's bound methods
@@ -40,10 +46,12 @@
  * Logging: the slave's log queue is passed on after every call, and the runtime's own
  * messages with it; each literal % reaches the host's logger as %% (its message is a printf
  * format). Error and Fatal messages always reach it, the others when logging is on (and, after
- * fmi2SetDebugLogging with categories, only those categories).
+ * fmi2SetDebugLogging with categories, only those categories). A logger may call the FMU
+ * again: each message reaches it once.
  *
  * build: python -m ziglang cc -target x86_64-linux-gnu.2.17 -shared -fPIC -O2
- *        -I<fmpy>/c-code fmi2_runtime.c -o <Model>.so   (harness/fmu/build.py does this)
+ *        -I<fmpy>/c-code fmi2_runtime.c fmi2_states.c -o <Model>.so
+ *        (harness/fmu/build.py does this)
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
