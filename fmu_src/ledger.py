@@ -78,13 +78,13 @@ def payload_derivatives(arm_rates: Callable[[Any, float, float], Callable],
     E_added), given its arm_rates(p, payload, tau_drive), the rates (theta, omega) ->
     (omega', friction loss [W]), its inertia(p, payload, theta) (as for `payload_switch`)
     and its State type."""
-    def derivatives(p: Any, u: Any, s: S, rates: Any = None) -> S:
+    def derivatives(p: Any, u: Any, s: S, rates: Any = None, mode: Any = None) -> S:
         """Time derivative of the state (Lagrange equation) for inputs u that are constant
         or, for a continuous-time model such as the harness's reference, change at `rates`
         (d/dt of the inputs): the continuous limit of switch_inputs (`payload_flow`), a
         payload joining from rest brakes the arm, J omega' gains -payload_rate w^2 omega and
         E_loss 1/2 payload_rate w^2 omega^2; a payload leaving takes its kinetic energy
-        (E_added)."""
+        (E_added). The arm has one regime: mode is not used."""
         theta, omega = s[0], s[1]
         omega_dot, loss = arm_rates(p, u.payload, u.tau_drive)(theta, omega)
         if rates is None:
@@ -94,3 +94,9 @@ def payload_derivatives(arm_rates: Callable[[Any, float, float], Callable],
         return state(omega, omega_dot + flow.omega_dot, u.tau_drive * omega, loss + flow.loss,
                      flow.added)
     return derivatives
+
+
+def arm_state_nominals(p: Any) -> tuple[float, ...]:
+    """`state_nominals` of a one-link arm's state (theta, omega, W_drive, E_loss, E_added):
+    1 rad, 1 rad/s and 1 J (the arms' speeds and energies are of that order)."""
+    return (1.0, 1.0, 1.0, 1.0, 1.0)

@@ -42,9 +42,10 @@ class Physics(Protocol):
     def initial_state(self, p: Any) -> Any:
         """The State at the start time."""
 
-    def derivatives(self, p: Any, u: Any, s: Any, rates: Any = None) -> Any:
+    def derivatives(self, p: Any, u: Any, s: Any, rates: Any = None, mode: Any = None) -> Any:
         """ds/dt as a State, for inputs u held constant; rates (Inputs): d/dt of the inputs
-        that ramp (masses joining or leaving while the mechanism moves), None for none."""
+        that ramp (masses joining or leaving while the mechanism moves), None for none; mode:
+        the regime held since the last event (`mode`), None to decide it from s."""
 
     def characteristic_rate(self, p: Any, u: Any, s: Any) -> float:
         """The fastest rate of the local dynamics [1/s]: sets the integration sub-step."""
@@ -59,6 +60,32 @@ class Physics(Protocol):
 
     def outputs(self, p: Any, u: Any, s: Any) -> Any:
         """The Outputs at the state s with the inputs u."""
+
+    # ---- Model Exchange: the events the step locates inside itself, for a host's solver
+    # (docs/adding_a_mechanism.md); no_mode, no_event_indicators and no_event_update serve a
+    # smooth mechanism
+    # the variables of the State fields that no output reports (`state_variables`)
+    STATE_VARIABLES: tuple[Variable, ...]
+    # the FMU's event indicators, one `variable(unit, description)` each, named, in order
+    EVENT_INDICATORS: tuple[Variable, ...]
+
+    def mode(self, p: Any, u: Any, s: Any) -> tuple[int, ...]:
+        """The regime the state and inputs start in (a friction state, a screw's direction),
+        held by a host's solver until the next event; () for a mechanism without one."""
+
+    def event_indicators(self, p: Any, u: Any, s: Any, mode: tuple[int, ...]
+                         ) -> tuple[float, ...]:
+        """One value per EVENT_INDICATORS, positive while the regime mode holds; an event
+        where one crosses to zero or below (a stop reached, a slider stopping)."""
+
+    def event_update(self, p: Any, u: Any, s: Any, mode: tuple[int, ...]) -> Any:
+        """The State after the events an indicator's crossing signals (a stop's impact, a
+        slider sticking), the energy they take booked in the ledger; s where there is none
+        (so that a second call changes nothing)."""
+
+    def state_nominals(self, p: Any) -> tuple[float, ...]:
+        """The magnitude of each State component [its unit] a solver's absolute tolerance
+        scales with."""
 
 
 @dataclass(frozen=True)
@@ -123,10 +150,49 @@ def output_variables(outputs: type, inputs: type, **declared: Variable) -> tuple
     return named
 
 
+def state_variables(state: type, outputs: type, **declared: Variable) -> tuple[Variable, ...]:
+    """The variables of the State fields that no output of the same name reports (the
+    continuous states of Model Exchange are the State's fields, each a variable: an output
+    where one reports it, else one of these); TypeError unless exactly those are declared."""
+    missing = [n for n in state._fields if n not in outputs._fields]
+    if sorted(declared) != sorted(missing):
+        raise TypeError(f"the state variables of {state.__qualname__} must declare its fields "
+                        f"that no output reports: {', '.join(missing) or 'none'} (declared: "
+                        f"{', '.join(declared) or 'none'})")
+    return tuple(replace(v, name=n) for n, v in declared.items())
+
+
 def no_input_events(p: Any, before: Any, after: Any, s: Any) -> Any:
     """`switch_inputs` of a mechanism whose EVENT_INPUTS is empty: the state, unchanged."""
     return s
 
+
+def variable_named(name: str, declared: Variable) -> Variable:
+    """declared with its name (an event indicator's, which no field names)."""
+    return replace(declared, name=name)
+
+
+def no_mode(p: Any, u: Any, s: Any) -> tuple[int, ...]:
+    """`mode` of a mechanism with one smooth regime."""
+    return ()
+
+
+def no_event_indicators(p: Any, u: Any, s: Any, mode: tuple[int, ...]) -> tuple[float, ...]:
+    """`event_indicators` of a mechanism without state events."""
+    return ()
+
+
+def no_event_update(p: Any, u: Any, s: Any, mode: tuple[int, ...]) -> Any:
+    """`event_update` of a mechanism without state events: the state, unchanged."""
+    return s
+
+
+# The one-link figure's panels after the link angle (Franchetti et al. 2021, Figure 5), as
+# (title, unit): a one-link mechanism draws its outputs in them (Registration.plot_panels), so
+# that the variants of one scenario, whatever their models, share them
+ENERGY_PANEL = ("(b) energies", "J")
+ADJUSTMENT_PANEL = ("(c) adjuster travel and payload", "mm | kg")
+GEOMETRY_PANEL = ("(d) spring length or counterweight position", "mm")
 
 # The one-link figure's panels after the link angle, as (title, unit): Franchetti et al. 2021,
 # Figure 5 (b) energies, (c) adjuster travel and payload (two quantities, so two panels here)

@@ -333,7 +333,7 @@ def test_stage_rates_are_the_spring_and_carriage_laws(params: dict, inputs: tupl
                                                        u.tau_drive * omega,
                                                        u.F_adjust * q_dot, loss_rate, 0.0)
         h = 0.05   # long enough for the increments to show the rounding of their sums
-        reference = integration.rk4(partial(physics.derivatives, p, u, direction=direction),
+        reference = integration.rk4(partial(physics.derivatives, p, u, mode=(direction,)),
                                     s, h)
         step = integration.rk4_link_carriage_step(rates, u.tau_drive, u.F_adjust, s, h)
         assert type(step) is physics.State

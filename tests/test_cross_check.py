@@ -13,13 +13,14 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.cross_check import validate_vendor_repo
 from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
-from harness import cli, scenarios
+from harness import cli, registry, scenarios
 from harness.fmu import build as fmu_build
 from harness.fmu import cross_check
 from harness.fmu import docs as fmu_docs
 from harness.fmu.loader import CoSimFMU
 
 INPUT_MODELS = [m for m in fmu_build.MODELS if fmu_docs.reference_run(m).inputs is not None]
+MECHANISMS = registry.mechanisms()
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +41,26 @@ def test_validate_vendor_repo_finds_no_problem(repo: Path) -> None:
     done = subprocess.run([sys.executable, "-m", "fmpy.cross_check.validate_vendor_repo",
                            str(repo)], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stdout  # its exit code is the number of problems
-    assert f"Validated {len(fmu_build.MODELS)} FMUs" in done.stdout
+    # every FMU as Co-Simulation, and the mechanisms as Model Exchange too
+    assert f"Validated {len(fmu_build.MODELS) + len(MECHANISMS)} FMUs" in done.stdout
+
+
+@pytest.mark.parametrize("model", sorted(MECHANISMS))
+def test_model_exchange_reference_is_the_co_simulation_one(repo: Path, model: str) -> None:
+    """The Model Exchange folder holds the same FMU, and its reference (FMPy's CVode)
+    agrees with the Co-Simulation reference within the cross-check's band (fmpy's
+    validate_result); an importer rerunning it as Model Exchange reproduces it."""
+    cs, me = (cross_check.model_dir(repo, model, kind) for kind in ("cs", "me"))
+    assert (me / f"{model}.fmu").read_bytes() == (cs / f"{model}.fmu").read_bytes()
+    reference = read_csv(me / f"{model}_ref.csv")
+    assert validate_result(reference, read_csv(cs / f"{model}_ref.csv")) == 0
+    options = read_ref_opt_file(me / f"{model}_ref.opt")
+    inputs = read_csv(me / f"{model}_in.csv") if (me / f"{model}_in.csv").exists() else None
+    rerun = simulate_fmu(str(me / f"{model}.fmu"), fmi_type="ModelExchange", input=inputs,
+                         stop_time=options["StopTime"], relative_tolerance=options["RelTol"],
+                         output_interval=options["StepSize"],
+                         output=list(reference.dtype.names[1:]))
+    assert validate_result(rerun, reference) == 0
 
 
 @pytest.mark.parametrize("model", fmu_build.MODELS)

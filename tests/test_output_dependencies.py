@@ -68,12 +68,17 @@ def model(request: pytest.FixtureRequest) -> tuple[str, Path]:
 
 
 def test_every_output_declares_its_dependencies(model: tuple[str, Path]) -> None:
-    """Outputs: dependencies present and only inputs; InitialUnknowns: present, every
+    """Outputs: dependencies present and only inputs and (Model Exchange) continuous
+    states, a state itself depending on itself alone; InitialUnknowns: present, every
     parameter (which the initial state is computed from) and otherwise only inputs."""
     md = read_model_description(str(model[1]))
     parameters = {v.name for v in md.modelVariables if v.causality == "parameter"}
+    states = {d.variable.derivative.name for d in md.derivatives}
     assert md.outputs and all(u.dependencies is not None for u in md.outputs)
-    assert all(v.causality == "input" for u in md.outputs for v in u.dependencies)
+    assert all(v.causality == "input" or v.name in states
+               for u in md.outputs for v in u.dependencies)
+    assert all([v.name for v in u.dependencies] == [u.variable.name]
+               for u in md.outputs if u.variable.name in states)
     for unknown in md.initialUnknowns:
         names = {v.name for v in unknown.dependencies}
         assert parameters <= names, unknown.variable.name

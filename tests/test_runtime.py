@@ -264,6 +264,25 @@ def test_valgrind_finds_no_error_and_no_definite_leak_in_50_cycles(
     assert all(n == "0" for n in lost), report
 
 
+@pytest.mark.slow
+def test_valgrind_finds_no_error_and_no_definite_leak_in_model_exchange_cycles(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    """20 Model Exchange life cycles (load, integrate 200 steps with events, state round
+    trip, hostile calls, free, unload) under valgrind: no error, no definite leak."""
+    if shutil.which("valgrind") is None:
+        pytest.skip("valgrind is not installed")
+    done = subprocess.run(
+        valgrind_command(stress, "me-cycles", "20", "200", SRB_NX, SRB_NZ, *fmus[SRB].args()),
+        env=valgrind_environment(fmus[SRB]), capture_output=True, text=True,
+        timeout=VALGRIND_TIMEOUT)
+    report = valgrind_report(done.stderr)
+    assert done.returncode == 0, f"exit {done.returncode}\n{report}"
+    assert done.stdout.splitlines() == ["me cycles done"]
+    assert "ERROR SUMMARY: 0 errors" in done.stderr, report
+    lost = re.findall(r"definitely lost: ([\d,]+) bytes", done.stderr)
+    assert all(n == "0" for n in lost), report
+
+
 # --- resident memory ----------------------------------------------------------------------
 
 
@@ -443,10 +462,41 @@ def test_a_null_argument_gives_null_with_a_message(
     assert_refused(instantiate(stress, fmus[SRB], flag))
 
 
-def test_model_exchange_is_refused_naming_co_simulation(
+def test_model_exchange_of_a_co_simulation_slave_is_refused_naming_co_simulation(
         stress: Path, fmus: dict[str, Unzipped]) -> None:
-    stderr = assert_refused(instantiate(stress, fmus[SRB], "--type", "me"))
-    assert re.search(r"co-?simulation", stderr, re.IGNORECASE), stderr
+    stderr = assert_refused(instantiate(stress, fmus[PROBE], "--type", "me"))
+    assert re.search(r"co-?simulation only", stderr, re.IGNORECASE), stderr
+
+
+# the SelfRegulatingBalancer's numbers of continuous states and event indicators
+SRB_NX, SRB_NZ = "8", "3"
+# what the runtime answers each hostile Model Exchange call of the stress host's me-cycles
+HOSTILE_ME_MESSAGES = (
+    "fmi2GetDerivatives: nx = 9 is not this FMU's number of continuous states, 8",
+    "fmi2GetEventIndicators: ni = 4 is not this FMU's number of event indicators, 3",
+    "fmi2SetContinuousStates: the slave's arguments: a NULL array",
+    "continuous states refused, not finite: theta = nan",
+    "time = -1.0 s is before the last event",
+    "fmi2DoStep is not allowed in Continuous-Time Mode (FMI 2.0 Model Exchange has no such "
+    "call)",
+    "fmi2NewDiscreteStates is not allowed in Continuous-Time Mode (FMI 2.0 Model Exchange: "
+    "only in Event Mode)",
+)
+
+
+def test_model_exchange_life_cycles_refuse_hostile_calls_with_messages(
+        stress: Path, fmus: dict[str, Unzipped]) -> None:
+    """Model Exchange instances integrated with their events (explicit Euler, an event every
+    0.1 s), a state round trip, then out-of-sequence calls, a wrong nx and ni, NaN and NULL
+    states, a time before the last event and a Co-Simulation call: each fmi2Error with a
+    message (the FMU state taken before each puts the instance back), the process alive and
+    the instance usable after them (the host exits 1 on any other status)."""
+    done = stress_run(stress, "me-cycles", "2", "300", SRB_NX, SRB_NZ, *fmus[SRB].args())
+    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-4000:]}"
+    assert done.stdout.splitlines() == ["me cycles done"]
+    logged = [text for status, text in messages(done.stderr) if status == FMI_ERROR]
+    for expected in HOSTILE_ME_MESSAGES:
+        assert sum(expected in text for text in logged) == 2, (expected, logged)
 
 
 def test_a_wrong_guid_is_refused_naming_both_guids(

@@ -14,6 +14,8 @@ from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import Fmi2Causality
 
+from fmu_src.fmi.model_exchange import MODEL_EXCHANGE_OPTIONS
+
 # unit -> (quantity used as the declared type name, SI base-unit exponents)
 UNITS: dict[str, tuple[str, dict[str, int]]] = {
     "1": ("Dimensionless", {}),
@@ -23,6 +25,7 @@ UNITS: dict[str, tuple[str, dict[str, int]]] = {
     "m/s2": ("Acceleration", {"m": 1, "s": -2}),
     "rad": ("Angle", {"rad": 1}),
     "rad/s": ("AngularVelocity", {"rad": 1, "s": -1}),
+    "rad/s2": ("AngularAcceleration", {"rad": 1, "s": -2}),
     "kg": ("Mass", {"kg": 1}),
     "kg.m2": ("MomentOfInertia", {"kg": 1, "m": 2}),
     "N": ("Force", {"kg": 1, "m": 1, "s": -2}),
@@ -71,14 +74,29 @@ def type_definitions(units: list[str]) -> Element:
     return node
 
 
+# The FMUs contain their whole model: the Python code of the slave and of every module it
+# imports, run by the FMU's own binary, which needs a CPython library as a C FMU needs the C
+# runtime (docs/model_exchange.md); no tool has to execute them
+NEEDS_EXECUTION_TOOL = "false"
+
+
 def complete(root: Element, slave: Any) -> Element:
     """pythonfmu's model description root of the slave with what it leaves out: unit and
     type definitions, declared types, display units, min/max, each output's
-    dependencies and the InitialUnknowns (from the slave's info and dependencies)."""
+    dependencies and the InitialUnknowns (from the slave's info and dependencies); for a
+    slave with Model Exchange (`fmu_src.fmi.model_exchange`) its element, its continuous
+    states' derivatives and its number of event indicators."""
     used_units = sorted({i.unit for i in slave.info.values() if i.unit is not None})
-    position = list(root).index(root.find("CoSimulation")) + 1
-    root.insert(position, unit_definitions(used_units))
-    root.insert(position + 1, type_definitions(used_units))
+    cosimulation = root.find("CoSimulation")
+    cosimulation.set("needsExecutionTool", NEEDS_EXECUTION_TOOL)
+    position = list(root).index(cosimulation)
+    derivative_of = getattr(slave, "derivative_of", None)
+    if derivative_of is not None:
+        root.set("numberOfEventIndicators", str(len(slave.physics.EVENT_INDICATORS)))
+        root.insert(position, model_exchange(cosimulation))
+        position += 1
+    root.insert(position + 1, unit_definitions(used_units))
+    root.insert(position + 2, type_definitions(used_units))
 
     initial_unknowns = []
     index_of: dict[str, int] = {}
@@ -98,9 +116,17 @@ def complete(root: Element, slave: Any) -> Element:
             initial_unknowns.append(index)
     structure = root.find("ModelStructure")
     names = list(index_of)
+    states = [index_of[n] for n in getattr(slave, "state_variables", ())]
     for unknown in structure.iterfind("Outputs/Unknown"):
-        inputs = slave.dependencies[names[int(unknown.get("index")) - 1]]
-        unknown.set("dependencies", indices(index_of[n] for n in inputs))
+        name = names[int(unknown.get("index")) - 1]
+        if name in getattr(slave, "state_variables", ()):   # a state: itself
+            unknown.set("dependencies", str(index_of[name]))
+            continue
+        # the declared inputs and (a superset) the continuous states of Model Exchange
+        unknown.set("dependencies", indices(
+            {*states, *(index_of[n] for n in slave.dependencies[name])}))
+    if derivative_of is not None:
+        add_derivatives(root, structure, derivative_of, index_of)
     # At initialisation the knowns also include the parameters, which the initial state
     # is computed from: every parameter is listed (a superset), with the inputs declared.
     parameters = [index_of[v.name] for v in slave.vars.values()
@@ -113,3 +139,25 @@ def complete(root: Element, slave: Any) -> Element:
             SubElement(node, "Unknown", attrib={"index": str(index),
                                                 "dependencies": dependencies})
     return root
+
+
+def model_exchange(cosimulation: Element) -> Element:
+    """The ModelExchange element of an FMU whose CoSimulation element is cosimulation: the
+    same model identifier (one binary serves both) and `MODEL_EXCHANGE_OPTIONS`."""
+    return Element("ModelExchange", attrib={
+        "modelIdentifier": cosimulation.get("modelIdentifier"), **MODEL_EXCHANGE_OPTIONS})
+
+
+def add_derivatives(root: Element, structure: Element, derivative_of: dict[str, str],
+                    index_of: dict[str, int]) -> None:
+    """Each derivative variable's `derivative` attribute (its state's index) and the
+    ModelStructure's Derivatives (after Outputs), each depending on every known (no
+    dependencies attribute)."""
+    variables = root.find("ModelVariables")
+    node = Element("Derivatives")
+    for name, state in derivative_of.items():
+        index = index_of[name]
+        variables[index - 1].find("Real").set("derivative", str(index_of[state]))
+        SubElement(node, "Unknown", attrib={"index": str(index)})
+    outputs = structure.find("Outputs")
+    structure.insert(0 if outputs is None else list(structure).index(outputs) + 1, node)

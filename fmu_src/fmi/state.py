@@ -12,7 +12,7 @@ import math
 from functools import cached_property
 from typing import Any
 
-from pythonfmu import Boolean, Integer, Real, String
+from pythonfmu import Boolean, Fmi2Causality, Integer, Real, String
 from pythonfmu.variables import ScalarVariable
 
 from fmu_src.fmi.failures import arithmetic_problem, domain_failure
@@ -20,6 +20,7 @@ from fmu_src.fmi.variables import VariableSlave
 
 # keys of an FMU state besides its variables' names
 STATE_MODEL, STATE_LAYOUT, STATE_HIDDEN = "__model__", "__layout__", "__hidden__"
+REGIME_SIZE = 4  # the longest regime a hidden state may hold
 # the Python types a variable's value in an FMU state may have, by its FMI type
 STATE_TYPES = {Real: (float, int), Boolean: (bool,), Integer: (int,), String: (str,)}
 
@@ -29,9 +30,14 @@ class StatefulSlave(VariableSlave):
     attributes listed in `hidden_state` (JSON-compatible once `_to_json` has converted them)."""
 
     hidden_state: tuple[str, ...] = ()
+    # hidden state that is a regime: a list of -1, 0 and 1 whose length depends on the state
+    # (a Model Exchange mode, `fmu_src.mechanism.Physics.mode`)
+    hidden_regimes: tuple[str, ...] = ("mode",)
 
     def _get_fmu_state(self) -> dict[str, Any]:
-        state = super()._get_fmu_state()
+        # the variables that hold a value of their own (not the local variables computed
+        # from the hidden state: Model Exchange's continuous states and their derivatives)
+        state = {var.name: var.getter() for var in self._saved_variables().values()}
         state[STATE_MODEL] = type(self).__name__
         state[STATE_LAYOUT] = self.state_layout
         state[STATE_HIDDEN] = {name: _to_json(getattr(self, name))
@@ -52,7 +58,7 @@ class StatefulSlave(VariableSlave):
         values of the right types, finite numbers, inputs in their ranges and hidden state of
         this slave's shape, and then as a fresh initialisation would: its parameters in range
         (a ValueError names the variable). A refused state changes nothing."""
-        variables = {var.name: var for var in self.vars.values()}
+        variables = self._saved_variables()
         hidden = self._checked_state(state, variables)
         saved = dict(self.__dict__)
         try:
@@ -61,6 +67,12 @@ class StatefulSlave(VariableSlave):
             self.__dict__.clear()  # the same dict: the setters' closures hold it
             self.__dict__.update(saved)
             raise
+
+    def _saved_variables(self) -> dict[str, ScalarVariable]:
+        """The variables an FMU state holds, by name: all but the local ones (computed from
+        the hidden state)."""
+        return {var.name: var for var in self.vars.values()
+                if var.causality != Fmi2Causality.local}
 
     def _checked_state(self, state: Any, variables: dict[str, ScalarVariable]
                        ) -> dict[str, Any]:
@@ -99,6 +111,12 @@ class StatefulSlave(VariableSlave):
                                       f"{', '.join(self.hidden_state) or 'nothing'}")
         for name in self.hidden_state:
             value, like = hidden[name], _to_json(getattr(self, name))
+            if name in self.hidden_regimes:
+                if not (isinstance(value, list) and len(value) <= REGIME_SIZE and all(
+                        v in (-1, 0, 1) and not isinstance(v, bool) for v in value)):
+                    raise self._state_problem(f"hidden state {name} = {value!r} is not a "
+                                              f"regime (up to {REGIME_SIZE} of -1, 0 and 1)")
+                continue
             if _shape(value) != _shape(like):
                 raise self._state_problem(f"hidden state {name} = {value!r} is not of the "
                                           f"shape of {like!r} (numbers, booleans, lengths)")

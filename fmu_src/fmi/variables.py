@@ -129,15 +129,18 @@ class VariableSlave(Fmi2Slave):
                        description=description), VariableInfo(unit, description))
 
     def add_input(self, name: str, start: float | bool, unit: str | None, description: str,
-                  min: float | None = None, max: float | None = None) -> None:
-        """A Real (unit given) or Boolean (unit None) input held over a communication step."""
+                  min: float | None = None, max: float | None = None,
+                  discrete: bool = False) -> None:
+        """A Real (unit given) or Boolean (unit None) input held over a communication step;
+        a Real one discrete (it changes only at events) or continuous."""
         setattr(self, name, start)
         if unit is None:
             var = Boolean(name, causality=Fmi2Causality.input,
                           variability=Fmi2Variability.discrete, description=description)
         else:
             var = Real(name, causality=Fmi2Causality.input,
-                       variability=Fmi2Variability.continuous, description=description)
+                       variability=Fmi2Variability.discrete if discrete
+                       else Fmi2Variability.continuous, description=description)
             self.real_input_bounds.append((
                 name, -MAGNITUDE_LIMIT if min is None else builtins.max(min, -MAGNITUDE_LIMIT),
                 MAGNITUDE_LIMIT if max is None else builtins.min(max, MAGNITUDE_LIMIT)))
@@ -181,6 +184,17 @@ class VariableSlave(Fmi2Slave):
                        description=description)
             self.real_outputs.append(name)
         self._add(var, VariableInfo(unit, description))
+
+    def add_local(self, name: str, unit: str, description: str, getter: Callable[[], float],
+                  initial_depends_on: tuple[str, ...] = ()) -> None:
+        """A Real local variable the model computes (a continuous state or its derivative),
+        read through getter; initial_depends_on: the inputs it depends on at
+        initialisation."""
+        self.initial_dependencies[name] = tuple(initial_depends_on)
+        self._add(Real(name, causality=Fmi2Causality.local,
+                       variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
+                       description=description, getter=getter),
+                  VariableInfo(unit, description))
 
     @property
     def refreshes_outputs(self) -> bool:

@@ -1,5 +1,6 @@
-/* The FMU's linux64 binary: an FMI 2.0 Co-Simulation runtime, in C, over pythonfmu's Python
- * API (the Fmi2Slave instance and its methods). pythonfmu's own binary is not used.
+/* The FMU's linux64 binary: an FMI 2.0 Co-Simulation and Model Exchange runtime, in C, over
+ * pythonfmu's Python API (the Fmi2Slave instance and its methods; for Model Exchange the
+ * slave's me_ methods, fmu_src/fmi/model_exchange.py). pythonfmu's own binary is not used.
  *
  * Python:
  * - In a process that already holds a CPython 3.8 or later (the host program, as FMPy's, or a
@@ -38,8 +39,9 @@
  *   the last step ended) within TIME_TOLERANCE: otherwise fmi2Error;
  * - after fmi2Fatal every call returns fmi2Fatal without entering Python (fmi2FreeInstance
  *   still releases the instance);
- * - refused without entering Python, with a message: Model Exchange, a GUID other than the
- *   FMU's, a NULL name, GUID or resource location, an unusable resource location.
+ * - refused without entering Python, with a message: Model Exchange of a slave without it, a
+ *   GUID other than the FMU's, a NULL name, GUID or resource location, an unusable resource
+ *   location.
  *
  * Logging: the slave's log queue is passed on after every call, and the runtime's own
  * messages with it; each literal % reaches the host's logger as %% (its message is a printf
@@ -138,6 +140,7 @@ typedef struct { int type; const char *func; const char *err_msg; int exitcode; 
     X(const char *, PyUnicode_AsUTF8AndSize, (PyObject *, Py_ssize_t *)) \
     X(PyObject *, PyUnicode_AsUTF8String, (PyObject *)) \
     X(PyObject *, PyLong_FromLong, (long)) \
+    X(PyObject *, PyLong_FromSize_t, (size_t)) \
     X(long, PyLong_AsLong, (PyObject *)) \
     X(PyObject *, PyFloat_FromDouble, (double)) \
     X(double, PyFloat_AsDouble, (PyObject *)) \
@@ -968,6 +971,17 @@ static const char *const METHOD_NAMES[METHOD_COUNT] = {
     "exit_initialization_mode", "terminate", "_get_fmu_state", "_set_fmu_state",
     "_fmu_state_to_bytes", "_fmu_state_from_bytes"};
 
+/* Model Exchange's calls of the slave, looked up for a Model Exchange instance only */
+enum ModelExchangeMethod {
+    ME_SET_TIME, ME_SET_CONTINUOUS_STATES, ME_GET_CONTINUOUS_STATES, ME_GET_NOMINALS,
+    ME_GET_DERIVATIVES, ME_GET_EVENT_INDICATORS, ME_ENTER_EVENT_MODE, ME_NEW_DISCRETE_STATES,
+    ME_ENTER_CONTINUOUS_TIME_MODE, ME_COMPLETED_INTEGRATOR_STEP, ME_METHOD_COUNT
+};
+static const char *const ME_METHOD_NAMES[ME_METHOD_COUNT] = {
+    "me_set_time", "me_set_continuous_states", "me_get_continuous_states", "me_get_nominals",
+    "me_get_derivatives", "me_get_event_indicators", "me_enter_event_mode",
+    "me_new_discrete_states", "me_enter_continuous_time_mode", "me_completed_integrator_step"};
+
 #define INSTANCE_TAG 0x464d5532u  /* "FMU2" */
 #define STATE_TAG 0x53544154u     /* "STAT" */
 
@@ -981,6 +995,8 @@ typedef struct {
     double last_successful_time;  /* the FMU's time [s]: where the next step must start */
     PyObject *cls, *slave, *queue;
     PyObject *methods[METHOD_COUNT];
+    PyObject *me_methods[ME_METHOD_COUNT];  /* a Model Exchange instance's */
+    size_t state_count, indicator_count;     /* its nx and ni */
     PyObject **strings;  /* the UTF-8 bytes behind the last fmi2GetString's values */
     size_t string_count;
     size_t variable_count;  /* the slave's variables: no call names more value references */
@@ -1009,6 +1025,7 @@ static void release_strings(Instance *in) {
 
 static void release_slave(Instance *in) {
     for (int i = 0; i < METHOD_COUNT; i++) release(&in->methods[i]);
+    for (int i = 0; i < ME_METHOD_COUNT; i++) release(&in->me_methods[i]);
     release(&in->queue);
     release(&in->slave);
     release_strings(in);
@@ -1084,6 +1101,31 @@ static void drain_log(Instance *in) {
     release(&messages);
 }
 
+/* Look the slave's Model Exchange methods and its numbers of continuous states and event
+ * indicators up (me_state_count, me_indicator_count); 0 after logging why not (a slave of
+ * Co-Simulation only). */
+static int model_exchange_methods(Instance *in) {
+    const char *missing = NULL;
+    for (int i = 0; !missing && i < ME_METHOD_COUNT; i++)
+        if (!(in->me_methods[i] = py.PyObject_GetAttrString(in->slave, ME_METHOD_NAMES[i])))
+            missing = ME_METHOD_NAMES[i];
+    const char *const counts[2] = {"me_state_count", "me_indicator_count"};
+    size_t *const values[2] = {&in->state_count, &in->indicator_count};
+    for (int i = 0; !missing && i < 2; i++) {
+        PyObject *count = py.PyObject_GetAttrString(in->slave, counts[i]);
+        long value = count ? py.PyLong_AsLong(count) : -1;
+        release(&count);
+        if (value < 0) missing = counts[i];
+        else *values[i] = (size_t)value;
+    }
+    if (!missing) return 1;
+    py.PyErr_Clear();
+    log_format(&in->sink, fmi2Error, "fmi2Instantiate: this FMU's slave implements FMI 2.0 "
+               "Co-Simulation only (it has no %s); fmuType fmi2ModelExchange refused", missing);
+    drain_log(in);
+    return 0;
+}
+
 /* Make the instance's slave (and look its methods up once); 0 after logging why. */
 static int create_slave(Instance *in) {
     PyObject *name = py.PyUnicode_FromString(in->sink.name);
@@ -1112,6 +1154,10 @@ static int create_slave(Instance *in) {
     release(&resources);
     release(&module);
     release(&visible);
+    if (in->queue && in->type == fmi2ModelExchange && !model_exchange_methods(in)) {
+        release_slave(in);
+        return 0;
+    }
     if (in->queue) return 1;
     fmi2Status status = python_failure(in, in->slave ? "fmi2Instantiate (the slave's methods)"
                                                      : "fmi2Instantiate (the slave class)");
@@ -1156,9 +1202,10 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                    : !fmuGUID ? "fmuGUID" : "fmuResourceLocation");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
-        log_format(&sink, fmi2Error, "fmi2Instantiate: this FMU implements FMI 2.0 "
-                   "Co-Simulation only; fmuType %d (Model Exchange) refused", (int)fmuType);
+    if (fmuType != fmi2CoSimulation && fmuType != fmi2ModelExchange) {
+        log_format(&sink, fmi2Error, "fmi2Instantiate: fmuType %d is neither "
+                   "fmi2ModelExchange (%d) nor fmi2CoSimulation (%d)", (int)fmuType,
+                   (int)fmi2ModelExchange, (int)fmi2CoSimulation);
         return NULL;
     }
     if (record.guid[0] && strcmp(fmuGUID, record.guid) != 0) {
@@ -1216,6 +1263,15 @@ void fmi2FreeInstance(fmi2Component c) {
 /* Whether a call may go ahead: fmi2OK, or fmi2Error for a call the instance's state does not
  * allow (with a message, and the instance in the error state, as after any fmi2Error), or
  * fmi2Fatal for any call after fmi2Fatal (the standard allows none then). */
+/* fmi2SetInteger, fmi2SetBoolean and fmi2SetString in Continuous-Time Mode, which the
+ * standard does not allow: FMPy's CVode sets every input again in its root function, there
+ * and past an input event it has not reached yet. They go to the slave, which takes a
+ * discrete input's new value at the next event only (fmu_src/fmi/model_exchange.py). */
+static int discrete_set_again(const Instance *in, Fmi2Call call) {
+    return in->type == fmi2ModelExchange && in->state == FMI2_CONTINUOUS_TIME_MODE &&
+           (call == FMI2_SET_INTEGER || call == FMI2_SET_BOOLEAN || call == FMI2_SET_STRING);
+}
+
 static fmi2Status check_call(Instance *in, Fmi2Call call) {
     if (!in || in->tag != INSTANCE_TAG) return fmi2Error;
     if (in->state == FMI2_FATAL) {
@@ -1223,7 +1279,7 @@ static fmi2Status check_call(Instance *in, Fmi2Call call) {
                    "returned fmi2Fatal", fmi2_call_name(call));
         return fmi2Fatal;
     }
-    if (!fmi2_allowed(in->type, in->state, call)) {
+    if (!fmi2_allowed(in->type, in->state, call) && !discrete_set_again(in, call)) {
         char refusal[1024];
         fmi2_refusal(in->type, in->state, call, refusal, sizeof refusal);
         in->state = FMI2_ERROR;
@@ -1823,3 +1879,191 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 
 const char *fmi2GetVersion(void) { return fmi2Version; }
+
+/* ==== Model Exchange ========================================================================
+ * The FMI 2.0 Model Exchange calls over the slave's me_ methods (fmu_src/fmi/model_exchange.py),
+ * for an instance made with fmuType fmi2ModelExchange; the state machine (fmi2_states.c)
+ * admits them, and refuses them on a Co-Simulation instance (and fmi2DoStep on a Model
+ * Exchange one). The runtime never reads or writes past the model's nx or ni
+ * (me_state_count, me_indicator_count): a host's other count is refused before its array is
+ * touched. */
+
+/* Call a Model Exchange method with the arguments given (none: CALL_ME(method, NULL)). */
+#define CALL_ME(method, ...) \
+    py.PyObject_CallFunctionObjArgs(in->me_methods[method], __VA_ARGS__, NULL)
+
+/* fmi2Error with the message "<function>: <what> = <given> is not <the model's count>". */
+static fmi2Status wrong_count(Instance *in, const char *function, int states, size_t given,
+                              size_t count) {
+    Message m = {{0}, 0};
+    append(&m, "%s: %s = %zu is not this FMU's number of %s, %zu", function,
+           states ? "nx" : "ni", given, states ? "continuous states" : "event indicators",
+           count);
+    free(in->failure);
+    in->failure = strdup(m.text);
+    return fmi2Error;
+}
+
+/* Copy a method's result, a sequence of n numbers, into values (n checked by the caller). */
+static fmi2Status take_numbers(Instance *in, const char *function, PyObject *result,
+                               fmi2Real values[], size_t n) {
+    if (!result) return python_failure(in, function);
+    if (py.PySequence_Size(result) != (Py_ssize_t)n) {
+        py.PyErr_Clear();
+        return wrong_result(in, function, "result: a wrong number of values");
+    }
+    for (size_t i = 0; i < n; i++) {
+        PyObject *item = py.PySequence_GetItem(result, (Py_ssize_t)i);
+        values[i] = item ? py.PyFloat_AsDouble(item) : 0.0;
+        release(&item);
+        if (py.PyErr_Occurred()) return python_failure(in, function);
+    }
+    return fmi2OK;
+}
+
+/* One of the inquiries that fill an array of the model's nx (states) or ni numbers. */
+static fmi2Status inquire(fmi2Component c, Fmi2Call call, enum ModelExchangeMethod method,
+                          int states, fmi2Real values[], size_t n) {
+    BEGIN(call);
+    size_t count = states ? in->state_count : in->indicator_count;
+    if (n != count) status = wrong_count(in, function_name, states, n, count);
+    else if (n && !values) status = wrong_result(in, function_name, "arguments: a NULL array");
+    else {
+        PyObject *size = py.PyLong_FromSize_t(n);
+        PyObject *result = size ? CALL_ME(method, size) : NULL;
+        status = take_numbers(in, function_name, result, values, n);
+        release(&result);
+        release(&size);
+    }
+    END();
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
+    return inquire(c, FMI2_GET_CONTINUOUS_STATES, ME_GET_CONTINUOUS_STATES, 1, x, nx);
+}
+
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
+    return inquire(c, FMI2_GET_DERIVATIVES, ME_GET_DERIVATIVES, 1, derivatives, nx);
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
+    return inquire(c, FMI2_GET_EVENT_INDICATORS, ME_GET_EVENT_INDICATORS, 0, eventIndicators,
+                   ni);
+}
+
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[],
+                                             size_t nx) {
+    return inquire(c, FMI2_GET_NOMINALS_OF_CONTINUOUS_STATES, ME_GET_NOMINALS, 1, x_nominal,
+                   nx);
+}
+
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
+    BEGIN(FMI2_SET_TIME);
+    PyObject *value = py.PyFloat_FromDouble(time);
+    PyObject *result = value ? CALL_ME(ME_SET_TIME, value) : NULL;
+    if (!result) status = python_failure(in, function_name);
+    release(&result);
+    release(&value);
+    END();
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
+    BEGIN(FMI2_SET_CONTINUOUS_STATES);
+    PyObject *values = NULL;
+    if (nx != in->state_count)
+        status = wrong_count(in, function_name, 1, nx, in->state_count);
+    else if (nx && !x) status = wrong_result(in, function_name, "arguments: a NULL array");
+    else if (!(values = py.PyList_New((Py_ssize_t)nx))) status = python_failure(in, function_name);
+    for (size_t i = 0; values && status == fmi2OK && i < nx; i++) {
+        PyObject *item = py.PyFloat_FromDouble(x[i]);
+        if (!item || py.PyList_SetItem(values, (Py_ssize_t)i, item) != 0)
+            status = python_failure(in, function_name);
+    }
+    if (status == fmi2OK) {
+        PyObject *result = CALL_ME(ME_SET_CONTINUOUS_STATES, values);
+        if (!result) status = python_failure(in, function_name);
+        release(&result);
+    }
+    release(&values);
+    END();
+}
+
+/* A Model Exchange call that takes no argument (the state machine moves the instance on). */
+static fmi2Status change_mode(fmi2Component c, Fmi2Call call, enum ModelExchangeMethod method) {
+    BEGIN(call);
+    PyObject *result = CALL_ME(method, NULL);
+    if (!result) status = python_failure(in, function_name);
+    release(&result);
+    END();
+}
+
+fmi2Status fmi2EnterEventMode(fmi2Component c) {
+    return change_mode(c, FMI2_ENTER_EVENT_MODE, ME_ENTER_EVENT_MODE);
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
+    return change_mode(c, FMI2_ENTER_CONTINUOUS_TIME_MODE, ME_ENTER_CONTINUOUS_TIME_MODE);
+}
+
+/* The truth of item i of a result sequence (-1 with the exception pending). */
+static int truth(PyObject *result, Py_ssize_t i) {
+    PyObject *item = py.PySequence_GetItem(result, i);
+    int value = item ? py.PyObject_IsTrue(item) : -1;
+    release(&item);
+    return value;
+}
+
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
+    BEGIN(FMI2_NEW_DISCRETE_STATES);
+    PyObject *result = eventInfo ? CALL_ME(ME_NEW_DISCRETE_STATES, NULL) : NULL;
+    int flags[5] = {0};
+    if (!eventInfo) status = wrong_result(in, function_name, "argument: eventInfo is NULL");
+    else if (!result) status = python_failure(in, function_name);
+    else if (py.PySequence_Size(result) != 6) {
+        py.PyErr_Clear();
+        status = wrong_result(in, function_name, "result: not the six fields of fmi2EventInfo");
+    }
+    for (int i = 0; status == fmi2OK && i < 5; i++)
+        if ((flags[i] = truth(result, i)) < 0) status = python_failure(in, function_name);
+    if (status == fmi2OK) {
+        PyObject *next = py.PySequence_GetItem(result, 5);
+        double next_time = next ? py.PyFloat_AsDouble(next) : 0.0;
+        release(&next);
+        if (py.PyErr_Occurred()) status = python_failure(in, function_name);
+        else {
+            eventInfo->newDiscreteStatesNeeded = flags[0] ? fmi2True : fmi2False;
+            eventInfo->terminateSimulation = flags[1] ? fmi2True : fmi2False;
+            eventInfo->nominalsOfContinuousStatesChanged = flags[2] ? fmi2True : fmi2False;
+            eventInfo->valuesOfContinuousStatesChanged = flags[3] ? fmi2True : fmi2False;
+            eventInfo->nextEventTimeDefined = flags[4] ? fmi2True : fmi2False;
+            eventInfo->nextEventTime = next_time;
+        }
+    }
+    release(&result);
+    END();
+}
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c,
+                                       fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi2Boolean *enterEventMode,
+                                       fmi2Boolean *terminateSimulation) {
+    (void)noSetFMUStatePriorToCurrentPoint;
+    BEGIN(FMI2_COMPLETED_INTEGRATOR_STEP);
+    PyObject *result = enterEventMode && terminateSimulation
+                           ? CALL_ME(ME_COMPLETED_INTEGRATOR_STEP, NULL) : NULL;
+    int enter = 0, terminate = 0;
+    if (!enterEventMode || !terminateSimulation)
+        status = wrong_result(in, function_name, "arguments: a NULL pointer");
+    else if (!result) status = python_failure(in, function_name);
+    else if (py.PySequence_Size(result) != 2) {
+        py.PyErr_Clear();
+        status = wrong_result(in, function_name, "result: not (enterEventMode, terminate)");
+    } else if ((enter = truth(result, 0)) < 0 || (terminate = truth(result, 1)) < 0) {
+        status = python_failure(in, function_name);
+    } else {
+        *enterEventMode = enter ? fmi2True : fmi2False;
+        *terminateSimulation = terminate ? fmi2True : fmi2False;
+    }
+    release(&result);
+    END();
+}

@@ -59,4 +59,7 @@ ENGINES = {
                             "the power bonds' energy residuals", ("ecco",)),
     "fmpy-ssp": Engine("harness.engines.fmpy_ssp", "run",
                        "the system of FMUs as an SSP archive in FMPy's SSP runner"),
+    "fmu-me": Engine("harness.engines.fmu_me", "run",
+                     "the mechanism FMU as FMI 2.0 Model Exchange, integrated with the "
+                     "drives' ODE by scipy's solve_ivp, its state events included"),
 }

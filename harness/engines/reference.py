@@ -18,7 +18,7 @@ the discrete inputs (locks) change; within a phase inputs are constant or ramps.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import fields
 from types import ModuleType
 from typing import Any
@@ -28,13 +28,15 @@ import pandas as pd
 from scipy.integrate import solve_ivp
 
 from fmu_src.units.drive.dc_motor import (
+    DriveEnergies,
+    MotorParameters,
     armature_rate,
     armature_voltage,
     drive_powers,
     transmitted_effort,
 )
 from harness import registry
-from harness.drive.controller import ControllerDesign, design_pid
+from harness.drive.controller import ControllerDesign, PIDGains, design_pid
 from harness.drive.metrics import ENERGIES
 from harness.drive.trace import DriveTrace
 from harness.engines import DEFAULT_STEP
@@ -101,23 +103,8 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     n_mech, n_joints = len(state_names), len(joints)
     energy_start = n_mech + DRIVE_STATES * n_joints
 
-    def drive_signals(y: np.ndarray, references: list[float], phase: int
-                      ) -> list[tuple[float, ...]]:
-        """Per joint at state y in a phase with the given reference positions: (voltage [V],
-        current [A], effort, error); a drive that is off gives 0 V, 0 A and no effort."""
-        signals = []
-        for j, (m, g) in enumerate(zip(models, gains, strict=True)):
-            current, integral, filtered = y[n_mech + DRIVE_STATES * j:
-                                            n_mech + DRIVE_STATES * (j + 1)]
-            error = references[j] - y[position_index[j]]
-            if not enabled[j][phase]:
-                signals.append((0.0, 0.0, 0.0, error))
-                continue
-            voltage = g.Kp * error + integral + g.Kd / g.T_f * (error - filtered)
-            voltage = min(max(voltage, -m.V_supply), m.V_supply)
-            effort = transmitted_effort(m, current, y[speed_index[j]])
-            signals.append((voltage, current, effort, error))
-        return signals
+    def drive_states(y: np.ndarray, j: int) -> np.ndarray:
+        return y[n_mech + DRIVE_STATES * j:n_mech + DRIVE_STATES * (j + 1)]
 
     # start in equilibrium, as the co-simulation does
     mech0 = physics.initial_state(p)
@@ -147,7 +134,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         def references_at(s: float, targets=targets) -> list[float]:
             return [ramp(*target, "quintic", s) for target in targets]
 
-        x = _switch_drives(x, k, enabled, models, references_at(0.0), position_index, n_mech,
+        x = switch_drives(x, k, enabled, models, references_at(0.0), position_index, n_mech,
                            energy_start)
 
         def rhs(t: float, y: np.ndarray, t0=t0, t1=t1, segment=segment,
@@ -155,15 +142,13 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
             s = (t - t0) / (t1 - t0)
             mech = y[:n_mech]
             efforts, d_drive, d_energy = [], [], []
-            for j, (voltage, current, effort, error) in enumerate(
-                    drive_signals(y, references_at(s), k)):
-                m, g, speed = models[j], gains[j], mech[speed_index[j]]
-                filtered = y[n_mech + DRIVE_STATES * j + 2]
+            for j, reference in enumerate(references_at(s)):
+                effort, rates, powers = drive_rates(
+                    models[j], gains[j], drive_states(y, j), reference - mech[position_index[j]],
+                    mech[speed_index[j]], enabled[j][k])
                 efforts.append(effort)
-                on = enabled[j][k]
-                d_drive += [armature_rate(m, voltage, current, speed) if on else 0.0,
-                            g.Ki * error if on else 0.0, (error - filtered) / g.T_f]
-                d_energy += drive_powers(m, voltage, current, effort, speed)
+                d_drive += rates
+                d_energy += powers
             u = _inputs(physics, joints, segment, s, efforts)
             rates = _input_rates(physics, segment, s, t1 - t0)
             return np.array([*physics.derivatives(p, u, physics.State(*mech), rates),
@@ -178,7 +163,10 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         x = solution.y[:, -1]
         for t, y in zip(points, solution.y.T, strict=False):  # and the end if it is a point
             s = (t - t0) / (t1 - t0)
-            drive = drive_signals(y, references_at(s), k)
+            drive = [(*drive_signals(models[j], gains[j], drive_states(y, j),
+                                     reference - y[position_index[j]], y[speed_index[j]],
+                                     enabled[j][k]), reference - y[position_index[j]])
+                     for j, reference in enumerate(references_at(s))]
             if len(samples) % every == 0:  # a recorded row: the mechanism's outputs
                 outputs.append(physics.outputs(
                     p, _inputs(physics, joints, segment, s, [d[2] for d in drive]),
@@ -212,7 +200,32 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                     run_parameters(scenario, variant, models), [], exact, joint_drive_set)
 
 
-def _switch_drives(x: np.ndarray, phase: int, enabled: list[tuple[bool, ...]],
+def drive_signals(m: MotorParameters, g: PIDGains, drive: Sequence[float], error: float,
+                  speed: float, on: bool = True) -> tuple[float, float, float]:
+    """A joint's drive as a continuous system at its state (armature current i [A], the PID's
+    integral [V] and filtered error [rad or m]), the tracking error (reference less
+    position) and the joint's speed: (voltage [V], current [A], effort [N m or N]); a drive
+    that is off gives 0 V, 0 A and no effort."""
+    if not on:
+        return 0.0, 0.0, 0.0
+    current, integral, filtered = drive
+    voltage = g.Kp * error + integral + g.Kd / g.T_f * (error - filtered)
+    voltage = min(max(voltage, -m.V_supply), m.V_supply)
+    return voltage, current, transmitted_effort(m, current, speed)
+
+
+def drive_rates(m: MotorParameters, g: PIDGains, drive: Sequence[float], error: float,
+                speed: float, on: bool = True) -> tuple[float, list[float], DriveEnergies]:
+    """A joint's drive as one ODE (`drive_signals`): its effort [N m or N], the rates of its
+    DRIVE_STATES (a drive that is off holds its current at 0 and its integral) and the rates
+    of its energies (`drive_powers`) [W]."""
+    voltage, current, effort = drive_signals(m, g, drive, error, speed, on)
+    rates = [armature_rate(m, voltage, current, speed) if on else 0.0,
+             g.Ki * error if on else 0.0, (error - drive[2]) / g.T_f]
+    return effort, rates, drive_powers(m, voltage, current, effort, speed)
+
+
+def switch_drives(x: np.ndarray, phase: int, enabled: list[tuple[bool, ...]],
                    drives: list, references: list[float], position_index: list[int],
                    n_mech: int, energy_start: int) -> np.ndarray:
     """The state at the start of a phase with the drives switched as it says: a drive

@@ -1,7 +1,9 @@
 """`python -m harness cross-check`: the FMUs in the layout of the FMI cross-check.
 
 For every FMU of `harness.fmu.build.MODELS` it writes, under the destination folder,
-`fmus/2.0/cs/<platform>/pythonfmu/<pythonfmu version>/<Model>/` with
+`fmus/2.0/cs/<platform>/pythonfmu/<pythonfmu version>/<Model>/`, and for an FMU that offers
+Model Exchange (the mechanisms) the same under `fmus/2.0/me/` with the reference simulated
+as Model Exchange (FMPy's CVode), with
 
 - `<Model>.fmu`: a copy of build/fmus' FMU (`make fmu` builds it, `fmu_build.locate`), so
   the cross-check publishes the very FMU (bytes and GUID) the other commands use;
@@ -50,9 +52,15 @@ TOOL = "pythonfmu"
 DEFAULT_DEST = fmu_build.DEFAULT_DEST.parent / "cross-check"
 
 
-def model_dir(dest: Path, model: str) -> Path:
-    """The folder of one exported FMU in the cross-check layout under dest."""
-    return dest / "fmus" / "2.0" / "cs" / fmpy.platform / TOOL / pythonfmu.__version__ / model
+# the cross-check's folder of each FMI interface, and FMPy's name of it
+INTERFACES = {"cs": "CoSimulation", "me": "ModelExchange"}
+
+
+def model_dir(dest: Path, model: str, interface: str = "cs") -> Path:
+    """The folder of one exported FMU in the cross-check layout under dest, for the
+    interface "cs" (Co-Simulation) or "me" (Model Exchange)."""
+    return (dest / "fmus" / "2.0" / interface / fmpy.platform / TOOL / pythonfmu.__version__
+            / model)
 
 
 def frame(table: np.ndarray) -> pd.DataFrame:
@@ -91,16 +99,20 @@ def importer_inputs(table: np.ndarray, step: float) -> np.ndarray:
     return np.array(out, dtype=table.dtype)
 
 
-def ref_opt(md: ModelDescription, run: fmu_docs.ReferenceRun) -> str:
+def ref_opt(md: ModelDescription, run: fmu_docs.ReferenceRun, interface: str = "cs") -> str:
     """The <Model>_ref.opt file: the settings that reproduce the reference."""
     dt = fmu_docs.step_size(md)
+    tolerance = (fmu_docs.RELATIVE_TOLERANCE if interface == "cs"
+                 else fmu_docs.ME_RELATIVE_TOLERANCE)
     return (f"StartTime,0.0\nStopTime,{fmu_docs.stop_time(md, run)!r}\nStepSize,{dt!r}\n"
-            f"RelTol,{fmu_docs.RELATIVE_TOLERANCE!r}\n"
+            f"RelTol,{tolerance!r}\n"
             f"OutputIntervalLength,{fmu_docs.output_interval(md, run)!r}\n")
 
 
-def readme(md: ModelDescription, run: fmu_docs.ReferenceRun) -> str:
+def readme(md: ModelDescription, run: fmu_docs.ReferenceRun, interface: str = "cs") -> str:
     """The ReadMe.md of one exported FMU."""
+    if interface == "me":
+        return model_exchange_readme(md, run)
     name = md.modelName
     inputs = ("the model has no inputs" if run.inputs is None else
               f"the inputs of `{name}_in.csv` interpolated linearly and applied at each "
@@ -136,20 +148,62 @@ needs glibc 2.32 and the GCC 12 C++ runtime.
 """
 
 
-def export(model: str, dest: Path) -> Path:
-    """Write the cross-check folder of one model under dest and return it."""
+def model_exchange_readme(md: ModelDescription, run: fmu_docs.ReferenceRun) -> str:
+    """The ReadMe.md of one FMU exported as Model Exchange."""
+    name = md.modelName
+    return f"""# {name} (Model Exchange)
+
+{md.description}
+
+The FMU of `../../../../cs/` (the same file: one model description offers Co-Simulation and
+Model Exchange), exported by the gravity balancer co-simulation project (`python -m harness
+cross-check`). Its continuous states are the mechanism's state with its energy account
+(W_drive, E_loss, E_added, ...); its {md.numberOfEventIndicators} event indicators are its
+end stops and regime changes (docs/model_exchange.md of the project).
+
+## Reference result
+
+{run.description}
+
+`{name}_ref.csv` was simulated with FMPy {fmpy.__version__}'s CVode at the relative tolerance
+RelTol of `{name}_ref.opt`, the inputs of `{name}_in.csv` (a repeated time is a step: an
+event), results recorded every OutputIntervalLength.
+
+## Requirements
+
+As for Co-Simulation: a CPython 3.8 or later shared library, which the linux64 binary loads by
+itself in a host that is not a Python process (needsExecutionTool is false).
+"""
+
+
+def export(model: str, dest: Path) -> list[Path]:
+    """Write the cross-check folders of one model under dest (Co-Simulation, and Model
+    Exchange where the FMU offers it) and return them."""
     fmu = fmu_build.locate(model)
     md = read_model_description(str(fmu))
-    run = fmu_docs.reference_run(model)
-    folder = model_dir(dest, model)
-    write_atomic(folder / f"{model}.fmu", lambda tmp: shutil.copyfile(fmu, tmp))
-    if run.inputs is not None:
-        run = replace(run, inputs=importer_inputs(run.inputs, fmu_docs.step_size(md)))
-        write_csv(frame(run.inputs), folder / f"{model}_in.csv")
-    write_csv(frame(fmu_docs.simulate_reference(fmu, run)), folder / f"{model}_ref.csv")
-    write_atomic(folder / f"{model}_ref.opt", lambda tmp: tmp.write_text(ref_opt(md, run)))
-    write_atomic(folder / "ReadMe.md", lambda tmp: tmp.write_text(readme(md, run)))
-    return folder
+    steps = fmu_docs.reference_run(model)
+    folders = []
+    for interface, fmi_type in INTERFACES.items():
+        if interface == "me" and md.modelExchange is None:
+            continue
+        # Co-Simulation: a step as a ramp over the communication step before it (see
+        # importer_inputs); Model Exchange: a step as it is, a time event, so that the
+        # solver integrates with the inputs constant between events (FMPy's CVode sets a
+        # continuous input only where it checks its event indicators: a ramp would change
+        # the right-hand side behind the solver's back)
+        run = (replace(steps, inputs=importer_inputs(steps.inputs, fmu_docs.step_size(md)))
+               if interface == "cs" and steps.inputs is not None else steps)
+        folder = model_dir(dest, model, interface)
+        write_atomic(folder / f"{model}.fmu", lambda tmp: shutil.copyfile(fmu, tmp))
+        if run.inputs is not None:
+            write_csv(frame(run.inputs), folder / f"{model}_in.csv")
+        write_csv(frame(fmu_docs.simulate_reference(fmu, run, fmi_type)),
+                  folder / f"{model}_ref.csv")
+        options, notes = ref_opt(md, run, interface), readme(md, run, interface)
+        write_atomic(folder / f"{model}_ref.opt", lambda tmp, text=options: tmp.write_text(text))
+        write_atomic(folder / "ReadMe.md", lambda tmp, text=notes: tmp.write_text(text))
+        folders.append(folder)
+    return folders
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -159,7 +213,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     for model in fmu_build.MODELS:
-        print(export(model, args.out))
+        for folder in export(model, args.out):
+            print(folder)
     fmu_count, _, problems = validate_repo(str(args.out.resolve()))
     print(f"validate_vendor_repo: {len(problems)} problems in {fmu_count} FMUs")
     for problem in problems:

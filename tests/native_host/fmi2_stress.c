@@ -22,6 +22,11 @@
  *        fmi2_stress serial FMU_A FMU_B          the same work in the main thread
  *        fmi2_stress short-threads N FMU         RSS growth per short-lived host thread
  *        fmi2_stress fatal N FMU                 N instances driven into fmi2Fatal
+ *        fmi2_stress me-cycles N STEPS NX NZ FMU N times: dlopen, a Model Exchange
+ *                                                instance (nx NX, ni NZ) integrated STEPS
+ *                                                explicit Euler steps with its events, a
+ *                                                state round trip, then hostile calls (each
+ *                                                must return fmi2Error), free, dlclose
  *        fmi2_stress instantiate FMU [--uri URI] [--guid G] [--type me|cs] [--null-name]
  *                    [--null-guid] [--null-uri] [--after-terminate]
  *                                                one instance with these arguments
@@ -613,6 +618,134 @@ static int mode_instantiate(int argc, char **argv) {
 #undef CALL
 }
 
+/* ---- Model Exchange ---------------------------------------------------------------------- */
+typedef struct {
+    fmi2SetTimeTYPE *setTime;
+    fmi2SetContinuousStatesTYPE *setContinuousStates;
+    fmi2GetContinuousStatesTYPE *getContinuousStates;
+    fmi2GetDerivativesTYPE *getDerivatives;
+    fmi2GetEventIndicatorsTYPE *getEventIndicators;
+    fmi2GetNominalsOfContinuousStatesTYPE *getNominals;
+    fmi2EnterEventModeTYPE *enterEventMode;
+    fmi2NewDiscreteStatesTYPE *newDiscreteStates;
+    fmi2EnterContinuousTimeModeTYPE *enterContinuousTimeMode;
+    fmi2CompletedIntegratorStepTYPE *completedIntegratorStep;
+} MeApi;
+
+#define LOAD_ME(field, name) \
+    if (!(me->field = (name##TYPE *)dlsym(fmu->lib, #name))) { \
+        fprintf(stderr, "%s: missing %s\n", fmu->path, #name); \
+        exit(3); \
+    }
+
+static void load_me(Fmu *fmu, MeApi *me) {
+    LOAD_ME(setTime, fmi2SetTime)
+    LOAD_ME(setContinuousStates, fmi2SetContinuousStates)
+    LOAD_ME(getContinuousStates, fmi2GetContinuousStates)
+    LOAD_ME(getDerivatives, fmi2GetDerivatives)
+    LOAD_ME(getEventIndicators, fmi2GetEventIndicators)
+    LOAD_ME(getNominals, fmi2GetNominalsOfContinuousStates)
+    LOAD_ME(enterEventMode, fmi2EnterEventMode)
+    LOAD_ME(newDiscreteStates, fmi2NewDiscreteStates)
+    LOAD_ME(enterContinuousTimeMode, fmi2EnterContinuousTimeMode)
+    LOAD_ME(completedIntegratorStep, fmi2CompletedIntegratorStep)
+}
+
+/* Event mode until the event is settled, then continuous-time mode. */
+static void settle(const MeApi *me, fmi2Component c) {
+    fmi2EventInfo info;
+    do must("fmi2NewDiscreteStates", me->newDiscreteStates(c, &info));
+    while (info.newDiscreteStatesNeeded);
+    must("fmi2EnterContinuousTimeMode", me->enterContinuousTimeMode(c));
+}
+
+/* A hostile call must return fmi2Error (never crash): else report it and exit 1. */
+static void refused(const char *what, fmi2Status status) {
+    if (status != fmi2Error) {
+        fprintf(stderr, "hostile call %s returned status %d, not fmi2Error\n", what, status);
+        _exit(1);
+    }
+}
+
+static int mode_me_cycles(int argc, char **argv) {
+    if (argc < 9) usage(argv[0]);
+    long n = parse_count(argv[2], argv[0]), n_steps = parse_count(argv[3], argv[0]);
+    size_t nx = (size_t)parse_count(argv[4], argv[0]), nz = (size_t)atol(argv[5]);
+    Fmu fmu;
+    MeApi me;
+    int a = 6;
+    parse_fmu(argc, argv, &a, &fmu);
+    if (a != argc || nx + 1 > MAX_REFS || nz + 1 > MAX_REFS) usage(argv[0]);
+    fmi2Real x[MAX_REFS], dx[MAX_REFS], z[MAX_REFS], nominal[MAX_REFS];
+    char name[64];
+    for (long cycle = 0; cycle < n; cycle++) {
+        load(&fmu);
+        load_me(&fmu, &me);
+        snprintf(name, sizeof name, "me%ld", cycle);
+        fmi2Component c = fmu.api.instantiate(name, fmi2ModelExchange, fmu.guid, fmu.uri,
+                                              &callbacks, fmi2False, fmi2True);
+        if (!c) {
+            fprintf(stderr, "fmi2Instantiate (Model Exchange) returned NULL\n");
+            _exit(1);
+        }
+        must("fmi2SetupExperiment", fmu.api.setupExperiment(c, fmi2False, 0.0, 0.0, fmi2False,
+                                                            0.0));
+        must("fmi2EnterInitializationMode", fmu.api.enterInitializationMode(c));
+        must("fmi2SetReal/fmi2SetInteger", set_values(&fmu, c));
+        must("fmi2ExitInitializationMode", fmu.api.exitInitializationMode(c));
+        must("fmi2GetNominalsOfContinuousStates", me.getNominals(c, nominal, nx));
+        settle(&me, c);
+        double t = 0.0;
+        for (long k = 0; k < n_steps; k++) {
+            fmi2Boolean enter = fmi2False, terminate = fmi2False;
+            must("fmi2GetContinuousStates", me.getContinuousStates(c, x, nx));
+            must("fmi2GetDerivatives", me.getDerivatives(c, dx, nx));
+            t += STEP;
+            for (size_t i = 0; i < nx; i++) x[i] += STEP * dx[i];
+            must("fmi2SetTime", me.setTime(c, t));
+            must("fmi2SetContinuousStates", me.setContinuousStates(c, x, nx));
+            must("fmi2GetEventIndicators", me.getEventIndicators(c, z, nz));
+            must("fmi2CompletedIntegratorStep",
+                 me.completedIntegratorStep(c, fmi2True, &enter, &terminate));
+            if (enter || k % 100 == 99) {   /* a step event, and a time event every 0.1 s */
+                must("fmi2EnterEventMode", me.enterEventMode(c));
+                settle(&me, c);
+            }
+        }
+        must("fmi2GetReal", fmu.api.getReal(c, fmu.reads, fmu.n_reads, x));
+        state_round_trip(&fmu, c);
+        /* hostile calls, each refused with fmi2Error and a message; an error leaves the
+         * instance in the error state, so the FMU state taken before puts it back (and in
+         * Continuous-Time Mode) for the next */
+        fmi2FMUstate before = NULL;
+        must("fmi2GetFMUstate", fmu.api.getFMUstate(c, &before));
+        must("fmi2GetContinuousStates", me.getContinuousStates(c, x, nx));
+        refused("fmi2GetDerivatives nx + 1", me.getDerivatives(c, dx, nx + 1));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        refused("fmi2GetEventIndicators ni + 1", me.getEventIndicators(c, z, nz + 1));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        refused("fmi2SetContinuousStates NULL", me.setContinuousStates(c, NULL, nx));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        x[0] = 0.0 / 0.0;
+        refused("fmi2SetContinuousStates NaN", me.setContinuousStates(c, x, nx));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        refused("fmi2SetTime before the last event", me.setTime(c, -1.0));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        refused("fmi2DoStep on a Model Exchange instance",
+                fmu.api.doStep(c, t, STEP, fmi2True));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        fmi2EventInfo info;
+        refused("fmi2NewDiscreteStates in Continuous-Time Mode", me.newDiscreteStates(c, &info));
+        must("fmi2SetFMUstate", fmu.api.setFMUstate(c, before));
+        must("fmi2GetDerivatives", me.getDerivatives(c, dx, nx));  /* alive and usable */
+        must("fmi2FreeFMUstate", fmu.api.freeFMUstate(c, &before));
+        fmu.api.freeInstance(c);
+        unload(&fmu);
+    }
+    printf("me cycles done\n");
+    return 0;
+}
+
 extern char **environ;
 
 static int in_list(char **list, const char *entry) {
@@ -839,6 +972,7 @@ int main(int argc, char **argv) {
     if (strcmp(mode, "short-threads") == 0) return mode_short_threads(argc, argv);
     if (strcmp(mode, "fatal") == 0) return mode_fatal(argc, argv);
     if (strcmp(mode, "instantiate") == 0) return mode_instantiate(argc, argv);
+    if (strcmp(mode, "me-cycles") == 0) return mode_me_cycles(argc, argv);
     if (strcmp(mode, "reentrant") == 0) return mode_reentrant(argc, argv);
     if (strcmp(mode, "environment") == 0) return mode_environment(argc, argv);
     if (strcmp(mode, "beside") == 0) return mode_beside(argc, argv);

@@ -29,7 +29,7 @@ class ActiveSpringBalancer(MechanismSlave):
     screw with thread friction, moves along the vertical (Ciupitu 2018, Section 3)."""
 
     physics = physics
-    hidden_state = ("state", "previous_inputs", "compression_reported")
+    hidden_state = (*MechanismSlave.hidden_state, "compression_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=5.0, step_size=1e-3)
 
     def __init__(self, **kwargs: Any) -> None:

@@ -88,6 +88,7 @@ from typing import TYPE_CHECKING
 
 from fmu_src import ledger
 from fmu_src.integration import first_substeps, ledger_controlled, rk4_link_carriage_step
+from fmu_src.mechanism import state_variables, variable, variable_named
 
 # model.py holds the Physics protocol's data types, validate, initial_state and outputs:
 # imported here because the harness and the slave call them as physics.<name>
@@ -115,10 +116,12 @@ CARRIAGE_ACCURACY = 4.0
 
 
 def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
-                direction: float | None = None) -> State:
+                mode: tuple[float, ...] | None = None) -> State:
     """Time derivative of the state for constant inputs (`rates`, d/dt of the inputs, as the
     other mechanisms take it: a payload changes only at events here, so it is not used);
-    direction as for `carriage`, None for that of s's q_dot."""
+    mode: (direction,), the screw's regime held through an RK4 sub-step or until the next
+    event, as `carriage` takes it (its sign counts), () or None for that of s's q_dot."""
+    direction = mode[0] if mode else None
     theta, omega, q, q_dot = s[:4]
     if direction is None:
         direction = q_dot
@@ -242,6 +245,12 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
                              (u.payload,))
 
 
+def _stop_carriage(p: Parameters, s: State) -> State:
+    """The carriage stopped where its speed changed sign: q_dot = 0, the kinetic energy of
+    its residual speed to E_loss."""
+    return s._replace(q_dot=0.0, E_loss=s.E_loss + 0.5 * p.carriage_inertia * s.q_dot ** 2)
+
+
 def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: StageRates
                ) -> State:
     """`advance` over dt [s] in n RK4 sub-steps, for the stage rates of the payload."""
@@ -252,10 +261,8 @@ def _integrate(p: Parameters, u: Inputs, s: State, dt: float, n: int, rates: Sta
         new = rk4_link_carriage_step(rates, tau_drive, F_adjust, s, h)
         if not lossless and new.q_dot * s.q_dot < 0.0:
             h_stop = h * s.q_dot / (s.q_dot - new.q_dot)
-            stopped = rk4_link_carriage_step(rates, tau_drive, F_adjust, s, h_stop)
-            stopped = stopped._replace(
-                q_dot=0.0,
-                E_loss=stopped.E_loss + 0.5 * p.carriage_inertia * stopped.q_dot ** 2)
+            stopped = _stop_carriage(p, rk4_link_carriage_step(rates, tau_drive, F_adjust, s,
+                                                                h_stop))
             new = rk4_link_carriage_step(rates, tau_drive, F_adjust, stopped, h - h_stop)
         s = new
     return s
@@ -279,5 +286,49 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     from rest or released with its speed (`ledger.change_payload`)."""
     return ledger.change_payload(s, before.payload, after.payload, p.w, p.g,
                                  lambda payload: link_inertia(p, payload))
+
+
+# ---- Model Exchange: the carriage's stops as state events ---------------------------------
+STATE_VARIABLES = state_variables(State, Outputs)   # every state is an output
+EVENT_INDICATORS = (
+    variable_named("carriage_stops", variable(
+        "m/s", "q_dot times the direction the carriage moves in on a screw that is not "
+        "lossless and back-drivable: it stops where this reaches 0 (1 m/s while it rests)")),
+)
+
+
+def mode(p: Parameters, u: Inputs, s: State) -> tuple[int, ...]:
+    """(the carriage's direction: +1 up, -1 down, 0 at rest), whose screw law `advance`
+    holds through each RK4 sub-step; () on a lossless back-drivable screw, whose law is
+    smooth."""
+    if _lossless(p):
+        return ()
+    return (1 if s.q_dot > 0.0 else -1 if s.q_dot < 0.0 else 0,)
+
+
+def event_indicators(p: Parameters, u: Inputs, s: State, mode: tuple[int, ...]
+                     ) -> tuple[float]:
+    """The EVENT_INDICATORS: q_dot times the direction held (from rest the screw's law is
+    continuous as the carriage breaks loose: no event)."""
+    return (s.q_dot * mode[0] if mode and mode[0] != 0 else 1.0,)
+
+
+def event_update(p: Parameters, u: Inputs, s: State, mode: tuple[int, ...]) -> State:
+    """A moving carriage whose speed reached zero stops (`_stop_carriage`, as `advance`
+    stops it within a sub-step)."""
+    if mode and mode[0] != 0 and s.q_dot * mode[0] <= 0.0:
+        return _stop_carriage(p, s)
+    return s
+
+
+def state_nominals(p: Parameters) -> tuple[float, ...]:
+    """1 rad and 1 rad/s for the link, 0.1 m and 0.1 m/s for the carriage, 1 J for the
+    energies."""
+    return (1.0, 1.0, 0.1, 0.1, 1.0, 1.0, 1.0, 1.0)
+
+
+def _lossless(p: Parameters) -> bool:
+    """A lossless back-drivable screw (eta_forward = eta_backward = 1)."""
+    return p.eta_forward == p.eta_backward == 1.0
 
 

@@ -73,7 +73,15 @@ from typing import NamedTuple
 
 from fmu_src import ledger
 from fmu_src.integration import advance_arm, kept_outputs, ledger_accuracy
-from fmu_src.mechanism import input_variables, output_variables, variable
+from fmu_src.mechanism import (
+    input_variables,
+    no_event_indicators,
+    no_event_update,
+    no_mode,
+    output_variables,
+    state_variables,
+    variable,
+)
 from fmu_src.mechanisms.ciupitu.statics import _check_bar, _geometry, _moments
 from fmu_src.memo import derive, slot
 from fmu_src.parameters import check_ranges, parameter
@@ -260,6 +268,9 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     operation (the same numbers; tests/test_ciupitu.py checks it), with the terms the
     payload sets computed once: a call and a tuple per stage cost more than the arithmetic.
     At the angle _arm_terms computed last (the step's start) it takes its terms.
+    Measured against `_arm_terms` called per stage (with integrate_arm and the slots): the
+    three save 111 k of 219 k instructions per FMU step (OA = 0; 97 k of 220 k at the
+    defaults), far above 10 % of a closed-loop step (fmu_src/integration.py).
     """
     held = _held(p, payload)
     last_theta, last = kept_start(p._last_terms, payload)
@@ -360,6 +371,7 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
 switch_inputs = ledger.payload_switch(inertia)
 
 
+
 class Outputs(NamedTuple):
     """Observable quantities (README.md; SI units)."""
 
@@ -421,3 +433,10 @@ OUTPUT_VARIABLES = output_variables(
 
 
 outputs = kept_outputs(ledger_terms)
+
+
+# Model Exchange: one smooth regime, no state events (a payload changes in event mode)
+STATE_VARIABLES = state_variables(State, Outputs)   # every state is an output
+EVENT_INDICATORS = ()
+mode, event_indicators, event_update = no_mode, no_event_indicators, no_event_update
+state_nominals = ledger.arm_state_nominals

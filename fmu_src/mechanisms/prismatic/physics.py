@@ -73,7 +73,15 @@ from fmu_src.integration import (
     ledger_accuracy,
     ledger_controlled,
 )
-from fmu_src.mechanism import input_variables, no_input_events, output_variables, variable
+from fmu_src.mechanism import (
+    input_variables,
+    no_input_events,
+    no_mode,
+    output_variables,
+    state_variables,
+    variable,
+    variable_named,
+)
 from fmu_src.memo import derive, unless_rejected
 from fmu_src.parameters import check_ranges, parameter
 
@@ -266,8 +274,10 @@ def _held_by_stop(p: Parameters, q2: float, q2_dot: float, force: float) -> bool
                               or (q2 == p.q2_max and force >= 0.0))
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
-    """Time derivative of the state (see _derivatives) as a State."""
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                mode: tuple[int, ...] | None = None) -> State:
+    """Time derivative of the state (see _derivatives) as a State; one regime (the stops
+    hold q2 where the state says so): mode is not used."""
     return State._make(_derivatives(p, u, s, rates))
 
 
@@ -344,6 +354,39 @@ def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
 
 
 switch_inputs = no_input_events  # EVENT_INPUTS is empty
+
+
+# ---- Model Exchange: the stroke limits as state events -----------------------------------
+EVENT_INDICATORS = (
+    variable_named("q2_min_reached", variable(
+        "m", "q2 - q2_min: the inner end stop is hit where it reaches 0 (the stroke while q2 "
+        "rests on it)")),
+    variable_named("q2_max_reached", variable(
+        "m", "q2_max - q2: the outer end stop is hit where it reaches 0 (the stroke while q2 "
+        "rests on it)")),
+)
+mode = no_mode   # the stops hold q2 by the state alone (_held_by_stop)
+
+
+def event_indicators(p: Parameters, u: Inputs, s: State, mode: tuple[int, ...]
+                     ) -> tuple[float, float]:
+    """The distances of q2 from its end stops [m]; the stroke where it rests on one, so that
+    resting there is no event (leaving it, q2 moves inside)."""
+    stroke, q2 = p.q2_max - p.q2_min, s.q2
+    return (q2 - p.q2_min if q2 != p.q2_min else stroke,
+            p.q2_max - q2 if q2 != p.q2_max else stroke)
+
+
+def event_update(p: Parameters, u: Inputs, s: State, mode: tuple[int, ...]) -> State:
+    """A stop reached: q2 clamped to it, the impact's energy to E_impact (`_apply_stops`, as
+    after every RK4 sub-step of `advance`)."""
+    return _apply_stops(p, s)
+
+
+def state_nominals(p: Parameters) -> tuple[float, ...]:
+    """1 rad and 1 rad/s for the revolute joint, ls0 [m] and ls0 per second for the
+    prismatic one, 1 J for the energies."""
+    return (1.0, 1.0, p.ls0, p.ls0, 1.0, 1.0, 1.0, 1.0)
 
 
 class Outputs(NamedTuple):
@@ -432,3 +475,10 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
         spring_energy(p, q1, q2),                                          # E_springs
         0.5 * p.inertia_1(q2) * w1 * w1 + 0.5 * p.mass_2 * w2 * w2,        # E_kin
         W_drive, W_worm, E_friction, E_friction + E_impact, 0.0))          # ..., E_loss, E_added
+
+
+# the Model Exchange state no output reports (E_loss is E_friction + E_impact)
+STATE_VARIABLES = state_variables(
+    State, Outputs,
+    E_impact=variable("J", "Cumulative energy dissipated by the end stops of q2"),
+)

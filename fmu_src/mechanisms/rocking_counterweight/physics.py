@@ -60,7 +60,15 @@ from typing import Any, NamedTuple
 
 from fmu_src import ledger
 from fmu_src.integration import advance_arm, kept_outputs, ledger_accuracy
-from fmu_src.mechanism import input_variables, output_variables, variable
+from fmu_src.mechanism import (
+    input_variables,
+    no_event_indicators,
+    no_event_update,
+    no_mode,
+    output_variables,
+    state_variables,
+    variable,
+)
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from fmu_src.mechanisms.rocking_counterweight.statics import (
     HALF_PI,
@@ -237,6 +245,9 @@ def _arm_rates(p: Parameters, payload: float, tau_drive: float
     computed once, and _arm_terms is written out, operation for operation (the same numbers;
     tests/test_rocking.py checks it). At the angle _arm_terms computed last (the step's
     start) it takes its terms.
+    Measured against `_arm_terms` called per stage (with integrate_arm and the slots): the
+    three save 153 k of 390 k instructions per FMU step (payload ramping), far above 10 % of
+    a closed-loop step (fmu_src/integration.py).
     """
     k, m2, g, d_link = p.linkage, p.m2, p.g, p.d_link
     J_held = p.J_fixed + payload * p.w ** 2
@@ -313,6 +324,7 @@ def mechanical_energy(p: Parameters, payload: float, s: State) -> float:
 switch_inputs = ledger.payload_switch(inertia)
 
 
+
 class Outputs(NamedTuple):
     """Observable quantities (README.md; SI units)."""
 
@@ -358,3 +370,10 @@ OUTPUT_VARIABLES = output_variables(
 
 
 outputs = kept_outputs(ledger_terms)
+
+
+# Model Exchange: one smooth regime, no state events (a payload changes in event mode)
+STATE_VARIABLES = state_variables(State, Outputs)   # every state is an output
+EVENT_INDICATORS = ()
+mode, event_indicators, event_update = no_mode, no_event_indicators, no_event_update
+state_nominals = ledger.arm_state_nominals

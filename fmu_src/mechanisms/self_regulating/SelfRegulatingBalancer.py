@@ -27,7 +27,7 @@ class SelfRegulatingBalancer(MechanismSlave):
     a pulley-counterweight (Franchetti et al. 2021)."""
 
     physics = physics
-    hidden_state = ("state", "previous_inputs", "stop_reported", "off_angle_reported")
+    hidden_state = (*MechanismSlave.hidden_state, "stop_reported", "off_angle_reported")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=35.0, step_size=1e-3)
     calculated_parameters = (
         ("M0", "kg", "Counterweight mass holding the slider at b_design at theta = pi: eq. 10 "
@@ -52,9 +52,7 @@ class SelfRegulatingBalancer(MechanismSlave):
 
     def step(self, dt: float) -> None:
         p, u = self.params, self.inputs()
-        if u.counterweight_added < -p.M0:
-            raise DomainError(f"input counterweight_added = {u.counterweight_added} kg is "
-                             f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
+        self.check_inputs(u)
         self.step_with(u, dt)
         at_stop = self.output_values.slider_at_stop
         if at_stop and not self.stop_reported:
@@ -62,6 +60,14 @@ class SelfRegulatingBalancer(MechanismSlave):
             self.warn(f"slider reached its end stop {stop} = {self.state.b:.4f} m: "
                       f"balance_error = {self.output_values.balance_error:.4g} N m")
         self.stop_reported = at_stop
+
+    def check_inputs(self, u: physics.Inputs) -> None:
+        """A DomainError (a refused step, an event's fmi2Error) for a counterweight lighter
+        than nothing."""
+        p = self.params
+        if u.counterweight_added < -p.M0:
+            raise DomainError(f"input counterweight_added = {u.counterweight_added} kg is "
+                              f"outside [-M0, inf) = [{-p.M0:.6g}, inf)")
 
     def switch_inputs(self, u: physics.Inputs) -> None:
         self.report_misuse(self.params, u)

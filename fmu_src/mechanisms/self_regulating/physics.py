@@ -44,6 +44,7 @@ from fmu_src.integration import (
     ledger_controlled,
     substeps,
 )
+from fmu_src.mechanism import state_variables, variable, variable_named
 from fmu_src.mechanisms.self_regulating.design import _free_length_factor
 
 # model.py holds the Physics protocol's data types, validate, initial_state, outputs and
@@ -71,6 +72,7 @@ from fmu_src.mechanisms.self_regulating.model import (  # noqa: F401
     link_inertia,
     mechanical_energy,
     outputs,
+    slider_damping,
     slider_friction,
     slider_mass,
     validate,
@@ -83,9 +85,11 @@ from fmu_src.mechanisms.self_regulating.model import (  # noqa: F401
 SLIDER_RATE_FACTOR = 4.0
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
-    """Time derivative of the state (see _derivatives) as a State."""
-    return State._make(_derivatives(p, u, s, rates))
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                mode: tuple[int, ...] | None = None) -> State:
+    """Time derivative of the state (see _derivatives) as a State; mode (`mode`): the
+    friction state held, () or None to decide it from s."""
+    return State._make(_derivatives(p, u, s, rates, mode[0] if mode else None))
 
 
 def _derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
@@ -251,19 +255,25 @@ def _integrate_with_friction(p: Parameters, u: Inputs, s: State, dt: float, n: i
     slip = [_friction_state(p, u, s)]
 
     def stick(state: State) -> State:
-        """_apply_constraints, then: a slider whose speed changed sign within a sub-step has
-        stopped in it, and sticks (v = 0, its kinetic energy to E_loss) until the pull
-        exceeds the friction limit."""
-        state = _apply_constraints(p, u, state)
-        if state.v * slip[0] < 0.0:
-            stuck = state._replace(v=0.0)
-            state = stuck._replace(E_loss=state.E_loss + mechanical_energy(p, u, state)
-                                   - mechanical_energy(p, u, stuck))
+        """`_stick` after the sub-step, and the friction state of the next."""
+        state = _stick(p, u, state, slip[0])
         slip[0] = _friction_state(p, u, state)
         return state
 
     return integrate_substeps(lambda state: _derivatives(p, u, state, None, slip[0]), s, dt, n,
                               stick)
+
+
+def _stick(p: Parameters, u: Inputs, s: State, slip: float) -> State:
+    """_apply_constraints, then: a slider that slid in the direction slip (+1 or -1) and
+    whose speed changed sign has stopped, and sticks (v = 0, its kinetic energy to E_loss)
+    until the pull exceeds the friction limit."""
+    s = _apply_constraints(p, u, s)
+    if s.v * slip < 0.0:
+        stuck = s._replace(v=0.0)
+        s = stuck._replace(E_loss=s.E_loss + mechanical_energy(p, u, s)
+                           - mechanical_energy(p, u, stuck))
+    return s
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
@@ -361,3 +371,70 @@ def switch_inputs(p: Parameters, before: Inputs, after: Inputs, s: State) -> Sta
     return _new(State, (*new[:6], s.E_loss + loss, new[7]))
 
 
+# ---- Model Exchange: the events `advance` handles after each sub-step, as state events ----
+# the states no output reports
+STATE_VARIABLES = state_variables(
+    State, Outputs,
+    v=variable("m/s", "Slider speed along the link (0 while it is locked)"),
+    s_cw=variable("m", "Descent of the counterweight from its start (R/r times the slider's "
+                       "travel while the pulley turns)"),
+)
+EVENT_INDICATORS = (
+    variable_named("b_min_reached", variable(
+        "m", "b - b_min of the free slider: it hits the inner end stop where this reaches 0 "
+        "(b_max - b_min while it rests there or the slider is locked)")),
+    variable_named("b_max_reached", variable(
+        "m", "b_max - b of the free slider: it hits the outer end stop where this reaches 0 "
+        "(b_max - b_min while it rests there or the slider is locked)")),
+    variable_named("friction_state_ends", variable(
+        None, "With Coulomb friction (mu_slider > 0), in the friction state held: sliding, "
+        "v times its direction [m/s] (it sticks at 0); stuck, the friction limit less the "
+        "pull away from where it rests [N] (it breaks loose at 0); b_max - b_min otherwise")),
+)
+
+
+def mode(p: Parameters, u: Inputs, s: State) -> tuple[int, ...]:
+    """The friction state of a free slider with mass and Coulomb friction (_friction_state:
+    -1 or +1 sliding in or out, 0 stuck or resting on a stop), which `advance` holds through
+    each RK4 sub-step; () otherwise (the locked slider's link, a frictionless or a massless
+    slider have one smooth regime)."""
+    if u.slider_locked or p.mu_slider == 0.0 or slider_mass(p, u) == 0.0:
+        return ()
+    return (int(_friction_state(p, u, s)),)
+
+
+def event_indicators(p: Parameters, u: Inputs, s: State, mode: tuple[int, ...]
+                     ) -> tuple[float, float, float]:
+    """The EVENT_INDICATORS: positive while the slider stays within its stops and in the
+    friction state mode."""
+    span, b = p.b_max - p.b_min, s.b
+    if u.slider_locked:
+        return span, span, span
+    stops = (b - p.b_min if b != p.b_min else span, p.b_max - b if b != p.b_max else span)
+    if not mode:
+        return (*stops, span)
+    if mode[0] != 0:
+        return (*stops, s.v * mode[0])
+    factor = _free_length_factor(p, s.theta, b)
+    force = _slider_force(p, s.theta, s.omega, b, s.v, factor, wire_tension(p, u),
+                          slider_damping(p, u))
+    friction = slider_friction(p, s.theta, factor)
+    # stuck while |force| <= friction, and on a stop while it pushes into it (_slip)
+    margin = (friction - force if b == p.b_min else friction + force if b == p.b_max
+              else friction - abs(force))
+    return (*stops, margin)
+
+
+def event_update(p: Parameters, u: Inputs, s: State, mode: tuple[int, ...]) -> State:
+    """A stop reached (clamped, the impact's energy to E_loss) and a sliding slider stopped
+    (it sticks): `_stick`, as after every RK4 sub-step of `advance`."""
+    if u.slider_locked:
+        return s
+    return _stick(p, u, s, mode[0] if mode else 0.0)
+
+
+def state_nominals(p: Parameters) -> tuple[float, ...]:
+    """1 rad and 1 rad/s for the link, the slider's travel b_max - b_min [m] (per second for
+    its speed, times R/r for the counterweight), 1 J for the energies."""
+    span = p.b_max - p.b_min
+    return (1.0, 1.0, span, span, p.pulley_ratio * span, 1.0, 1.0, 1.0)

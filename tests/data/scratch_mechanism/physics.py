@@ -12,7 +12,16 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from fmu_src.integration import integrate
-from fmu_src.mechanism import input_variables, no_input_events, output_variables, variable
+from fmu_src.mechanism import (
+    input_variables,
+    no_event_indicators,
+    no_event_update,
+    no_input_events,
+    no_mode,
+    output_variables,
+    state_variables,
+    variable,
+)
 from fmu_src.parameters import check_ranges, parameter
 
 
@@ -76,9 +85,11 @@ def tau_gravity(p: Parameters, theta: float) -> float:
     return -p.m * p.g * p.l * math.sin(theta)
 
 
-def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None) -> State:
-    """ds/dt for the inputs held (no input ramps a mass: rates is not used). s is read by
-    position: the integrator passes its intermediate states as plain lists."""
+def derivatives(p: Parameters, u: Inputs, s: State, rates: Inputs | None = None,
+                mode: tuple[int, ...] | None = None) -> State:
+    """ds/dt for the inputs held (no input ramps a mass: rates is not used; one regime:
+    mode is not used). s is read by position: the integrator passes its intermediate states
+    as plain lists."""
     theta, omega = s[0], s[1]
     torque = u.tau_drive + tau_gravity(p, theta) - p.d_link * omega
     return State(omega, torque / inertia(p), u.tau_drive * omega, p.d_link * omega * omega)
@@ -126,3 +137,14 @@ def outputs(p: Parameters, u: Inputs, s: State) -> Outputs:
     """Outputs at the state s."""
     return Outputs(s.theta, s.omega, tau_gravity(p, s.theta), -p.m * p.g * p.l * math.cos(s.theta),
                    0.5 * inertia(p) * s.omega * s.omega, s.W_drive, s.E_loss)
+
+
+# Model Exchange: one smooth regime, no state events; every state is an output
+STATE_VARIABLES = state_variables(State, Outputs)
+EVENT_INDICATORS = ()
+mode, event_indicators, event_update = no_mode, no_event_indicators, no_event_update
+
+
+def state_nominals(p: Parameters) -> tuple[float, ...]:
+    """1 rad, 1 rad/s and 1 J."""
+    return (1.0, 1.0, 1.0, 1.0)
