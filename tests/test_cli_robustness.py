@@ -167,12 +167,14 @@ def test_truncated_fmu_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
 def test_one_variant_merges_into_the_result_set(tmp_path: Path) -> None:
     """cosim --variants X used to rewrite summary.csv with X's row alone."""
     path, out = scenario_file(tmp_path), tmp_path / "out"
-    assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet"]) == 0
+    # the legacy drives: no sizing runs, the merging is the same
+    assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet",
+                     "--drives", "legacy"]) == 0
     first = pd.read_csv(out / "short" / "summary.csv")
     assert list(first.variant) == ["balanced", "unbalanced"]
     # the baseline alone (a variant's run also runs its baseline; this one is its own)
     assert cli.main(["cosim", "--scenario", str(path), "--variants", "unbalanced", "--out",
-                     str(out), "--quiet"]) == 0
+                     str(out), "--quiet", "--drives", "legacy"]) == 0
     second = pd.read_csv(out / "short" / "summary.csv")
     pd.testing.assert_frame_equal(first, second)  # same runs, same numbers, both rows
 
@@ -196,7 +198,8 @@ def test_interrupted_write_leaves_the_result_set_as_it_was(
     """Killed mid-write (while plotting, after the CSVs are made), cosim leaves every file of
     the result set as it was: nothing is renamed into place before all are staged."""
     path, out = scenario_file(tmp_path), tmp_path / "out"
-    assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet"]) == 0
+    assert cli.main(["cosim", "--scenario", str(path), "--out", str(out), "--quiet",
+                     "--drives", "legacy"]) == 0
     before = {p.name: p.read_bytes() for p in (out / "short").iterdir()}
 
     def killed(*_args: object) -> None:
@@ -204,7 +207,7 @@ def test_interrupted_write_leaves_the_result_set_as_it_was(
 
     monkeypatch.setattr(plots, "plot", killed)
     assert cli.main(["cosim", "--scenario", str(path), "--variants", "unbalanced", "--step",
-                     "0.002", "--out", str(out), "--quiet"]) == 130
+                     "0.002", "--out", str(out), "--quiet", "--drives", "legacy"]) == 130
     assert {p.name: p.read_bytes() for p in (out / "short").iterdir()} == before
 
 

@@ -210,6 +210,7 @@ def test_design_is_a_local_optimum(chosen: ciupitu_design.Design,
             assert objective(**(design | {name: moved})) > best, (name, moved)
 
 
+@pytest.mark.slow   # about 3 s: a grid over the design
 def test_design_is_the_global_optimum(chosen: ciupitu_design.Design,
                                      objective: ciupitu_design.TaskEnergy) -> None:
     """Over the bars OA in [0, 0.9 AB], each with its best mass (a second method, bounded

@@ -180,6 +180,8 @@ def monolithic() -> dict[str, RunResult]:
     return {v: fair_run(SCENARIO, v, engine=reference.run) for v in VARIANTS}
 
 
+# about 9 s: the monolithic reference of every variant (demian2022's runs in make test)
+@pytest.mark.slow
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_cosimulation_matches_monolithic_reference(
         runs: dict[str, RunResult], monolithic: dict[str, RunResult],
@@ -192,6 +194,7 @@ def test_cosimulation_matches_monolithic_reference(
         assert runs[variant].metrics[name] == pytest.approx(ref, abs=tolerance), name
 
 
+@pytest.mark.slow   # with the monolithic reference, and a run at 4 ms
 def test_cosimulation_error_shrinks_with_the_step(
         runs: dict[str, RunResult], monolithic: dict[str, RunResult]
 ) -> None:

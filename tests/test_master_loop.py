@@ -78,6 +78,7 @@ def test_the_drive_records_what_its_pid_and_motor_held_and_carried() -> None:
     assert 0 < saturated < n  # both regimes were crossed
 
 
+@pytest.mark.slow   # about 4 s: demian2022's runs, twice each
 def test_the_master_share_replays_each_run_to_the_bit() -> None:
     """`bench.master_share` on demian2022's variants: the replay of each run's efforts ends
     where the run ended (it raises otherwise), and the master's share is the difference of

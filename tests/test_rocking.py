@@ -250,6 +250,7 @@ def assert_is_the_stored_design(designed: rocking_design.Design) -> None:
 REDUCED_STARTS = {"parabolic": 8, "linear": 1}
 
 
+@pytest.mark.slow   # about 12 s: the design's reduced search
 @pytest.mark.parametrize("law", LAWS)
 def test_reduced_search_returns_the_stored_design(law: str) -> None:
     """`rocking-design`'s code path with fewer local searches (a few seconds): the same

@@ -113,7 +113,8 @@ def test_locked_slider_shortcut_matches_the_full_state_integration(L0: float) ->
     # massless slider with the pulley locked: first-order creep onto b_min
     ({}, {"pulley_locked": True}, 0.01, 0.0),
     # a slider with mass and the pulley locked, thrown onto b_min
-    ({"m_slider": 0.3}, {"pulley_locked": True}, 0.005, -1.0),
+    pytest.param({"m_slider": 0.3}, {"pulley_locked": True}, 0.005, -1.0,
+                 marks=pytest.mark.slow),   # about 6 s
 ])
 def test_free_slider_shortcut_matches_the_full_state_integration(
         changes: dict, inputs: dict, b: float, v: float) -> None:

@@ -127,6 +127,7 @@ def by_hand(payload: float, k: float) -> scenarios.Scenario:
     return replace(base, parameters={**base.parameters, "k": k}, phases=phases)
 
 
+@pytest.mark.slow   # about 10 s: a sweep and each of its runs again
 def test_sweep_equals_runs_one_by_one_and_records_failures(tmp_path: Path) -> None:
     loaded = definition.load(SMALL)
     table = sweep.run_sweep(SMALL, tmp_path, workers=2, quiet=True)
