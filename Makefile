@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 # exact versions of every dependency, so a fresh clone reproduces the committed results
 LOCK := constraints.txt
 
-.PHONY: venv fmu test test-all fuzz valgrind cosim bench lint xc sweep clean lock docs
+.PHONY: venv fmu test test-all fuzz valgrind cosim bench lint xc sweep study clean lock docs
 
 # pyproject.toml's dependencies and its dev extra, as a requirements list: the venv installs
 # them, not the project, which runs from this folder (`python -m harness`), so no package of
@@ -56,6 +56,11 @@ xc: fmu
 sweep: fmu
 	$(PY) -m harness sweep harness/sweeps/table1.toml
 	$(PY) -m harness sweep harness/sweeps/regulation.toml
+
+# the committed study (docs/study.md): every variant over the task models' random tasks in
+# both loss sets, on 2 local Dask workers; resumes where a killed one stopped
+study: fmu
+	$(PY) -m harness study --scenario all --workers 2
 
 # the generated pages: docs/variables/<Model>.md, docs/fmus.md and the mechanisms' README sections
 # from the built FMUs; docs/findings.md, the README's headline table and docs/performance.md's

@@ -50,6 +50,9 @@ COMMANDS = {
                               "Section 4 example by least squares on M_u"),
     "sweep": Command("harness.sweeps", "run a parameter sweep file on Dask and write "
                      "results/sweeps/<name>.parquet/.csv/plots"),
+    "study": Command("harness.study",
+                     "every variant over random tasks with confidence intervals, on Dask "
+                     "(results/study/<scenario>/)"),
     "bench": Command("harness.bench",
                      "benchmarks: FMU step cost against a trivial FMU and in a C host, "
                      "co-simulation real-time factor, step convergence, sweep scaling "

@@ -55,7 +55,8 @@ GRAPH = {name: imported(name, path) for name, path in MODULES.items()}
 # the rooms, lowest first; a room imports only rooms below it (or itself)
 LAYERS = (("harness.errors", "harness.io", "harness.interrupts", "harness.registry"),
           ("harness.scenarios",), ("harness.fmu",), ("harness.drive",), ("harness.engines",),
-          ("harness.run",), ("harness.design", "harness.sweeps", "harness.bench"),
+          ("harness.run",), ("harness.design", "harness.sweeps"), ("harness.study",),
+          ("harness.bench",),
           ("harness.cli", "harness.__main__"))
 LAYER = {room: level for level, rooms in enumerate(LAYERS) for room in rooms}
 

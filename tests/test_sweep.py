@@ -190,7 +190,7 @@ def test_a_defect_in_a_run_propagates_but_a_refused_value_is_a_failed_row(
     row; any other exception is a defect of the harness and must not be hidden in a row."""
     loaded = definition.load(SMALL)
     run = definition.plan(loaded)[0]
-    monkeypatch.setattr(execution, "_instance", lambda model: SimpleNamespace(messages=[]))
+    monkeypatch.setattr(execution, "model_instance", lambda model: SimpleNamespace(messages=[]))
 
     def defect(*_args: object, **_kwargs: object) -> None:
         raise TypeError("a bug")

@@ -133,6 +133,12 @@ class Drive:
         limit = self.motor.omega_max
         return limit if self.gearhead is None else min(limit, self.gearhead.omega_in_max)
 
+    def pin(self) -> dict[str, str | float]:
+        """The drive as a scenario pins it (`pinned`): motor, and gearhead and ratio."""
+        return {"motor": self.motor.name} | (
+            {} if self.gearhead is None else {"gearhead": self.gearhead.name,
+                                              "ratio": self.gear.ratio})
+
     @property
     def label(self) -> str:
         """E.g. 'maxon RE 30 60 W + maxon GP 32 C 111:1 + ball screw ...'."""

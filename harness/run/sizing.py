@@ -91,23 +91,38 @@ def table_row(variant: str, joint: str, sized: Sizing) -> dict[str, object]:
             "worst_load": sized.worst, "feasible": sized.feasible}
 
 
+def _read_drives(path: Path) -> pd.DataFrame:
+    try:
+        return pd.read_csv(path, keep_default_na=False)
+    except OSError as error:
+        raise UserError(f"{path}: cannot be read ({error.strerror or error}); run cosim "
+                        "with --drives sized") from None
+
+
+def _pin(row: object) -> dict[str, object]:
+    """A drives.csv row's drive as a scenario pins it (`catalogue.pinned`)."""
+    return {"motor": row.motor} | (
+        {"gearhead": row.gearhead, "ratio": float(row.gear_ratio)} if row.gearhead else {})
+
+
+def stored_pins(path: Path) -> dict[str, dict[str, dict[str, object]]]:
+    """The drives of a drives.csv (`table_row`) as a scenario pins them, {variant: {joint:
+    {motor, gearhead, ratio}}}; UserError naming the file when it cannot be read."""
+    pins: dict[str, dict[str, dict[str, object]]] = {}
+    for row in _read_drives(path).itertuples():
+        pins.setdefault(row.variant, {})[row.joint] = _pin(row)
+    return pins
+
+
 def stored_drives(folder: Path, variant: str, loss_set: str) -> dict[str, JointDrive]:
     """The drives a variant ran with in a written result set, from its folder's drives.csv
     (`table_row`), as the set's loss set runs them; UserError naming the file when it has
     none for the variant."""
     path = folder / "drives.csv"
-    try:
-        table = pd.read_csv(path, keep_default_na=False)
-    except OSError as error:
-        raise UserError(f"{path}: cannot be read ({error.strerror or error}); run cosim "
-                        "with --drives sized") from None
+    table = _read_drives(path)
     rows = table[table.variant == variant]
     if rows.empty:
         raise UserError(f"{path} has no drive of variant {variant}")
-    drives = {}
-    for row in rows.itertuples():
-        spec = {"motor": row.motor} | ({"gearhead": row.gearhead, "ratio": float(row.gear_ratio)}
-                                       if row.gearhead else {})
-        drive = catalogue.pinned(spec, row.screw or None, f"{path} {variant} {row.joint}")
-        drives[row.joint] = drive.joint_drive(lossless=loss_set == "ideal")
-    return drives
+    return {row.joint: catalogue.pinned(_pin(row), row.screw or None,
+                                        f"{path} {variant} {row.joint}")
+            .joint_drive(lossless=loss_set == "ideal") for row in rows.itertuples()}

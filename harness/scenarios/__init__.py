@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pprint
 import tomllib
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -30,8 +30,13 @@ SCENARIO_DIR = Path(__file__).resolve().parent
 MAX_STEPS = 10_000_000  # communication steps per run: the series stay well inside memory
 
 
+@dataclass(frozen=True)
 class Scenario(core.Scenario):
-    """A scenario with vectorised evaluation (numpy arrays of times [s])."""
+    """A scenario with vectorised evaluation (numpy arrays of times [s]), and the folder of
+    the file it was loaded from (where a file outside harness/scenarios may keep its realistic
+    loss set, `harness.scenarios.losses`)."""
+
+    folder: Path | None = field(default=None, repr=False, compare=False)
 
     def check_step(self, step: float, what: str = "--step") -> None:
         """UserError unless the communication step [s] is in [duration / MAX_STEPS, duration],
@@ -135,7 +140,8 @@ def load(name_or_path: str | Path) -> Scenario:
     path = scenario_file(name_or_path)
     data = read_toml(path)
     try:
-        return scenario_format.parse(data, path.name, Scenario)
+        return replace(scenario_format.parse(data, path.name, Scenario),
+                       folder=path.resolve().parent)
     except ValueError as error:  # the core is standard library only: it raises ValueError
         raise UserError(str(error)) from None
 

@@ -1,7 +1,8 @@
 """Loss sets: the shipped scenarios run again with the losses of real parts (docs/losses.md).
 
 A scenario's variants as written are the `ideal` set. A scenario with a loss file,
-harness/scenarios/realistic/<scenario>.toml, also has a `realistic` set: the same variants
+harness/scenarios/realistic/<scenario>.toml (or realistic/<scenario>.toml beside the
+scenario's own file), also has a `realistic` set: the same variants
 with the loss file's parameters. Its tables:
 
 - `[models.<Model>]`: parameters set in every variant that runs that model (joint, slider
@@ -20,11 +21,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from fmu_src.units.sequencer import scenario as core
 from fmu_src.units.sequencer import scenario_format
 from harness.errors import UserError
-from harness.scenarios import Scenario, read_toml
+from harness.scenarios import SCENARIO_DIR, Scenario, read_toml
 
 LOSSES_DIR = Path(__file__).resolve().parent / "realistic"
 LOSS_SETS = ("ideal", "realistic")
@@ -33,7 +35,13 @@ VARIANT_KEYS = ("parameters", "phase_targets")
 
 
 def loss_file(scenario: Scenario) -> Path:
-    """The loss file of a scenario (whether it exists or not)."""
+    """The loss file of a scenario (whether it exists or not): realistic/<scenario>.toml
+    beside the scenario's file where there is one (a generated task's,
+    `harness.study.tasks`), else harness/scenarios/realistic/<scenario>.toml."""
+    if scenario.folder is not None and scenario.folder != SCENARIO_DIR:
+        beside = scenario.folder / REALISTIC_FOLDER / f"{scenario.name}.toml"
+        if beside.exists():
+            return beside
     return LOSSES_DIR / f"{scenario.name}.toml"
 
 
@@ -42,11 +50,12 @@ def has_realistic(scenario: Scenario) -> bool:
     return loss_file(scenario).exists()
 
 
-def realistic(scenario: Scenario) -> Scenario:
+def realistic(scenario: Scenario, data: dict[str, Any] | None = None) -> Scenario:
     """The scenario with every variant's parameters (and the phase targets the loss file
-    gives) those of real parts; UserError naming the file and the key that is wrong."""
+    gives) those of real parts; UserError naming the file and the key that is wrong.
+    data: the loss file's tables, if not read from the scenario's loss file."""
     path = loss_file(scenario)
-    data = read_toml(path)
+    data = read_toml(path) if data is None else data
     where = path.name
     try:
         scenario_format._unknown_keys(data, ("models", "variants"), where)

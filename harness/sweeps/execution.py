@@ -61,7 +61,7 @@ def _close_fmus() -> None:
     as no run is left to fail)."""
     for model in list(_FMUS):
         try:
-            _discard(model)
+            discard(model)
         except FMUCallError as refused:
             logging.getLogger(__name__).warning("%s", refused)
 
@@ -76,7 +76,7 @@ class CloseFMUs(WorkerPlugin):
         _close_fmus()
 
 
-def _instance(model: str) -> CoSimFMU:
+def model_instance(model: str) -> CoSimFMU:
     """This process's instance of the model, made on first use (freed at exit)."""
     if model not in _FMUS:
         if not _FMUS:
@@ -87,14 +87,15 @@ def _instance(model: str) -> CoSimFMU:
 
 def warm_up(model: str) -> None:
     """Instantiate the model in this worker process (e.g. before timing a benchmark)."""
-    _instance(model)
+    model_instance(model)
 
 
-def _discard(model: str) -> None:
-    """Free an instance (after a failure it may be unusable; the next run makes a new one).
-    CoSimFMU.close skips freeing after a Fatal and raises a refused fmi2Terminate (once the
-    instance is freed)."""
-    _FMUS.pop(model).close()
+def discard(model: str) -> None:
+    """Free this process's instance of the model, if it has one (after a failure it may be
+    unusable; the next run makes a new one). CoSimFMU.close skips freeing after a Fatal and
+    raises a refused fmi2Terminate (once the instance is freed)."""
+    if model in _FMUS:
+        _FMUS.pop(model).close()
 
 
 def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
@@ -109,7 +110,7 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
         scenario, motor, design = configure(sweep.scenario, assignments(sweep, run.values))
         variant = scenario.variant(run.variant)
         model = variant.model or scenario.model
-        fmu = _instance(model)
+        fmu = model_instance(model)
         fmu.messages.clear()
         result = fmpy_master.run(scenario, variant, sweep.step_size, motor=motor, design=design,
                                  fmu=fmu)
@@ -126,7 +127,7 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
                 details += [m.message for m in _FMUS[model].messages
                             if m.status in ("Error", "Fatal")]
             try:
-                _discard(model)
+                discard(model)
             except FMUCallError as refused:  # the failed run's end: part of its row
                 details.append(str(refused))
         row.update(status="failed", error=" ".join("; ".join(details).split()))

@@ -10,7 +10,9 @@ acceleration at both ends) over the phase, and input changes applied at the phas
 plain value steps there, `{ ramp = value }` ramps to value over the phase, linearly or with
 `shape` one of RAMP_SHAPES (e.g. `{ ramp = 4.0, shape = "ease_out" }`). Inputs keep their
 value until a later phase changes them; a joint a phase gives no target holds its previous
-one.
+one. A phase with `variants = [...]` is performed only by the variants it names (the others
+go on to the next phase from where they are): a variant's own procedure, such as moving to the
+posture where it regulates (`Scenario.for_variant`).
 
 Joints. Without a `joints` table the scenario has one revolute joint with the names of the
 balancer FMUs (DEFAULT_JOINT; a `[joint]` table may rename them), its initial angle is
@@ -35,7 +37,9 @@ Variants are configurations of the same run (docs/scenarios.md): they may replac
 (`model`), override its parameters (`parameters`), hold inputs at fixed values for the whole
 run (`inputs`), replace the input changes of named phases (`phase_inputs`, e.g.
 `{ down = { payload = { ramp = 0.4, shape = "quintic" } } }`), drop scenario inputs the model
-does not have (`drop_inputs`), or name their own eps `baseline` (default: the scenario's).
+does not have (`drop_inputs`), name their own eps `baseline` (default: the scenario's), or pin
+the catalogue drive of joints for themselves (`drives = { <joint> = { motor = ..., gearhead =
+..., ratio = ... } }`, as a joint's `drive` pins it for every variant).
 A variant whose model has more joints than the scenario drives them too: its own
 `[variants.<v>.joints.<name>]` tables (the format of `[joints.<name>]`) come after the
 scenario's joints, and `phase_targets = { <phase> = { <joint> = value } }` gives their
@@ -77,7 +81,7 @@ JOINT_KEYS = ("position", "speed", "effort", "start_parameter", "inertia", "fric
               "drive_inertia", "initial")
 OPTIONAL_JOINT_KEYS = ("kind", "motor", "static_effort", "static_load", "screw", "drive",
                        "rest_when_holding")
-PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs")
+PHASE_KEYS = ("name", "duration", "target_deg", "targets", "inputs", "variants")
 # Tolerance of phase start times, as a fraction of the communication step: a host that adds up
 # its time (t += h) reaches a phase start a little early or late (13.99999999999768 for 14 s
 # after 14 000 steps of 1 ms; at most 1.6e-8 steps after 35 000 steps of 1 ms and 1e-4 steps
@@ -205,6 +209,7 @@ class Phase:
     duration: float                 # [s]
     target: tuple[float, ...]       # per joint, reached at the end of the phase [rad or m]
     inputs: dict[str, Any] = field(default_factory=dict)  # value or Ramp, from phase start
+    variants: tuple[str, ...] = ()  # the variants that perform it; () for every variant
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "target", _positions(self.target))
@@ -268,6 +273,9 @@ class Variant:
     joints: tuple[Joint, ...] = field(default=(), repr=False)
     joint_initial: tuple[float, ...] = field(default=(), repr=False)
     phase_targets: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
+    # the catalogue drive pinned on joints by name, as a joint's `drive` pins it, for this
+    # variant alone ({joint: ((key, value), ...)}); for_variant puts them on the joints
+    drives: dict[str, tuple[tuple[str, Any], ...]] = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)
@@ -344,9 +352,21 @@ class Scenario:
                              f"choose from {', '.join(self.variants)}") from None
 
     def for_variant(self, variant: Variant) -> Scenario:
-        """The scenario with every joint the variant drives: the scenario's, then the
-        variant's own, whose targets follow its phase_targets (a phase it does not name
-        holds the previous target). Joints the scenario already has are not added again."""
+        """The scenario as the variant runs it: the phases it performs (those that name no
+        variants or name it), and every joint it drives, with the drives the variant pins:
+        the scenario's, then the variant's own, whose targets follow its phase_targets (a
+        phase it does not name holds the previous target). Joints the scenario already has
+        are not added again."""
+        if any(phase.variants for phase in self.phases):
+            return replace(self, phases=tuple(
+                replace(phase, variants=()) for phase in self.phases
+                if not phase.variants or variant.name in phase.variants)).for_variant(variant)
+        if variant.drives:
+            def pinned(joints: tuple[Joint, ...]) -> tuple[Joint, ...]:
+                return tuple(replace(j, drive=variant.drives.get(j.name, j.drive))
+                             for j in joints)
+            return replace(self, joints=pinned(self.joints)).for_variant(
+                replace(variant, drives={}, joints=pinned(variant.joints)))
         names = {j.name for j in self.joints}
         extra = [(j, x) for j, x in zip(variant.joints, variant.joint_initial)
                  if j.name not in names]

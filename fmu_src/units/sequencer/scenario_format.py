@@ -150,8 +150,14 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
             raise ValueError(f"{where}: {error}") from None
         duration = finite_number(raw["duration"], f"{where}: duration", "a number of seconds "
                                  "in (0, inf)")
+        performers = raw.get("variants")
+        if performers is not None and (not isinstance(performers, list) or not performers
+                                       or not all(isinstance(v, str) for v in performers)):
+            raise ValueError(f"{where}: variants = {shown(performers)} must be a non-empty list "
+                             "of variant names (leave it out for every variant)")
         phases.append(Phase(name, duration, target,
-                            _input_changes(raw.get("inputs", {}), where)))
+                            _input_changes(raw.get("inputs", {}), where),
+                            tuple(performers or ())))
     return tuple(phases)
 
 
@@ -207,8 +213,23 @@ def _variants(data: dict[str, Any], phase_names: set[str], joints: tuple[Joint, 
             tuple(drop),
             {phase: _input_changes(changes, f"variant {name} phase {phase}")
              for phase, changes in phase_inputs.items()},
-            raw.get("baseline"), *_variant_joints(name, raw, joints, phase_names))
+            raw.get("baseline"), *_variant_joints(name, raw, joints, phase_names),
+            _variant_drives(name, raw, joints))
     return variants
+
+
+def _variant_drives(name: str, raw: dict[str, Any], scenario_joints: tuple[Joint, ...]
+                    ) -> dict[str, tuple[tuple[str, Any], ...]]:
+    """The drives a variant pins on joints (the scenario's or its own), by joint name."""
+    drives = table(raw.get("drives", {}), f"variant {name} drives")
+    own = table(raw.get("joints", {}), f"variant {name} joints")
+    names = [j.name for j in scenario_joints] + list(own)
+    unknown = sorted(set(drives) - set(names))
+    if unknown:
+        raise ValueError(f"variant {name} drives names no joint {', '.join(unknown)}; choose "
+                         f"from {', '.join(names)}")
+    return {joint: tuple(sorted(table(spec, f"variant {name} drives.{joint}").items()))
+            for joint, spec in drives.items()}
 
 
 def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scenario
@@ -228,6 +249,11 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
             initial_angle=initial, phases=phases, variants=variants,
             baseline=data.get("baseline", next(iter(variants), "")), joints=joints,
             source=data.get("source", ""))
+        for phase in phases:
+            unknown = [v for v in phase.variants if v not in variants]
+            if unknown:
+                raise ValueError(f"phase {phase.name}: variants names no variant "
+                                 f"{', '.join(unknown)}; choose from {', '.join(variants)}")
         unknown = sorted(set(scenario.baselines.values()) - set(variants))
         if unknown:
             raise ValueError(f"baseline {', '.join(unknown)} names no variant; choose from "

@@ -1,0 +1,190 @@
+"""The study: every variant of a scenario over a distribution of random tasks, with
+confidence intervals, on Dask: `python -m harness study` (docs/study.md).
+
+The room's parts:
+- `harness.study.model`: the task model, as data (harness/study/<scenario>.toml);
+- `harness.study.tasks`: tasks drawn from it, each written as a scenario file;
+- `harness.study.execution`: the drives sized once per study, the runs on Dask, each
+  finished task's rows stored atomically so that a killed study resumes;
+- `harness.study.statistics` and `harness.study.plots`: the tables and figures.
+
+This module is the command. Output in OUT/<scenario>/: tasks/ (each task's scenario file,
+its realistic loss file in tasks/realistic/), tasks.csv (one row per task), drives.csv
+(each variant's drives), runs.csv (one row per task, variant and loss set), summary.csv,
+paired.csv, dependence.csv, energy.png and dependence.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+from distributed import Client
+
+from harness import interrupts
+from harness.errors import UserError
+from harness.fmu import build as fmu_build
+from harness.io import save_figure, write_csv
+from harness.run import results
+from harness.run.sizing import stored_pins
+from harness.scenarios import losses
+from harness.study import execution, model, plots, statistics, tasks
+from harness.study.tasks import Task
+from harness.sweeps import connect
+from harness.sweeps.execution import close_client, local_client
+
+STUDY_DIR = results.RESULTS_DIR / "study"
+MAX_TASKS = 100_000
+DEFAULT_SEED = 1
+
+
+def task_rows(drawn: list[Task], folder: Path, step: float) -> pd.DataFrame:
+    """tasks.csv: each task's figures, its file and the command that reruns it alone."""
+    rows = []
+    for task in drawn:
+        path = folder / "tasks" / f"{task.name}.toml"
+        rows.append({**task.row, "file": str(path.relative_to(folder)), "rerun": shlex.join([
+            "python", "-m", "harness", "cosim", "--scenario", _shown(path), "--step",
+            f"{step:g}", "--out", "build/study-rerun"])})
+    return pd.DataFrame(rows)
+
+
+def _shown(path: Path) -> str:
+    """A path relative to the working directory where it is inside it."""
+    try:
+        return str(path.relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
+
+
+def drive_pins(task_model: model.TaskModel, drawn: list[Task], folder: Path,
+               client: Callable[[], Client], quiet: bool) -> dict[str, dict[str, dict]]:
+    """Each variant's drives: those of folder/drives.csv, else sized on the study's first
+    drive_sample tasks (one Dask task per variant) and written there."""
+    path = folder / "drives.csv"
+    if not path.exists():
+        sample = drawn[:task_model.drive_sample]
+        variants = list(task_model.template.variants)
+        if not quiet:
+            print(f"{task_model.name}: sizing the drives of {len(variants)} variants on "
+                  f"{len(sample)} tasks")
+        futures = [client().submit(execution.size_variant, sample, v, task_model.step,
+                                   pure=False) for v in variants]
+        sized = dict(zip(variants, client().gather(futures)))
+        rows = pd.DataFrame([joint["row"] for v in variants for joint in sized[v].values()])
+        folder.mkdir(parents=True, exist_ok=True)
+        write_csv(rows, path)
+    return stored_pins(path)
+
+
+def run_study(name: str, n_tasks: int | None, seed: int, out: Path,
+              client: Callable[[], Client], quiet: bool = False) -> pd.DataFrame:
+    """Run what is missing of a scenario's study in out/<name>/, then write its tables and
+    figures; returns the summary."""
+    task_model = model.load(name)
+    n = n_tasks or task_model.tasks
+    folder = out / name
+    results.check_writable(out)
+    stored_tasks = folder / "tasks.csv"
+    if stored_tasks.exists():
+        seeds = set(pd.read_csv(stored_tasks).seed)
+        if seeds != {seed}:
+            raise UserError(f"{folder} holds a study of --seed {', '.join(map(str, seeds))}; "
+                            f"resume it with that seed, or choose another --out")
+    drawn = [tasks.draw(task_model, seed, i) for i in range(n)]
+    pins = drive_pins(task_model, drawn, folder, client, quiet)
+    drawn = [tasks.pinned(task, pins) for task in drawn]
+    for task in drawn:
+        tasks.write(task, folder / "tasks")
+    write_csv(task_rows(drawn, folder, task_model.step), stored_tasks)
+    variants = list(task_model.template.variants)
+    loss_sets = [ls for ls, _ in losses.loss_sets(task_model.template, "all")]
+    todo = execution.pending(folder, drawn, variants, loss_sets)
+    if not quiet:
+        total = n * len(variants) * len(loss_sets)
+        left = sum(len(jobs) for jobs in todo.values())
+        print(f"{name}: {n} tasks, {total} runs, {total - left} stored, {left} to do")
+    if todo:
+        execution.execute(folder, drawn, todo, task_model.step, client(), quiet)
+    return write_tables(task_model, drawn, folder, variants, loss_sets, quiet)
+
+
+def write_tables(task_model: model.TaskModel, drawn: list[Task], folder: Path,
+                 variants: list[str], loss_sets: list[str], quiet: bool) -> pd.DataFrame:
+    """runs.csv, summary.csv, paired.csv, dependence.csv and the figures."""
+    template = task_model.template
+    runs = execution.runs_table(folder, drawn, variants, loss_sets, template.baselines)
+    task_table = pd.read_csv(folder / "tasks.csv")
+    summary = statistics.summary(runs, variants, task_model.reference)
+    dependence = statistics.dependence(runs, task_table, variants, task_model.reference)
+    written = [write_csv(runs, folder / "runs.csv"), write_csv(summary, folder / "summary.csv"),
+               write_csv(statistics.paired(runs, variants), folder / "paired.csv"),
+               write_csv(dependence, folder / "dependence.csv"),
+               save_figure(plots.energy_figure(template.name, runs, variants, len(drawn)),
+                           folder / "energy.png")]
+    figure = plots.dependence_figure(template.name, dependence, task_model.reference)
+    if figure is not None:
+        written.append(save_figure(figure, folder / "dependence.png"))
+    if not quiet:
+        print("\n".join(str(p) for p in written))
+        failed = int((runs.status != "ok").sum())
+        print(f"{len(runs)} runs: {len(runs) - failed} ok, {failed} failed")
+    return summary
+
+
+# ---- command ------------------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = "task models: " + ", ".join(model.available())
+    parser.add_argument("--scenario", default="all",
+                        help="a scenario with a task model (harness/study/<name>.toml) or 'all'")
+    parser.add_argument("--tasks", type=int,
+                        help="tasks to draw (default: the task model's, that of the committed "
+                             "study)")
+    parser.add_argument("--seed", type=int, default=DEFAULT_SEED,
+                        help="the tasks' seed: task i comes from numpy's default_rng([seed, i])")
+    parser.add_argument("--workers", type=int, default=2,
+                        help="local worker processes (ignored with --scheduler)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="dask.distributed scheduler address, e.g. tcp://host:8786 "
+                             "(default: local workers)")
+    parser.add_argument("--out", type=Path, default=STUDY_DIR,
+                        help="results folder: the study goes to OUT/<scenario>/")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.tasks is not None and not 1 <= args.tasks <= MAX_TASKS:
+        raise UserError(f"--tasks = {args.tasks} is outside [1, {MAX_TASKS:,}]")
+    if not 0 <= args.seed < 2 ** 63:
+        raise UserError(f"--seed = {args.seed} is outside [0, 2**63 - 1]")
+    if args.workers < 1:
+        raise UserError(f"--workers = {args.workers} must be at least 1")
+    names = model.available() if args.scenario == "all" else [args.scenario]
+    for name in names:
+        task_model = model.load(name)  # every task model checked before anything runs
+        for variant in task_model.template.variants.values():
+            fmu_build.locate(variant.model or task_model.template.model)
+    clients: list[Client] = []
+
+    def client() -> Client:
+        if not clients:
+            clients.append(local_client(args.workers) if args.scheduler is None
+                           else connect(args.scheduler))
+        return clients[0]
+
+    try:
+        for name in names:
+            run_study(name, args.tasks, args.seed, args.out, client, args.quiet)
+    except KeyboardInterrupt:
+        print("interrupted: the finished tasks' runs are stored; run the same command to "
+              "resume", file=sys.stderr)
+        return 130
+    finally:
+        with interrupts.deferred():
+            for c in clients:
+                close_client(c)
+    return 0
