@@ -13,6 +13,14 @@ and the procedure by which each variant regulates after a payload change:
   then moves to `posture_deg`, where the variant performs `phases` (phase tables of the
   scenario format, in which `{ ramp = "payload" }` ramps an input to the new payload),
   and the next phase applies the inputs `after`.
+
+A model without `payload_kg` draws no payload (a mechanism without a payload input). With
+`strokes = true` the payload is a law of the stroke instead (Ciupitu 2018's process: the
+load is taken on while the link goes down and given back while it comes up): the link
+strokes between the two ends of its range, the payload ramping to the stroke's mass on the
+way to the upper end of the range along a variant's `payload_shape` and back to 0 on the way
+back along its `return_shape`; the mass changes before a stroke out with the change
+probability (always before the first).
 """
 
 from __future__ import annotations
@@ -30,10 +38,10 @@ PROCEDURES = ("in_place", "at_posture")
 RAMP_SHAPES = tuple(scenarios.RAMP_SHAPES)
 KEYS = ("scenario", "tasks", "reference", "step", "drive_sample", "moves", "joints",
         "speed_fraction", "mean_hold_s", "payload_kg", "change_probability", "change_s",
-        "procedures")
+        "strokes", "procedures")
 JOINT_KEYS = ("range", "speed_limit", "min_move_s")
-PROCEDURE_KEYS = ("kind", "payload_shape", "balance", "design_deg", "posture_deg", "phases",
-                  "after")
+PROCEDURE_KEYS = ("kind", "payload_shape", "return_shape", "balance", "design_deg",
+                  "posture_deg", "phases", "after")
 
 
 @dataclass(frozen=True)
@@ -54,6 +62,7 @@ class Procedure:
 
     kind: str = "in_place"
     payload_shape: str = "linear"
+    return_shape: str = "linear"
     balance: str | None = None
     design_deg: float = 180.0
     posture_deg: float = 180.0
@@ -78,6 +87,7 @@ class TaskModel:
     payload_kg: tuple[float, float]
     change_probability: tuple[float, float]
     change_s: float
+    strokes: bool
     procedures: dict[str, Procedure]
 
     def procedure(self, variant: str) -> Procedure:
@@ -121,9 +131,10 @@ def _procedure(variant: str, raw: Any, template: scenarios.Scenario) -> Procedur
     if procedure.kind not in PROCEDURES:
         raise UserError(f"{where}.kind = {procedure.kind!r} must be one of "
                         f"{', '.join(PROCEDURES)}")
-    if procedure.payload_shape not in RAMP_SHAPES:
-        raise UserError(f"{where}.payload_shape = {procedure.payload_shape!r} must be one of "
-                        f"{', '.join(RAMP_SHAPES)}")
+    for key in ("payload_shape", "return_shape"):
+        if getattr(procedure, key) not in RAMP_SHAPES:
+            raise UserError(f"{where}.{key} = {getattr(procedure, key)!r} must be one of "
+                            f"{', '.join(RAMP_SHAPES)}")
     own = [j.name for j in template.for_variant(template.variant(variant)).joints]
     if procedure.balance is not None and procedure.balance not in own:
         raise UserError(f"{where}.balance = {procedure.balance!r} is no joint of the variant "
@@ -168,6 +179,12 @@ def load(name: str) -> TaskModel:
         if reference not in template.variants:
             raise UserError(f"reference = {reference!r} must be a variant of {template.name} "
                             f"({', '.join(template.variants)})")
+        strokes = raw.get("strokes", False)
+        if not isinstance(strokes, bool):
+            raise UserError(f"strokes = {strokes!r} must be true or false")
+        payload = "payload_kg" in raw   # a model without a payload input has none
+        if strokes and (len(template.joints) != 1 or not payload):
+            raise UserError("strokes = true needs a scenario of one joint and a payload_kg")
         step = _positive(raw, "step")
         template.check_step(step, "step")
         moves = _range(raw, "moves", 1, 1000)
@@ -178,9 +195,11 @@ def load(name: str) -> TaskModel:
             moves=(int(moves[0]), int(moves[1])), joints=ranges,
             speed_fraction=_range(raw, "speed_fraction", 1e-3, 1.0),
             mean_hold_s=_range(raw, "mean_hold_s", 1e-3, 1e4),
-            payload_kg=_range(raw, "payload_kg", 0.0, 1e3),
-            change_probability=_range(raw, "change_probability", 0.0, 1.0),
-            change_s=float(_positive(raw, "change_s")),
+            payload_kg=_range(raw, "payload_kg", 0.0, 1e3) if payload else (0.0, 0.0),
+            change_probability=(_range(raw, "change_probability", 0.0, 1.0) if payload
+                                else (0.0, 0.0)),
+            change_s=float(_positive(raw, "change_s")) if payload and not strokes else 0.0,
+            strokes=strokes,
             procedures={v: _procedure(v, p, template) for v, p in procedures.items()})
     except UserError as error:
         raise UserError(f"{path.name}: {error}") from None

@@ -121,6 +121,10 @@ def draw(model: TaskModel, seed: int, index: int) -> Task:
     targets = [tuple(float(rng.uniform(r.low, r.high)) for r in ranges) for _ in range(moves)]
     changes = [bool(k == 0 or rng.uniform() < p_change) for k in range(moves)]
     payloads = [float(rng.uniform(*model.payload_kg)) for _ in range(moves)]
+    if model.strokes:   # out to the range's upper end and back, from the lower one
+        start = (ranges[0].low,)
+        targets = [(ranges[0].high if k % 2 == 0 else ranges[0].low,) for k in range(moves)]
+        changes = [change and k % 2 == 0 for k, change in enumerate(changes)]
     if model.payload_kg[1] == 0.0:   # a mechanism without a payload input
         changes = [False] * moves
     return _build(model, index, seed, start, holds, targets, changes, payloads,
@@ -145,6 +149,24 @@ def _build(model: TaskModel, index: int, seed: int, start: tuple[float, ...],
     position, payload, n_changes = start, 0.0, 0
     for k, (target, change, new) in enumerate(zip(targets, changes, payloads), start=1):
         starts = [position]
+        if model.strokes:
+            if change:
+                n_changes += 1
+                payload = new
+            outward = k % 2 == 1
+            phases.append({"name": f"{k} move", **_targets(names, target),
+                           "duration": _move_duration(model, position, target, speed),
+                           "inputs": {"payload": {"ramp": payload if outward else 0.0}}})
+            for variant in template.variants:
+                procedure = model.procedure(variant)
+                shape = procedure.payload_shape if outward else procedure.return_shape
+                if shape != "linear":
+                    variant_inputs[variant][f"{k} move"] = {"payload": {
+                        "ramp": payload if outward else 0.0, "shape": shape}}
+            phases.append({"name": f"{k} hold", "duration": holds[k],
+                           **_targets(names, target)})
+            position = target
+            continue
         if change:
             n_changes += 1
             payload = new
@@ -209,13 +231,13 @@ def _build(model: TaskModel, index: int, seed: int, start: tuple[float, ...],
         for variant, table in realistic_targets.items():
             if table:
                 realistic["variants"].setdefault(variant, {})["phase_targets"] = table
+    brought = [p for p, c in zip(payloads, changes) if c]   # the masses the changes bring
     duration = sum(p["duration"] for p in phases if "variants" not in p)
     hold = sum(holds)
     row = {"task": index, "name": name, "seed": seed, **drawn, "changes": n_changes,
            "duration": duration, "hold_fraction": hold / duration,
            "changes_per_min": n_changes / (duration / 60.0),
-           "payload_mean": float(np.mean([0.0, *[p for p, c in zip(payloads, changes) if c]]))
-           if n_changes else 0.0}
+           "payload_mean": float(np.mean(brought)) if brought else 0.0}
     return Task(name, data, realistic, row)
 
 
