@@ -118,3 +118,20 @@ def test_start_currents_are_recovered_from_the_averages() -> None:
     starts, averages, _ = run_motor(voltage, omega, dt, i0=-2.0)
     np.testing.assert_allclose(start_currents(MOTOR, dt, voltage, omega, averages), starts,
                                rtol=0, atol=1e-12 * np.abs(starts).max())
+
+
+def test_a_current_decaying_at_rest_reaches_zero_not_a_magnitude_the_fmus_refuse() -> None:
+    """With no voltage and no speed the armature current decays by exp(-R_a dt / L_a) per
+    step; after enough steps it falls below 1e-50 A, which the mechanism FMUs refuse as an
+    input's effort (docs/robustness.md). A ciupitu2018 study task held the arm upright (no
+    gravity torque) long enough for that: the motor hands on 0 instead, exactly, and every
+    non-zero value it hands on is at least 1e-50."""
+    dt = 1e-3
+    motor = SampledMotor(MOTOR, zoh_coefficients(MOTOR, dt), 1.0)
+    decay = math.exp(-MOTOR.R_a * dt / MOTOR.L_a)
+    steps = math.ceil(math.log(1e-50) / math.log(decay)) + 10   # past 1e-50 A from 1 A
+    values = [value for _ in range(steps) for value in motor.step(0.0, 0.0)]
+    assert motor.current == 0.0
+    assert values[-2:] == [0.0, 0.0]
+    assert all(v == 0.0 or abs(v) >= 1e-50 for v in values)
+    assert any(0.0 < abs(v) < 1e-45 for v in values)   # it did pass through the small ones

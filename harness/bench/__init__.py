@@ -48,6 +48,14 @@ first communication point at or after it); `ecco.png` plots both errors against 
 
 `sweep`: runs per second of a parameter sweep with 1 and 2 Dask worker processes.
 
+`study`: a study's runs per CPU-second in one process and where their time goes (the
+closed-loop step, the start-up a run without a reused FMU instance would add), and its runs
+per second on local Dask clusters of 1, 2 and 4 workers reached by their scheduler's
+address, per worker (`harness.bench.studies.study_benchmark`).
+
+`study_step`: the error the study's communication step leaves in E_drawn, over the first
+tasks of each committed study at 4, 2, 1 and 0.5 ms, relative to 0.5 ms.
+
 `cli_help`: wall time of `python -m harness --help` in a fresh interpreter, best of repeats.
 
 Checks (CHECKS): after the tables, the figures that must hold on any machine, each with its
@@ -68,7 +76,15 @@ from pathlib import Path
 import pandas as pd
 
 from harness.bench.steps import BENCH_DIR, cosim, fmu_step, master_share, native_step
-from harness.bench.studies import cli_help, convergence, ecco, ecco_plot, sweep_benchmark
+from harness.bench.studies import (
+    cli_help,
+    convergence,
+    ecco,
+    ecco_plot,
+    study_benchmark,
+    study_step,
+    sweep_benchmark,
+)
 from harness.bench.targets import checks, earlier_tables
 from harness.errors import UserError
 from harness.io import write_csv
@@ -91,6 +107,9 @@ BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
     "ecco": ecco,
     # runs/s of a parameter sweep with 1 and 2 worker processes; steps and repeats do not apply
     "sweep": lambda steps, repeats: sweep_benchmark(),
+    # steps and repeats do not apply
+    "study": study_benchmark,
+    "study_step": study_step,
     # steps do not apply
     "cli_help": cli_help,
 }

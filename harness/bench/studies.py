@@ -1,8 +1,10 @@
 """The benchmark studies: step convergence against the monolithic reference, libcosim's
-fixed step against ECCO, a sweep's scaling over workers and the CLI's help time."""
+fixed step against ECCO, a sweep's scaling over workers, a study's throughput and step error,
+and the CLI's help time."""
 
 from __future__ import annotations
 
+import logging
 import subprocess
 import sys
 import tempfile
@@ -12,11 +14,20 @@ from functools import partial
 from pathlib import Path
 
 import pandas as pd
+from distributed import LocalCluster
 
-from harness import scenarios
+from harness import scenarios, study
+from harness.drive import catalogue
 from harness.drive.metrics import ENERGIES
 from harness.engines import DEFAULT_STEP, fmpy_master, reference
+from harness.errors import UserError
 from harness.fmu import build as fmu_build
+from harness.fmu.loader import CoSimFMU
+from harness.run.sizing import stored_pins
+from harness.study import execution as study_execution
+from harness.study import model as study_model
+from harness.study import tasks as study_tasks
+from harness.sweeps import connect
 from harness.sweeps import definition as sweep_definition
 from harness.sweeps import execution as sweep_execution
 
@@ -178,3 +189,124 @@ def cli_help(steps: int = 0, repeats: int = 3) -> pd.DataFrame:
         seconds.append(time.perf_counter() - start)
     return pd.DataFrame({"command": ["python " + " ".join(HELP_COMMAND)], "repeats": repeats,
                          "best_s": min(seconds), "worst_s": max(seconds)})
+
+
+STUDY_BENCH_SCENARIO = "franchetti2021"
+STUDY_BENCH_TASKS = 2           # the study's first tasks: 24 runs of every variant and loss set
+STUDY_BENCH_WORKERS = (1, 2, 4)  # local Dask workers, reached through their scheduler's address
+STUDY_STEPS = (4e-3, 2e-3, 1e-3, 0.5e-3)  # communication steps of study_step [s]
+
+
+def _study_tasks(n: int) -> tuple[study_model.TaskModel, list[study_tasks.Task]]:
+    """The study's first n tasks of STUDY_BENCH_SCENARIO with the committed study's drives
+    (sized on them here when there is no committed study)."""
+    task_model = study_model.load(STUDY_BENCH_SCENARIO)
+    drawn = [study_tasks.draw(task_model, study.DEFAULT_SEED, i) for i in range(n)]
+    path = study.STUDY_DIR / STUDY_BENCH_SCENARIO / "drives.csv"
+    if path.exists():
+        pins = stored_pins(path)
+    else:
+        pins = {v: {joint: sized["pin"] for joint, sized in
+                    study_execution.size_variant(drawn, v, task_model.step).items()}
+                for v in task_model.template.variants}
+    return task_model, [study_tasks.pinned(task, pins) for task in drawn]
+
+
+def study_benchmark(steps: int = 0, repeats: int = 0) -> pd.DataFrame:
+    """Where a study's time goes, and its throughput. In this process, every run of the
+    study's first STUDY_BENCH_TASKS tasks of STUDY_BENCH_SCENARIO (each variant, each loss
+    set) at the study's step, one FMU instance per model reused as a study worker does: CPU
+    time, runs and simulated seconds per CPU-second, CPU time per step (the run's set-up and
+    result assembly spread over its steps), and the start-up a fresh instance (extracting
+    and loading the FMU, instantiating it) would add to each run without reuse. Then the
+    same runs as a study executes them on a local Dask cluster of each of STUDY_BENCH_WORKERS
+    single-threaded worker processes, reached through its scheduler's address as
+    `--scheduler` reaches one: wall time, runs per second and per worker per second (cluster
+    start-up and the first instances not timed)."""
+    task_model, drawn = _study_tasks(STUDY_BENCH_TASKS)
+    variants = list(task_model.template.variants)
+    loss_sets = [ls for ls, _ in drawn[0].loss_sets()]
+    jobs = [(v, ls) for v in variants for ls in loss_sets]
+    models = {task_model.template.variant(v).model or task_model.template.model
+              for v in variants}
+    for model in models:
+        sweep_execution.warm_up(model)
+    start_up = {}
+    for model in models:
+        start = time.process_time()
+        CoSimFMU(fmu_build.locate(model), f"bench.{model}").close()
+        start_up[model] = time.process_time() - start
+    cpu = time.process_time()
+    rows = [study_execution.run_one(task, v, ls, task_model.step) for task in drawn
+            for v, ls in jobs]
+    cpu = time.process_time() - cpu
+    if any(row["status"] != "ok" for row in rows):
+        raise RuntimeError(f"benchmark runs failed: {[r['error'] for r in rows if r['error']]}")
+    simulated = sum(row["duration"] for row in rows)
+    n_steps = sum(round(row["duration"] / task_model.step) for row in rows)
+    runs = len(rows)
+    table = [{"setting": "one process", "workers": 1, "runs": runs, "cpu_s": cpu,
+              "wall_s": float("nan"), "runs_per_cpu_s": runs / cpu,
+              "simulated_s_per_cpu_s": simulated / cpu, "us_per_step": cpu / n_steps * 1e6,
+              "start_up_s": sum(start_up.values()) / len(start_up),
+              "start_up_share": sum(start_up.values()) / len(start_up) / (cpu / runs)}]
+    todo = {task.row["task"]: jobs for task in drawn}
+    with tempfile.TemporaryDirectory(prefix="study_bench_") as tmp:
+        for n in STUDY_BENCH_WORKERS:
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            client = connect(cluster.scheduler_address)
+            try:
+                for model in models:
+                    client.run(sweep_execution.warm_up, model)
+                start = time.perf_counter()
+                done, failed = study_execution.execute(Path(tmp) / f"workers_{n}", drawn, todo,
+                                                       task_model.step, client, quiet=True)
+                seconds = time.perf_counter() - start
+            finally:
+                client.close()
+                cluster.close()
+            if failed:
+                raise RuntimeError(f"{failed} of {done} benchmark runs failed")
+            table.append({"setting": "local Dask cluster", "workers": n, "runs": done,
+                          "cpu_s": float("nan"), "wall_s": seconds,
+                          "runs_per_s": done / seconds,
+                          "runs_per_s_per_worker": done / seconds / n})
+    return pd.DataFrame(table)
+
+
+def study_step(steps: int = 0, repeats: int = 0) -> pd.DataFrame:
+    """The study's error from its communication step: E_drawn of every variant in both loss
+    sets over the first STUDY_BENCH_TASKS tasks of each task model with the study's drives,
+    at each of STUDY_STEPS, relative to the finest (the master's error is first order in the
+    step, so this is about the error at each step)."""
+    rows = []
+    for name in study_model.available():
+        task_model = study_model.load(name)
+        drawn = [study_tasks.draw(task_model, study.DEFAULT_SEED, i)
+                 for i in range(STUDY_BENCH_TASKS)]
+        path = study.STUDY_DIR / name / "drives.csv"
+        if not path.exists():
+            continue   # no committed study: no drives to run it with
+        pins = stored_pins(path)
+        for task in (study_tasks.pinned(t, pins) for t in drawn):
+            for loss_set, scenario in task.loss_sets():
+                for variant in scenario.variants:
+                    chosen = scenario.variant(variant)
+                    resolved = scenario.for_variant(chosen)
+                    drives = {j.name: catalogue.pinned(dict(j.drive), j.screw, task.name)
+                              .joint_drive(lossless=loss_set == "ideal")
+                              for j in resolved.joints}
+                    drawn_energy = {}
+                    for step in STUDY_STEPS:
+                        try:
+                            drawn_energy[step] = fmpy_master.run(
+                                scenario, chosen, step, drives=drives).metrics["E_drawn"]
+                        except UserError:   # an FMU refuses too long a step
+                            drawn_energy[step] = float("nan")
+                    finest = drawn_energy[STUDY_STEPS[-1]]
+                    rows += [{"scenario": name, "task": task.row["task"], "variant": variant,
+                              "losses": loss_set, "step_size": step, "E_drawn": value,
+                              "rel_error": abs(value - finest) / abs(finest)}
+                             for step, value in drawn_energy.items()]
+    return pd.DataFrame(rows)

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, NamedTuple
 
-from fmu_src.parameters import check_ranges, parameter
+from fmu_src.parameters import MAGNITUDE_LIMIT, check_ranges, parameter
 
 
 @dataclass(frozen=True)
@@ -216,9 +216,17 @@ class SampledMotor:
             return 0.0, 0.0
         a, b_v, b_w, avg_a, avg_b_v, avg_b_w = self.coefficients
         i0 = self.current
-        average = avg_a * i0 + avg_b_v * voltage + avg_b_w * omega
-        self.current = a * i0 + b_v * voltage + b_w * omega
-        return average, transmitted_effort(self.motor, average, omega)
+        average = flushed(avg_a * i0 + avg_b_v * voltage + avg_b_w * omega)
+        self.current = flushed(a * i0 + b_v * voltage + b_w * omega)
+        return average, flushed(transmitted_effort(self.motor, average, omega))
+
+
+def flushed(value: float) -> float:
+    """value, or 0 where its magnitude is below 1 / MAGNITUDE_LIMIT, the smallest non-zero
+    input the mechanism FMUs take (docs/robustness.md): a current that decays geometrically
+    through a long hold at rest (no voltage, no speed) reaches it, and the effort it drives
+    is nothing then (below 1e-50 A, 1e-100 J)."""
+    return 0.0 if -1.0 / MAGNITUDE_LIMIT < value < 1.0 / MAGNITUDE_LIMIT else value
 
 
 def copper_energy(p: MotorParameters, dt: float, voltage: Any, omega: Any, i_start: Any) -> Any:
