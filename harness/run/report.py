@@ -26,6 +26,7 @@ from harness import registry, scenarios
 from harness.errors import UserError
 from harness.fmu.variable_pages import GENERATED_END, with_generated_section
 from harness.io import write_atomic
+from harness.run import study_report
 from harness.run.results import RESULTS_DIR
 from harness.scenarios.losses import REALISTIC_FOLDER
 
@@ -71,6 +72,12 @@ class Results:
     def scenarios(self) -> list[str]:
         """The scenarios with a result set: the shipped ones first, then others by name."""
         found = sorted(p.parent.name for p in self.folder.glob("*/summary.csv"))
+        return [n for n in SHIPPED if n in found] + [n for n in found if n not in SHIPPED]
+
+    def studies(self) -> list[str]:
+        """The scenarios with a committed study (results/study/<scenario>/summary.csv), the
+        shipped ones first."""
+        found = sorted(p.parent.name for p in self.folder.glob("study/*/summary.csv"))
         return [n for n in SHIPPED if n in found] + [n for n in found if n not in SHIPPED]
 
     def has_realistic(self, scenario: str) -> bool:
@@ -694,6 +701,7 @@ def findings_markdown(results: Results) -> str:
         "file describes and with the losses of real parts (\"realistic\"). eps = 1 - E_drawn / "
         "E_drawn(baseline) on the energy drawn from a supply that takes nothing back; several "
         "joints show their values as \"a / b\" in the order of the column's title.", ""]
+    lines += study_section(results)
     for name in results.scenarios():
         lines += scenario_section(results, name)
     lines += accuracy_section(results) + sweeps_section(results)
@@ -733,10 +741,53 @@ def headline_section(results: Results) -> str:
                          drive_cell(results, realistic(name) if real is not None else name,
                                     variant)])
     return "\n".join(wrapped([
-        "## Results at a glance", "", GENERATED_START, "", one_line_answer(results), "",
+        "## Results at a glance", "", GENERATED_START, "", *study_lead(results),
+        "### On the papers' tasks", "", one_line_answer(results), "",
         *markdown_table(["scenario", "variant", "E_drawn ideal [J]", "E_drawn realistic [J]",
                          "eps ideal", "eps realistic", "drive (I_rms / I_nom, realistic)"],
                         rows), "", fair_drive_sentence(results), "", GENERATED_END, ""]))
+
+
+def study_section(results: Results) -> list[str]:
+    """docs/findings.md's study: each scenario's answer, its firm and its open comparisons
+    (neighbours in the ranking), and the median ratios by quartile of the task figures."""
+    names = results.studies()
+    if not names:
+        return []
+    lines = ["## Over random tasks: the study", "",
+             "From `results/study/<scenario>/` ([study.md](study.md)): per scenario, every "
+             "variant over the same random tasks, in both loss sets; E_drawn medians with the "
+             "5 % and 95 % quantiles over the tasks, paired differences as means over the tasks "
+             "with 95 % percentile-bootstrap intervals "
+             f"({int(results.csv(f'study/{names[0]}/paired').resamples.iloc[0]):,} resamples "
+             "of the tasks, a fixed seed). A comparison is firm when its interval excludes 0.",
+             ""]
+    for name in names:
+        lines += [f"### {name}", "",
+                  study_report.scenario_sentence(name, results.csv, number, percent), ""]
+        lines += study_report.firmness(name, results.csv, number)
+        header, rows = study_report.dependence_table(name, results.csv, number)
+        if rows:
+            lines += ["Median E_drawn over the reference variant's, by quartile of the tasks "
+                      "(realistic set):", "", *markdown_table(header, rows), ""]
+    return lines
+
+
+def study_lead(results: Results) -> list[str]:
+    """The headline's lead: each study's answer, then its table (none without a study)."""
+    names = results.studies()
+    if not names:
+        return []
+    header, rows = study_report.table(names, results.csv, number, percent)
+    return ["### Over random tasks", "",
+            "Which balancer draws the least over the tasks a machine does: every variant ran "
+            "the same random tasks (moves, holds and payload changes drawn from each "
+            "scenario's task model) with its own drives, sized by one rule from catalogue "
+            "parts, with ideal and with real parts; intervals are 95 % bootstrap intervals "
+            "over the tasks ([docs/study.md](docs/study.md)).", "",
+            *[line for name in names for line in (
+                study_report.scenario_sentence(name, results.csv, number, percent), "")],
+            *markdown_table(header, rows), ""]
 
 
 # franchetti2021's E_drawn [J] with ideal parts in the tables before the fair drive protocol

@@ -179,10 +179,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         for name in names:
             run_study(name, args.tasks, args.seed, args.out, client, args.quiet)
-    except KeyboardInterrupt:
-        print("interrupted: the finished tasks' runs are stored; run the same command to "
-              "resume", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt:   # harness.cli exits with 130 (SIGINT) or 143 (SIGTERM)
+        print("the finished tasks' runs are stored; run the same command to resume",
+              file=sys.stderr)
+        raise
     finally:
         with interrupts.deferred():
             for c in clients:

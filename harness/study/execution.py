@@ -127,7 +127,9 @@ def execute(folder: Path, tasks: Sequence[Task], todo: dict[int, list[tuple[str,
         futures = {client.submit(run_task, by_index[index], jobs, step, pure=False):
                    (index, jobs) for index, jobs in todo.items()}
     done = failed = 0
-    with tqdm(total=total, unit="run", disable=quiet, desc="study") as bar:
+    # a SIGINT or SIGTERM stops the study once the task in flight that ends first is stored
+    with interrupts.deferred(), tqdm(total=total, unit="run", disable=quiet,
+                                     desc="study") as bar:
         bar.set_postfix(failed=0)
         try:
             for future in as_completed(futures):
@@ -142,6 +144,7 @@ def execute(folder: Path, tasks: Sequence[Task], todo: dict[int, list[tuple[str,
                 failed += sum(row["status"] == "failed" for row in rows)
                 bar.update(len(rows))
                 bar.set_postfix(failed=failed)
+                interrupts.stop_if_requested()
         finally:
             client.cancel(list(futures))
     return done, failed
