@@ -876,8 +876,40 @@ def performance_section(results: Results) -> str:
                     + ("s" if r.workers > 1 else "") for r in sweep.itertuples())
         + f" (speed-up {number(sweep.speed_up.iloc[-1])}). The top-level help "
         f"(`cli_help.csv`) takes {number(cli_help.best_s.iloc[0], 2)} s.", "",
-        GENERATED_END, ""]
+        *study_performance(results), GENERATED_END, ""]
     return "\n".join(wrapped(lines))
+
+
+def study_performance(results: Results) -> list[str]:
+    """The study's throughput (`study.csv`) and its step's error (`study_step.csv`), where
+    `make bench` wrote them."""
+    folder = results.folder / "bench"
+    if not (folder / "study.csv").is_file() or not (folder / "study_step.csv").is_file():
+        return []
+    table, steps = results.csv("bench/study"), results.csv("bench/study_step")
+    one = table[table.setting == "one process"].iloc[0]
+    dask = table[table.setting != "one process"]
+    worst = steps.groupby(["step_size", "losses"]).rel_error.max().unstack()
+    return [
+        f"A study (`study.csv`: the {int(one.runs)} runs of franchetti2021's first study tasks, "
+        "every variant in both loss sets): in one process "
+        f"{number(one.runs_per_cpu_s)} runs per CPU-second, "
+        f"{number(one.simulated_s_per_cpu_s)} simulated seconds per CPU-second, "
+        f"{number(one.us_per_step)} us of CPU per step of 2 ms; a fresh FMU instance would add "
+        f"{number(one.start_up_s, 2)} s, {percent(one.start_up_share, 2)} % of a run, which the "
+        "study saves by reusing one instance per model in each worker. On local Dask "
+        "clusters reached through their scheduler's address (as `--scheduler` reaches one): "
+        + ", ".join(f"{number(r.runs_per_s)} runs/s with {int(r.workers)} worker"
+                    + ("s" if r.workers > 1 else "")
+                    + f" ({number(r.runs_per_s_per_worker)} per worker)"
+                    for r in dask.itertuples()) + " on 2 cores.", "",
+        "The error the study's step leaves in E_drawn (`study_step.csv`: the first "
+        f"{steps.task.nunique()} tasks of each study, every variant, relative to 0.5 ms; the "
+        "largest):", "",
+        *markdown_table(["step [ms]", *[f"{s} set" for s in worst.columns]],
+                        [[plain(1e3 * step), *[number(v, 2) for v in row]]
+                         for step, row in worst.iterrows() if step > steps.step_size.min()]),
+        ""]
 
 
 # ---- writing -------------------------------------------------------------------------------
