@@ -8,15 +8,18 @@ The room's parts:
   finished task's rows stored atomically so that a killed study resumes;
 - `harness.study.statistics` and `harness.study.plots`: the tables and figures.
 
-This module is the command. Output in OUT/<scenario>/: tasks/ (each task's scenario file,
-its realistic loss file in tasks/realistic/), tasks.csv (one row per task), drives.csv
-(each variant's drives), runs.csv (one row per task, variant and loss set), summary.csv,
+This module is the command. Output in OUT/<scenario>/: settings.json (what the runs depend
+on: a study resumes only with the same), tasks/ (each task's scenario file, its realistic
+loss file in tasks/realistic/), tasks.csv (one row per task), drives.csv (each variant's
+drives), runs.csv (one row per task, variant and loss set), summary.csv,
 paired.csv, dependence.csv, energy.png and dependence.png.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import shlex
 import sys
 from collections.abc import Callable
@@ -25,10 +28,10 @@ from pathlib import Path
 import pandas as pd
 from distributed import Client
 
-from harness import interrupts
+from harness import interrupts, scenarios
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
-from harness.io import save_figure, write_csv
+from harness.io import save_figure, write_atomic, write_csv
 from harness.run import results
 from harness.run.sizing import stored_pins
 from harness.scenarios import losses
@@ -38,6 +41,7 @@ from harness.sweeps import connect
 from harness.sweeps.execution import close_client, local_client
 
 STUDY_DIR = results.RESULTS_DIR / "study"
+SETTINGS = "settings.json"   # what the stored runs depend on (`settings`)
 MAX_TASKS = 100_000
 DEFAULT_SEED = 1
 
@@ -61,13 +65,14 @@ def _shown(path: Path) -> str:
         return str(path)
 
 
-def drive_pins(task_model: model.TaskModel, drawn: list[Task], folder: Path,
+def drive_pins(task_model: model.TaskModel, seed: int, folder: Path,
                client: Callable[[], Client], quiet: bool) -> dict[str, dict[str, dict]]:
     """Each variant's drives: those of folder/drives.csv, else sized on the study's first
-    drive_sample tasks (one Dask task per variant) and written there."""
+    drive_sample tasks (one Dask task per variant, whatever the number of tasks run) and
+    written there."""
     path = folder / "drives.csv"
     if not path.exists():
-        sample = drawn[:task_model.drive_sample]
+        sample = [tasks.draw(task_model, seed, i) for i in range(task_model.drive_sample)]
         variants = list(task_model.template.variants)
         if not quiet:
             print(f"{task_model.name}: sizing the drives of {len(variants)} variants on "
@@ -81,29 +86,53 @@ def drive_pins(task_model: model.TaskModel, drawn: list[Task], folder: Path,
     return stored_pins(path)
 
 
+def settings(task_model: model.TaskModel, seed: int) -> dict[str, object]:
+    """What a study's stored runs depend on besides the number of tasks: the seed, and the
+    text of the task model, of its scenario and of the scenario's loss file."""
+    files = [model.STUDY_DIR / f"{task_model.name}.toml",
+             scenarios.scenario_file(task_model.template.name)]
+    if losses.has_realistic(task_model.template):
+        files.append(losses.loss_file(task_model.template))
+    digest = hashlib.sha256(b"".join(path.read_bytes() for path in files)).hexdigest()
+    return {"seed": seed, "step": task_model.step, "drive_sample": task_model.drive_sample,
+            "files": [str(path.relative_to(results.RESULTS_DIR.parent)) for path in files],
+            "sha256": digest}
+
+
+def check_settings(folder: Path, wanted: dict[str, object]) -> None:
+    """Refuse to resume a study made with other settings (`settings`); record them."""
+    path = folder / SETTINGS
+    if path.exists():
+        stored = json.loads(path.read_text())
+        changed = [key for key in wanted if stored.get(key) != wanted[key]]
+        if changed:
+            what = ", ".join(f"{key} {stored.get(key)!r} -> {wanted[key]!r}" for key in changed)
+            raise UserError(f"{folder} holds a study made with other settings ({what}); "
+                            "resume it with those, or choose another --out")
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(wanted, indent=1) + "\n"))
+
+
 def run_study(name: str, n_tasks: int | None, seed: int, out: Path,
-              client: Callable[[], Client], quiet: bool = False) -> pd.DataFrame:
-    """Run what is missing of a scenario's study in out/<name>/, then write its tables and
-    figures; returns the summary."""
+              client: Callable[[], Client], quiet: bool = False,
+              retry_failed: bool = False) -> pd.DataFrame:
+    """Run what is missing of a scenario's study in out/<name>/ (with retry_failed, also the
+    runs stored as failed), then write its tables and figures; returns the runs."""
     task_model = model.load(name)
     n = n_tasks or task_model.tasks
     folder = out / name
     results.check_writable(out)
-    stored_tasks = folder / "tasks.csv"
-    if stored_tasks.exists():
-        seeds = set(pd.read_csv(stored_tasks).seed)
-        if seeds != {seed}:
-            raise UserError(f"{folder} holds a study of --seed {', '.join(map(str, seeds))}; "
-                            f"resume it with that seed, or choose another --out")
+    check_settings(folder, settings(task_model, seed))
     drawn = [tasks.draw(task_model, seed, i) for i in range(n)]
-    pins = drive_pins(task_model, drawn, folder, client, quiet)
+    pins = drive_pins(task_model, seed, folder, client, quiet)
     drawn = [tasks.pinned(task, pins) for task in drawn]
     for task in drawn:
         tasks.write(task, folder / "tasks")
-    write_csv(task_rows(drawn, folder, task_model.step), stored_tasks)
+    write_csv(task_rows(drawn, folder, task_model.step), folder / "tasks.csv")
     variants = list(task_model.template.variants)
     loss_sets = [ls for ls, _ in losses.loss_sets(task_model.template, "all")]
-    todo = execution.pending(folder, drawn, variants, loss_sets)
+    todo = execution.pending(folder, drawn, variants, loss_sets, retry_failed)
     if not quiet:
         total = n * len(variants) * len(loss_sets)
         left = sum(len(jobs) for jobs in todo.values())
@@ -115,7 +144,7 @@ def run_study(name: str, n_tasks: int | None, seed: int, out: Path,
 
 def write_tables(task_model: model.TaskModel, drawn: list[Task], folder: Path,
                  variants: list[str], loss_sets: list[str], quiet: bool) -> pd.DataFrame:
-    """runs.csv, summary.csv, paired.csv, dependence.csv and the figures."""
+    """Write the study's tables and figures; returns runs.csv's table."""
     template = task_model.template
     runs = execution.runs_table(folder, drawn, variants, loss_sets, template.baselines)
     task_table = pd.read_csv(folder / "tasks.csv")
@@ -133,7 +162,7 @@ def write_tables(task_model: model.TaskModel, drawn: list[Task], folder: Path,
         print("\n".join(str(p) for p in written))
         failed = int((runs.status != "ok").sum())
         print(f"{len(runs)} runs: {len(runs) - failed} ok, {failed} failed")
-    return summary
+    return runs
 
 
 # ---- command ------------------------------------------------------------------------------
@@ -153,6 +182,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: local workers)")
     parser.add_argument("--out", type=Path, default=STUDY_DIR,
                         help="results folder: the study goes to OUT/<scenario>/")
+    parser.add_argument("--retry-failed", action="store_true",
+                        help="run again the runs stored as failed")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -178,7 +209,12 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         for name in names:
-            run_study(name, args.tasks, args.seed, args.out, client, args.quiet)
+            runs = run_study(name, args.tasks, args.seed, args.out, client, args.quiet,
+                             args.retry_failed)
+            if not (runs.status == "ok").any():
+                print(f"error: all {len(runs)} runs of {name} failed; the first: "
+                      f"{runs.error.iloc[0]}", file=sys.stderr)
+                return 1
     except KeyboardInterrupt:   # harness.cli exits with 130 (SIGINT) or 143 (SIGTERM)
         print("the finished tasks' runs are stored; run the same command to resume",
               file=sys.stderr)

@@ -9,7 +9,7 @@ file, so that a task reruns alone in `cosim` with them.
 The runs: one Dask task per study task runs every (variant, loss set) of it not yet stored,
 in the FMPy master at the study's step, each worker reusing one instance per FMU model
 (`harness.sweeps.execution`). Each finished task's rows are written at once, atomically, as
-<study>/parts/part-<task>-<time>.parquet; a restart runs only the (task, variant, losses)
+<study>/parts/part-<time>-<task>.parquet; a restart runs only the (task, variant, losses)
 without a row, and the table keeps one row per key. A run whose FMU or configuration
 refuses a value is a failed row naming it, as in a sweep.
 """
@@ -105,9 +105,13 @@ def write_part(folder: Path, rows: list[dict[str, Any]]) -> Path:
 
 
 def pending(folder: Path, tasks: Sequence[Task], variants: Sequence[str],
-            loss_sets: Sequence[str]) -> dict[int, list[tuple[str, str]]]:
-    """Per task index, the (variant, loss set) runs without a stored row."""
+            loss_sets: Sequence[str], retry_failed: bool = False
+            ) -> dict[int, list[tuple[str, str]]]:
+    """Per task index, the (variant, loss set) runs without a stored row (or with a failed
+    one, if retry_failed)."""
     table = stored(folder)
+    if retry_failed:
+        table = table[table.status == "ok"]
     done = set(zip(table.task, table.variant, table.losses))
     todo = {task.row["task"]: [(v, ls) for v in variants for ls in loss_sets
                                if (task.row["task"], v, ls) not in done] for task in tasks}

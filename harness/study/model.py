@@ -127,6 +127,22 @@ def _procedure(variant: str, raw: Any, template: scenarios.Scenario) -> Procedur
     if unknown:
         raise UserError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed: "
                         f"{', '.join(PROCEDURE_KEYS)}")
+    for key in ("design_deg", "posture_deg"):
+        value = raw.get(key, 180.0)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
+                value):
+            raise UserError(f"{where}.{key} = {value!r} must be a finite number [deg]")
+    phases = raw.get("phases", [])
+    if not isinstance(phases, list) or not all(
+            isinstance(p, dict) and isinstance(p.get("name"), str) and "duration" in p
+            and not {"target_deg", "targets", "variants"} & set(p) for p in phases):
+        raise UserError(f"{where}.phases must be phase tables with a name and a duration "
+                        "(no targets: they hold the posture; no variants: the variant's own)")
+    for key in ("balance", "kind", "payload_shape", "return_shape"):
+        if key in raw and not isinstance(raw[key], str):
+            raise UserError(f"{where}.{key} = {raw[key]!r} must be a string")
+    if not isinstance(raw.get("after", {}), dict):
+        raise UserError(f"{where}.after must be a table of inputs")
     procedure = Procedure(**{k: tuple(v) if k == "phases" else v for k, v in raw.items()})
     if procedure.kind not in PROCEDURES:
         raise UserError(f"{where}.kind = {procedure.kind!r} must be one of "
@@ -188,6 +204,8 @@ def load(name: str) -> TaskModel:
         step = _positive(raw, "step")
         template.check_step(step, "step")
         moves = _range(raw, "moves", 1, 1000)
+        if not all(isinstance(v, int) for v in raw["moves"]):
+            raise UserError(f"moves = {raw['moves']!r} must be two integers")
         return TaskModel(
             name=template.name, template=template, tasks=_positive(raw, "tasks", True),
             reference=reference, step=float(step),
