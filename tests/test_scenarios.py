@@ -467,6 +467,9 @@ def test_a_phase_named_for_one_variant_is_left_out_of_the_others(tmp_path: Path)
 
 
 @pytest.mark.parametrize("performers, message", [
+    ('"regulating"', r"variants = 'regulating' must be a non-empty list"),
+    ("[]", r"variants = \[\] must be a non-empty list"),
+    ("[1]", r"variants = \[1\] must be a non-empty list"),
     ('["regulating", "nobody"]', "variants names no variant nobody"),
 ])
 def test_a_phase_naming_variants_wrongly_is_refused(tmp_path: Path, performers: str,

@@ -153,8 +153,10 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
         performers = raw.get("variants")
         if performers is not None and (not isinstance(performers, list) or not performers
                                        or not all(isinstance(v, str) for v in performers)):
+            names = data.get("variants")
             raise ValueError(f"{where}: variants = {shown(performers)} must be a non-empty list "
-                             "of variant names (leave it out for every variant)")
+                             "of variant names (leave it out for every variant); choose from "
+                             f"{', '.join(names) if isinstance(names, dict) else names}")
         phases.append(Phase(name, duration, target,
                             _input_changes(raw.get("inputs", {}), where),
                             tuple(performers or ())))
