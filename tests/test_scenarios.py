@@ -511,3 +511,29 @@ def test_a_variant_pins_the_drives_of_its_joints(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="^pinned.toml: variant ciupitu drives names no "
                                          "joint phi; choose from theta$"):
         scenarios.load(path)
+
+
+def test_the_sequencer_plays_each_variant_its_own_phases(tmp_path: Path) -> None:
+    """A ScenarioSequencer built for THREE_PHASES plays, for each variant, the references and
+    inputs of the scenario resolved for it (to 1e-12: the same quintic and ramp formulas), so
+    `plain` plays the move's inputs in its move (payload 0.5 kg), not those of the phase it
+    skips."""
+    path = tmp_path / "three.toml"
+    path.write_text(THREE_PHASES)
+    fmu_path = fmu_build.fmu_path("ScenarioSequencer", tmp_path / "fmus",
+                                  sequencer_scenario=path)
+    scenario = scenarios.load(path)
+    for name in scenario.variants:
+        variant = scenario.variant(name)
+        resolved = scenario.for_variant(variant)
+        n = round(resolved.duration / SEQUENCER_STEP)
+        times = np.arange(n + 1) * SEQUENCER_STEP
+        with CoSimFMU(fmu_path, name) as fmu:
+            played = play_sequencer(fmu, name, n, SEQUENCER_STEP)
+        np.testing.assert_allclose(played["theta_ref"], resolved.reference(times), rtol=0.0,
+                                   atol=1e-12, err_msg=name)
+        inputs = resolved.inputs(times, variant)
+        np.testing.assert_allclose(played["payload"], inputs["payload"], rtol=0.0, atol=1e-12,
+                                   err_msg=name)
+        assert np.array_equal(played["slider_locked"], inputs["slider_locked"]), name
+    assert played["payload"][-1] == 0.5  # `plain`, the last one, ends its move with 0.5 kg
