@@ -537,3 +537,14 @@ def test_the_sequencer_plays_each_variant_its_own_phases(tmp_path: Path) -> None
                                    err_msg=name)
         assert np.array_equal(played["slider_locked"], inputs["slider_locked"]), name
     assert played["payload"][-1] == 0.5  # `plain`, the last one, ends its move with 0.5 kg
+
+
+def test_a_variant_that_performs_no_phase_is_refused(tmp_path: Path) -> None:
+    """Every phase names `regulating`: `plain` would run a scenario without phases, so the
+    file is refused where it is read, naming the variant (not a traceback at its run)."""
+    path = tmp_path / "idle.toml"
+    path.write_text(THREE_PHASES.replace('variants = ["regulating"]\n', "")
+                    .replace("[[phases]]\n", '[[phases]]\nvariants = ["regulating"]\n'))
+    assert THREE_PHASES.count("[[phases]]") == path.read_text().count('["regulating"]') == 3
+    with pytest.raises(ValueError, match="^idle.toml: variant plain performs no phase"):
+        scenarios.load(path)

@@ -256,6 +256,10 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
             if unknown:
                 raise ValueError(f"phase {phase.name}: variants names no variant "
                                  f"{', '.join(unknown)}; choose from {', '.join(variants)}")
+        idle = [v for v in variants if all(p.variants and v not in p.variants for p in phases)]
+        if idle:
+            raise ValueError(f"variant {', '.join(idle)} performs no phase: every phase names "
+                             "other variants (`variants = [...]`)")
         unknown = sorted(set(scenario.baselines.values()) - set(variants))
         if unknown:
             raise ValueError(f"baseline {', '.join(unknown)} names no variant; choose from "
