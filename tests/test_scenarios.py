@@ -548,3 +548,14 @@ def test_a_variant_that_performs_no_phase_is_refused(tmp_path: Path) -> None:
     assert THREE_PHASES.count("[[phases]]") == path.read_text().count('["regulating"]') == 3
     with pytest.raises(ValueError, match="^idle.toml: variant plain performs no phase"):
         scenarios.load(path)
+
+
+def test_after_a_phase_some_variants_skip_each_phase_gives_its_targets(tmp_path: Path) -> None:
+    """A phase without a target holds the previous one, which after `to posture` is 180 deg
+    for `regulating` and 60 deg for `plain`: the move without its target is refused (it took
+    180 deg from the file's order, moving `plain` there in a phase that names no target)."""
+    path = tmp_path / "held.toml"
+    path.write_text(THREE_PHASES.replace("target_deg = 120.0\n", ""))
+    with pytest.raises(ValueError, match="^held.toml: phase move gives no target for theta: "
+                                         "after phase to posture, which only some variants"):
+        scenarios.load(path)

@@ -134,6 +134,7 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
 def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[float, ...]
             ) -> tuple[Phase, ...]:
     phases, target = [], initial
+    skipped = None  # the first phase only some variants perform
     raw_phases = table_list(data["phases"], "phases")
     if len(raw_phases) > MAX_PHASES:
         raise ValueError(f"phases: {len(raw_phases):,} [[phases]] tables, more than "
@@ -157,6 +158,17 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
             raise ValueError(f"{where}: variants = {shown(performers)} must be a non-empty list "
                              "of variant names (leave it out for every variant); choose from "
                              f"{', '.join(names) if isinstance(names, dict) else names}")
+        # a target left out holds the previous one, which after a phase some variants skip
+        # depends on the variant: each joint's target must then be given
+        given = {joints[0].name} if "target_deg" in raw else set(raw.get("targets", {}))
+        missing = [j.name for j in joints if j.name not in given]
+        if skipped is not None and missing:
+            raise ValueError(f"{where} gives no target for {', '.join(missing)}: after phase "
+                             f"{skipped}, which only some variants perform, where a joint "
+                             "stands depends on the variant, so each phase gives every "
+                             "joint's target")
+        if performers and skipped is None:
+            skipped = name
         phases.append(Phase(name, duration, target,
                             _input_changes(raw.get("inputs", {}), where),
                             tuple(performers or ())))
