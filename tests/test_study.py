@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import harness.study as study
 from harness import cli, scenarios
 from harness.drive import catalogue
 from harness.errors import UserError
@@ -599,3 +600,26 @@ def test_an_interrupted_study_resumes_without_losing_or_repeating_runs(
     kept = first.set_index(list(execution.KEY))
     assert runs.loc[kept.index, "seconds"].tolist() == pytest.approx(kept.seconds.tolist(),
                                                                      rel=1e-9)
+
+
+def test_a_study_whose_runs_failed_still_writes_its_tables(tmp_path: Path) -> None:
+    """Two tasks stored with ciupitu failed in both in the realistic set (a run an FMU
+    refuses is a failed row): runs.csv holds all 24 rows, the failed ones with their error;
+    the statistics cover the loss set in which a task has every variant (the ideal one), as
+    no realistic task compares them all; the figure is drawn."""
+    drawn = [tasks.draw(MODEL, 1, i) for i in range(2)]
+    write_csv(study_task_rows(drawn, tmp_path, MODEL.step), tmp_path / "tasks.csv")
+    for task in drawn:
+        rows = run_rows(task.row["task"], [(v, ls) for v in VARIANTS for ls in LOSS_SETS], 1.0)
+        for row in rows:
+            row.update(drive_ok=True, duration=10.0)
+            if (row["variant"], row["losses"]) == ("ciupitu", "realistic"):
+                row.update(status="failed", error="UserError: refused", E_drawn=math.nan)
+        execution.write_part(tmp_path, rows)
+    summary = study.write_tables(MODEL, drawn, tmp_path, VARIANTS, LOSS_SETS, quiet=True)
+    runs = pd.read_csv(tmp_path / "runs.csv")
+    assert len(runs) == 24 and (runs.status == "failed").sum() == 2
+    assert set(runs[runs.status == "failed"].error) == {"UserError: refused"}
+    assert list(summary.losses.unique()) == ["ideal"] and len(summary) == 6
+    assert set(pd.read_csv(tmp_path / "paired.csv").losses) == {"ideal"}
+    assert (tmp_path / "energy.png").stat().st_size > 0
