@@ -623,3 +623,16 @@ def test_a_study_whose_runs_failed_still_writes_its_tables(tmp_path: Path) -> No
     assert list(summary.losses.unique()) == ["ideal"] and len(summary) == 6
     assert set(pd.read_csv(tmp_path / "paired.csv").losses) == {"ideal"}
     assert (tmp_path / "energy.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize("step", [0.004, 1.0 / 300.0])
+def test_the_rerun_command_runs_the_task_file_at_the_study_step(tmp_path: Path,
+                                                                step: float) -> None:
+    """tasks.csv's rerun command names the task's file and the study's step exactly (a step
+    of 1/300 s written to 6 digits would rerun at another step, with other numbers)."""
+    task = tasks.draw(MODEL, 1, 0)
+    (rerun,) = study_task_rows([task], tmp_path, step).rerun
+    words = shlex.split(rerun)
+    assert words[:4] == ["python", "-m", "harness", "cosim"]
+    assert Path(words[words.index("--scenario") + 1]) == tmp_path / "tasks" / f"{task.name}.toml"
+    assert float(words[words.index("--step") + 1]) == step
