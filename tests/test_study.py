@@ -31,7 +31,6 @@ from harness.io import write_csv
 from harness.run.sizing import stored_pins
 from harness.scenarios import losses
 from harness.study import execution, model, statistics, tasks
-from harness.study import task_rows as study_task_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ROOT / "tests" / "data" / "study"  # a task model of ~1 s tasks (its comments)
@@ -416,7 +415,7 @@ def test_a_study_folder_holds_one_seed(tmp_path: Path,
     folder = tmp_path / "franchetti2021"
     task = tasks.draw(MODEL, 1, 0)
     tasks.write(task, folder / "tasks")
-    write_csv(study_task_rows([task], folder, MODEL.step), folder / "tasks.csv")
+    write_csv(study.task_rows([task], folder, MODEL.step), folder / "tasks.csv")
     before = sorted(folder.rglob("*"))
     assert cli.main(["study", "--scenario", "franchetti2021", "--seed", "2", "--out",
                      str(tmp_path), "--quiet"]) == 2
@@ -608,7 +607,7 @@ def test_a_study_whose_runs_failed_still_writes_its_tables(tmp_path: Path) -> No
     the statistics cover the loss set in which a task has every variant (the ideal one), as
     no realistic task compares them all; the figure is drawn."""
     drawn = [tasks.draw(MODEL, 1, i) for i in range(2)]
-    write_csv(study_task_rows(drawn, tmp_path, MODEL.step), tmp_path / "tasks.csv")
+    write_csv(study.task_rows(drawn, tmp_path, MODEL.step), tmp_path / "tasks.csv")
     for task in drawn:
         rows = run_rows(task.row["task"], [(v, ls) for v in VARIANTS for ls in LOSS_SETS], 1.0)
         for row in rows:
@@ -631,7 +630,7 @@ def test_the_rerun_command_runs_the_task_file_at_the_study_step(tmp_path: Path,
     """tasks.csv's rerun command names the task's file and the study's step exactly (a step
     of 1/300 s written to 6 digits would rerun at another step, with other numbers)."""
     task = tasks.draw(MODEL, 1, 0)
-    (rerun,) = study_task_rows([task], tmp_path, step).rerun
+    (rerun,) = study.task_rows([task], tmp_path, step).rerun
     words = shlex.split(rerun)
     assert words[:4] == ["python", "-m", "harness", "cosim"]
     assert Path(words[words.index("--scenario") + 1]) == tmp_path / "tasks" / f"{task.name}.toml"
