@@ -431,7 +431,7 @@ def test_a_study_folder_holds_one_seed(tmp_path: Path,
 @pytest.fixture(scope="module")
 def two_tasks(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`python -m harness study --scenario franchetti2021 --tasks 2 --workers 1` into a fresh
-    folder (about 60 s on one core: 24 sizing runs, then 24 runs of 40-100 s tasks)."""
+    folder (about 40 s on one core: 24 sizing runs, then 24 runs of 40-100 s tasks)."""
     out = tmp_path_factory.mktemp("study")
     assert cli.main(["study", "--scenario", "franchetti2021", "--tasks", "2", "--out",
                      str(out), "--workers", "1", "--quiet"]) == 0
@@ -453,7 +453,7 @@ def assert_whole(folder: Path, n_tasks: int) -> pd.DataFrame:
     return runs
 
 
-@pytest.mark.slow  # about 60 s: the two_tasks study
+@pytest.mark.slow  # about 40 s: the two_tasks study
 def test_a_study_writes_its_runs_and_tables(two_tasks: Path) -> None:
     """tasks.csv, drives.csv (pinned in every task file), 24 ok runs, summary.csv and
     paired.csv against the runs: with 2 tasks, the median is the mean of the two, the mean
@@ -500,7 +500,7 @@ def test_a_study_writes_its_runs_and_tables(two_tasks: Path) -> None:
         assert (two_tasks / name).stat().st_size > 0
 
 
-@pytest.mark.slow  # about 30 s: a task's 12 runs in cosim (and its drives' sizing runs)
+@pytest.mark.slow  # about 20 s: a task's 12 runs in cosim (and its drives' sizing runs)
 def test_a_task_reruns_alone_in_cosim(two_tasks: Path, tmp_path: Path) -> None:
     """The rerun command of tasks.csv (its --out to a fresh folder, one worker, quiet) gives
     the E_drawn of runs.csv for every variant in both loss sets: the same file, drives, step
@@ -522,7 +522,7 @@ def test_a_task_reruns_alone_in_cosim(two_tasks: Path, tmp_path: Path) -> None:
             assert rerun[variant] == pytest.approx(energy, rel=1e-9), (loss_set, variant)
 
 
-@pytest.mark.slow  # about 15 s: one task's 12 runs again
+@pytest.mark.slow  # about 10 s: one task's 12 runs again
 def test_a_study_runs_again_only_what_is_missing(two_tasks: Path, tmp_path: Path) -> None:
     """The study copied, task 1's part deleted, the same command again: the other part is
     left as it was, one new part holds task 1's 12 rows, with the same E_drawn as before (the
@@ -560,7 +560,7 @@ sys.exit(cli.main(["study", "--scenario", "franchetti2021", "--tasks", sys.argv[
 """
 
 
-@pytest.mark.slow  # about 20 s: a study of 8 short tasks, interrupted, then resumed
+@pytest.mark.slow  # about 16 s: a study of 8 short tasks, interrupted, then resumed
 def test_an_interrupted_study_resumes_without_losing_or_repeating_runs(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Ctrl-C (SIGINT to the process group) once the first task's part is stored: exit 130
