@@ -406,3 +406,156 @@ def test_sequencer_rejects_an_unknown_variant(sequencer: Path) -> None:
     assert lines[0] == "error"
     assert any("no variant 'self_regulated'; choose from self_regulating, unregulated, "
                "unbalanced, ciupitu" in line for line in lines[1:])
+
+
+# ---- phases some variants perform alone, drives a variant pins (issue 33) -----------------
+# a hold at 60 deg (2 s), a phase only `regulating` performs (to 180 deg in 4 s, ramping the
+# payload to 1 kg with the slider free) and a move to 120 deg (3 s) with the payload 0.5 kg
+THREE_PHASES = """name = "three"
+model = "SelfRegulatingBalancer"
+initial_angle_deg = 60.0
+
+[[phases]]
+name = "hold"
+duration = 2.0
+target_deg = 60.0
+inputs = { payload = 0.0, slider_locked = true }
+
+[[phases]]
+name = "to posture"
+duration = 4.0
+target_deg = 180.0
+variants = ["regulating"]
+inputs = { payload = { ramp = 1.0 }, slider_locked = false }
+
+[[phases]]
+name = "move"
+duration = 3.0
+target_deg = 120.0
+inputs = { payload = 0.5, slider_locked = true }
+
+[variants.regulating]
+[variants.plain]
+"""
+
+
+def test_a_phase_named_for_one_variant_is_left_out_of_the_others(tmp_path: Path) -> None:
+    """`plain` skips `to posture`: 2 phases over 2 + 3 s, its move from where it stands (60
+    deg) to 120 deg, half way (90 deg) at 3.5 s as a quintic is 1/2 at s = 1/2; `regulating`
+    performs all 3 over 9 s and moves from 180 deg to 120 deg, 150 deg at 7.5 s. Each plays
+    the inputs of the phases it performs."""
+    path = tmp_path / "three.toml"
+    path.write_text(THREE_PHASES)
+    scenario = scenarios.load(path)
+    assert scenario.duration == 9.0  # every phase, as written
+    plain = scenario.for_variant(scenario.variant("plain"))
+    regulating = scenario.for_variant(scenario.variant("regulating"))
+    assert [p.name for p in plain.phases] == ["hold", "move"] and plain.duration == 5.0
+    assert [p.name for p in regulating.phases] == ["hold", "to posture", "move"]
+    assert regulating.duration == 9.0
+    assert all(p.variants == () for p in (*plain.phases, *regulating.phases))
+    deg = math.radians
+    assert plain.reference_segments() == [(0.0, 2.0, deg(60.0), deg(60.0)),
+                                          (2.0, 5.0, deg(60.0), deg(120.0))]
+    assert plain.reference_at(3.5) == pytest.approx((deg(90.0),), abs=1e-15)
+    assert regulating.reference_segments()[2] == (6.0, 9.0, deg(180.0), deg(120.0))
+    assert regulating.reference_at(7.5) == pytest.approx((deg(150.0),), abs=1e-15)
+    at = plain.inputs_at(3.5, plain.input_segments(scenario.variant("plain")))
+    assert at == {"payload": 0.5, "slider_locked": True}
+    at = regulating.inputs_at(4.0, regulating.input_segments(scenario.variant("regulating")))
+    assert at == {"payload": 0.5, "slider_locked": False}  # half the linear ramp to 1 kg
+
+
+@pytest.mark.parametrize("performers, message", [
+    ('"regulating"', r"variants = 'regulating' must be a non-empty list"),
+    ("[]", r"variants = \[\] must be a non-empty list"),
+    ("[1]", r"variants = \[1\] must be a non-empty list"),
+    ('["regulating", "nobody"]', "variants names no variant nobody"),
+])
+def test_a_phase_naming_variants_wrongly_is_refused(tmp_path: Path, performers: str,
+                                                    message: str) -> None:
+    """One ValueError naming the file, the phase and the variants to choose from."""
+    path = tmp_path / "bad.toml"
+    path.write_text(THREE_PHASES.replace('variants = ["regulating"]',
+                                         f"variants = {performers}"))
+    with pytest.raises(ValueError, match=f"^bad.toml: phase to posture: {message}") as error:
+        scenarios.load(path)
+    assert str(error.value).endswith("choose from regulating, plain")
+    assert "\n" not in str(error.value)
+
+
+PINNED = {"motor": "RE25", "gearhead": "GP32C", "ratio": 246.0}
+
+
+def test_a_variant_pins_the_drives_of_its_joints(tmp_path: Path) -> None:
+    """franchetti2021 with ciupitu's link and active_relocation's carriage q pinned: those
+    joints of those variants carry the pins (as a joint's `drive` = sorted (key, value)s), the
+    other variants' joints none; a joint the variant does not have is refused by name."""
+    path = tmp_path / "pinned.toml"
+    pins = ('drives = { theta = { motor = "RE25", gearhead = "GP32C", ratio = 246.0 } }\n'
+            '[variants.active_relocation.drives.q]\nmotor = "RE25"\ngearhead = "GP32C"\n'
+            "ratio = 3.7\n")
+    # the first line goes to the end of [variants.ciupitu], the table before
+    path.write_text(FRANCHETTI.replace("[variants.active_relocation]\n",
+                                       pins + "[variants.active_relocation]\n", 1))
+    scenario = scenarios.load(path)
+    ciupitu = scenario.for_variant(scenario.variant("ciupitu"))
+    assert ciupitu.joints[0].drive == tuple(sorted(PINNED.items()))
+    active = scenario.for_variant(scenario.variant("active_relocation"))
+    assert [(j.name, dict(j.drive)) for j in active.joints] == [
+        ("theta", {}), ("q", {"motor": "RE25", "gearhead": "GP32C", "ratio": 3.7})]
+    for name in ("self_regulating", "unregulated", "unbalanced"):
+        assert scenario.for_variant(scenario.variant(name)).joints[0].drive == (), name
+    assert scenario.joints[0].drive == ()  # the scenario's own joint is not pinned
+    path.write_text(path.read_text().replace("drives = { theta", "drives = { phi"))
+    with pytest.raises(ValueError, match="^pinned.toml: variant ciupitu drives names no "
+                                         "joint phi; choose from theta$"):
+        scenarios.load(path)
+
+
+def test_the_sequencer_plays_each_variant_its_own_phases(tmp_path: Path) -> None:
+    """A ScenarioSequencer built for THREE_PHASES plays, for each variant, the references and
+    inputs of the scenario resolved for it (to 1e-12: the same quintic and ramp formulas), so
+    `plain` plays the move's inputs in its move (payload 0.5 kg), not those of the phase it
+    skips."""
+    path = tmp_path / "three.toml"
+    path.write_text(THREE_PHASES)
+    fmu_path = fmu_build.fmu_path("ScenarioSequencer", tmp_path / "fmus",
+                                  sequencer_scenario=path)
+    scenario = scenarios.load(path)
+    for name in scenario.variants:
+        variant = scenario.variant(name)
+        resolved = scenario.for_variant(variant)
+        n = round(resolved.duration / SEQUENCER_STEP)
+        times = np.arange(n + 1) * SEQUENCER_STEP
+        with CoSimFMU(fmu_path, name) as fmu:
+            played = play_sequencer(fmu, name, n, SEQUENCER_STEP)
+        np.testing.assert_allclose(played["theta_ref"], resolved.reference(times), rtol=0.0,
+                                   atol=1e-12, err_msg=name)
+        inputs = resolved.inputs(times, variant)
+        np.testing.assert_allclose(played["payload"], inputs["payload"], rtol=0.0, atol=1e-12,
+                                   err_msg=name)
+        assert np.array_equal(played["slider_locked"], inputs["slider_locked"]), name
+    assert played["payload"][-1] == 0.5  # `plain`, the last one, ends its move with 0.5 kg
+
+
+def test_a_variant_that_performs_no_phase_is_refused(tmp_path: Path) -> None:
+    """Every phase names `regulating`: `plain` would run a scenario without phases, so the
+    file is refused where it is read, naming the variant (not a traceback at its run)."""
+    path = tmp_path / "idle.toml"
+    path.write_text(THREE_PHASES.replace('variants = ["regulating"]\n', "")
+                    .replace("[[phases]]\n", '[[phases]]\nvariants = ["regulating"]\n'))
+    assert THREE_PHASES.count("[[phases]]") == path.read_text().count('["regulating"]') == 3
+    with pytest.raises(ValueError, match="^idle.toml: variant plain performs no phase"):
+        scenarios.load(path)
+
+
+def test_after_a_phase_some_variants_skip_each_phase_gives_its_targets(tmp_path: Path) -> None:
+    """A phase without a target holds the previous one, which after `to posture` is 180 deg
+    for `regulating` and 60 deg for `plain`: the move without its target is refused (it took
+    180 deg from the file's order, moving `plain` there in a phase that names no target)."""
+    path = tmp_path / "held.toml"
+    path.write_text(THREE_PHASES.replace("target_deg = 120.0\n", ""))
+    with pytest.raises(ValueError, match="^held.toml: phase move gives no target for theta: "
+                                         "after phase to posture, which only some variants"):
+        scenarios.load(path)

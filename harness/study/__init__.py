@@ -53,7 +53,7 @@ def task_rows(drawn: list[Task], folder: Path, step: float) -> pd.DataFrame:
         path = folder / "tasks" / f"{task.name}.toml"
         rows.append({**task.row, "file": str(path.relative_to(folder)), "rerun": shlex.join([
             "python", "-m", "harness", "cosim", "--scenario", _shown(path), "--step",
-            f"{step:g}", "--out", "build/study-rerun"])})
+            repr(step), "--out", "build/study-rerun"])})
     return pd.DataFrame(rows)
 
 

@@ -29,12 +29,14 @@ TASK_AXES = {"changes_per_min": "payload changes per minute [1/min]",
 
 def energies(runs: pd.DataFrame, variants: list[str]) -> dict[str, pd.DataFrame]:
     """Per loss set, E_drawn [J] by task (rows) and variant (columns), of the tasks in which
-    every variant ran."""
+    every variant ran; a loss set without such a task has none (nothing to compare)."""
     ok = runs[runs.status == "ok"]
     tables = {}
     for loss_set, group in ok.groupby("losses", sort=False):
         wide = group.pivot(index="task", columns="variant", values="E_drawn")
-        tables[loss_set] = wide.reindex(columns=variants).dropna()
+        wide = wide.reindex(columns=variants).dropna()
+        if len(wide):
+            tables[loss_set] = wide
     return tables
 
 

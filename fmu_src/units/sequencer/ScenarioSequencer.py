@@ -152,9 +152,11 @@ class ScenarioSequencer(ModelSlave):
         self.show(self.start_time)
 
     def play(self, variant: core.Variant) -> None:
-        """Prepare to play a variant: its input segments and its joints' references."""
-        self.segments = self.scenario.input_segments(variant)
+        """Prepare to play a variant: its joints' references and its input segments, both of
+        the phases it performs (`Scenario.for_variant`), so that a phase index is the same in
+        both."""
         self.played = self.scenario.for_variant(variant)
+        self.segments = self.played.input_segments(variant)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         self.step_start = current_time

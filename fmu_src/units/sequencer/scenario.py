@@ -12,7 +12,8 @@ plain value steps there, `{ ramp = value }` ramps to value over the phase, linea
 value until a later phase changes them; a joint a phase gives no target holds its previous
 one. A phase with `variants = [...]` is performed only by the variants it names (the others
 go on to the next phase from where they are): a variant's own procedure, such as moving to the
-posture where it regulates (`Scenario.for_variant`).
+posture where it regulates (`Scenario.for_variant`). Where a joint stands then depends on the
+variant, so every phase after the first such phase gives every joint's target.
 
 Joints. Without a `joints` table the scenario has one revolute joint with the names of the
 balancer FMUs (DEFAULT_JOINT; a `[joint]` table may rename them), its initial angle is

@@ -134,6 +134,7 @@ def _targets(raw: dict[str, Any], joints: tuple[Joint, ...], previous: tuple[flo
 def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[float, ...]
             ) -> tuple[Phase, ...]:
     phases, target = [], initial
+    skipped = None  # the first phase only some variants perform
     raw_phases = table_list(data["phases"], "phases")
     if len(raw_phases) > MAX_PHASES:
         raise ValueError(f"phases: {len(raw_phases):,} [[phases]] tables, more than "
@@ -153,8 +154,21 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
         performers = raw.get("variants")
         if performers is not None and (not isinstance(performers, list) or not performers
                                        or not all(isinstance(v, str) for v in performers)):
+            names = data.get("variants")
             raise ValueError(f"{where}: variants = {shown(performers)} must be a non-empty list "
-                             "of variant names (leave it out for every variant)")
+                             "of variant names (leave it out for every variant); choose from "
+                             f"{', '.join(names) if isinstance(names, dict) else names}")
+        # a target left out holds the previous one, which after a phase some variants skip
+        # depends on the variant: each joint's target must then be given
+        given = {joints[0].name} if "target_deg" in raw else set(raw.get("targets", {}))
+        missing = [j.name for j in joints if j.name not in given]
+        if skipped is not None and missing:
+            raise ValueError(f"{where} gives no target for {', '.join(missing)}: after phase "
+                             f"{skipped}, which only some variants perform, where a joint "
+                             "stands depends on the variant, so each phase gives every "
+                             "joint's target")
+        if performers and skipped is None:
+            skipped = name
         phases.append(Phase(name, duration, target,
                             _input_changes(raw.get("inputs", {}), where),
                             tuple(performers or ())))
@@ -254,6 +268,10 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
             if unknown:
                 raise ValueError(f"phase {phase.name}: variants names no variant "
                                  f"{', '.join(unknown)}; choose from {', '.join(variants)}")
+        idle = [v for v in variants if all(p.variants and v not in p.variants for p in phases)]
+        if idle:
+            raise ValueError(f"variant {', '.join(idle)} performs no phase: every phase names "
+                             "other variants (`variants = [...]`)")
         unknown = sorted(set(scenario.baselines.values()) - set(variants))
         if unknown:
             raise ValueError(f"baseline {', '.join(unknown)} names no variant; choose from "
