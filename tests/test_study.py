@@ -128,14 +128,14 @@ def test_every_move_keeps_to_the_speed_limit(tmp_path: Path) -> None:
 
 
 def test_the_self_regulating_variant_regulates_at_180_deg(tmp_path: Path) -> None:
-    """Task 0 of seed 1 (4 moves, each after a payload change): self_regulating goes to 180
+    """Task 0 of seed 1 (3 moves, each after a payload change): self_regulating goes to 180
     deg, where its `k regulate` phases hold the link with the pulley connected and the slider
     free while the counterweight ramps (linearly) to the payload that `k change` brought
     (eq. 10: counterweight = payload at the end), then locks both for its move. The other
     variants perform none of those phases and stand where the link was; unregulated never
     adds counterweight."""
     task = tasks.draw(MODEL, 1, 0)
-    assert task.row["changes"] == 4
+    assert task.row["moves"] == task.row["changes"] == 3
     scenario = written(task, tmp_path)
     variant = scenario.variant("self_regulating")
     resolved = scenario.for_variant(variant)
@@ -143,7 +143,7 @@ def test_the_self_regulating_variant_regulates_at_180_deg(tmp_path: Path) -> Non
     segments = dict(zip(names, resolved.input_segments(variant)))
     references = dict(zip(names, resolved.reference_segments("theta")))
     regulated = [n for n in names if n.endswith(" regulate")]
-    assert len(regulated) == 4
+    assert len(regulated) == 3
     for name in regulated:
         k = name.split()[0]
         _, _, start, end = references[name]
@@ -396,7 +396,8 @@ def test_dependence_bins_hold_equal_counts() -> None:
     (["--tasks", "0"], "--tasks = 0 is outside [1, 100,000]"),
     (["--seed", "-1"], "--seed = -1 is outside [0, 2**63 - 1]"),
     (["--workers", "0"], "--workers = 0 must be at least 1"),
-    (["--scenario", "nosuch"], "no task model for scenario 'nosuch' (known: franchetti2021)"),
+    (["--scenario", "nosuch"],
+     "no task model for scenario 'nosuch' (known: ciupitu2018, demian2022, franchetti2021)"),
 ])
 def test_a_bad_option_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                   options: list[str], message: str) -> None:
@@ -409,19 +410,20 @@ def test_a_bad_option_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 def test_a_study_folder_holds_one_seed(tmp_path: Path,
                                        capsys: pytest.CaptureFixture[str]) -> None:
-    """A folder with tasks.csv of seed 1: --seed 2 there is one line, exit 2, before anything
-    is drawn or sized (the folder unchanged); a task file of another study in its place is
-    refused naming it."""
+    """A folder with a study of seed 1 (its settings.json): --seed 2 there is one line, exit
+    2, before anything is drawn or sized (the folder unchanged); a task file of another study
+    in its place is refused naming it."""
     folder = tmp_path / "franchetti2021"
     task = tasks.draw(MODEL, 1, 0)
+    study.check_settings(folder, study.settings(MODEL, 1))
     tasks.write(task, folder / "tasks")
     write_csv(study.task_rows([task], folder, MODEL.step), folder / "tasks.csv")
     before = sorted(folder.rglob("*"))
     assert cli.main(["study", "--scenario", "franchetti2021", "--seed", "2", "--out",
                      str(tmp_path), "--quiet"]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert err == [f"error: {folder} holds a study of --seed 1; resume it with that seed, or "
-                   "choose another --out"]
+    assert err == [f"error: {folder} holds a study made with other settings (seed 1 -> 2); "
+                   "resume it with those, or choose another --out"]
     assert sorted(folder.rglob("*")) == before
     with pytest.raises(UserError, match=f"{task.name}.toml holds another task"):
         tasks.write(tasks.draw(MODEL, 2, 0), folder / "tasks")
@@ -615,8 +617,8 @@ def test_a_study_whose_runs_failed_still_writes_its_tables(tmp_path: Path) -> No
             if (row["variant"], row["losses"]) == ("ciupitu", "realistic"):
                 row.update(status="failed", error="UserError: refused", E_drawn=math.nan)
         execution.write_part(tmp_path, rows)
-    summary = study.write_tables(MODEL, drawn, tmp_path, VARIANTS, LOSS_SETS, quiet=True)
-    runs = pd.read_csv(tmp_path / "runs.csv")
+    study.write_tables(MODEL, drawn, tmp_path, VARIANTS, LOSS_SETS, quiet=True)
+    runs, summary = (pd.read_csv(tmp_path / f"{name}.csv") for name in ("runs", "summary"))
     assert len(runs) == 24 and (runs.status == "failed").sum() == 2
     assert set(runs[runs.status == "failed"].error) == {"UserError: refused"}
     assert list(summary.losses.unique()) == ["ideal"] and len(summary) == 6

@@ -210,7 +210,9 @@ class Phase:
     duration: float                 # [s]
     target: tuple[float, ...]       # per joint, reached at the end of the phase [rad or m]
     inputs: dict[str, Any] = field(default_factory=dict)  # value or Ramp, from phase start
-    variants: tuple[str, ...] = ()  # the variants that perform it; () for every variant
+    # the variants that perform it, () for every variant; left out of repr, which sweep run
+    # ids hash: a variant's resolved scenario (`Scenario.for_variant`) has its phases only
+    variants: tuple[str, ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "target", _positions(self.target))
