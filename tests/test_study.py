@@ -637,3 +637,54 @@ def test_the_rerun_command_runs_the_task_file_at_the_study_step(tmp_path: Path,
     assert words[:4] == ["python", "-m", "harness", "cosim"]
     assert Path(words[words.index("--scenario") + 1]) == tmp_path / "tasks" / f"{task.name}.toml"
     assert float(words[words.index("--step") + 1]) == step
+
+
+# ---- the committed study ------------------------------------------------------------------
+COMMITTED = study.STUDY_DIR
+KEPT = ["E_drawn", "E_in", "E_copper", "E_gear", "E_mech", "W_link"]
+
+
+def committed_rows(name: str, task: int, variants: list[str] | None = None) -> pd.DataFrame:
+    runs = pd.read_csv(COMMITTED / name / "runs.csv")
+    rows = runs[runs.task == task]
+    return rows if variants is None else rows[rows.variant.isin(variants)]
+
+
+def rerun(name: str, task: int, variant: str, loss_set: str) -> dict:
+    """One run of the committed study's task from its committed file, as the study ran it."""
+    task_model = model.load(name)
+    path = COMMITTED / name / "tasks" / f"{tasks.task_name(task_model, task)}.toml"
+    drawn = tasks.draw(task_model, 1, task)
+    pins = stored_pins(COMMITTED / name / "drives.csv")
+    pinned = tasks.pinned(drawn, pins)
+    assert tasks.text(pinned.data) == path.read_text()   # the committed file is the draw
+    return execution.run_one(pinned, variant, loss_set, task_model.step)
+
+
+def test_a_committed_study_run_reproduces() -> None:
+    """demian2022's task 0, compensated, realistic, run again: its committed row to 1e-6 (the
+    cross-machine tolerance of docs/results.md; bit for bit on the machine that made it)."""
+    row = rerun("demian2022", 0, "compensated", "realistic")
+    stored = committed_rows("demian2022", 0, ["compensated"])
+    stored = stored[stored.losses == "realistic"].iloc[0]
+    assert row["status"] == "ok"
+    for name in KEPT:
+        assert row[name] == pytest.approx(stored[name], rel=1e-6, abs=1e-9), name
+
+
+@pytest.mark.slow   # about 30 s: 30 runs
+@pytest.mark.parametrize("name", ["franchetti2021", "ciupitu2018", "demian2022"])
+def test_every_committed_study_reproduces_its_first_task(name: str) -> None:
+    """Task 0 of each committed study, every variant in both loss sets: the rows of runs.csv
+    to 1e-6, and the summary's statistics are those of runs.csv (recomputed)."""
+    task_model = model.load(name)
+    stored = committed_rows(name, 0)
+    for row in stored.itertuples():
+        fresh = rerun(name, 0, row.variant, row.losses)
+        for metric in KEPT:
+            assert fresh[metric] == pytest.approx(getattr(row, metric), rel=1e-6, abs=1e-9)
+    runs = pd.read_csv(COMMITTED / name / "runs.csv")
+    variants = list(task_model.template.variants)
+    pd.testing.assert_frame_equal(
+        statistics.summary(runs, variants, task_model.reference),
+        pd.read_csv(COMMITTED / name / "summary.csv"), rtol=1e-9)
