@@ -341,10 +341,14 @@ def characteristic_rate(p: Parameters, u: Inputs, s: State) -> float:
 
 
 def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
-    """The signed terms of the energy ledger [J], E_p, E_kin, E_loss, -W_drive and -E_added
-    (as `outputs` reports them): their sum is constant (docs/energy_ledger.md). The outputs
-    come with them, from the same energies, kept for `outputs` (the end of a step is
-    evaluated once, for the ledger's control and the slave)."""
+    """The signed terms of the energy ledger [J]: E_p in its three parts (the link with its
+    payload, the fixed counterweight, the sliding counterweight), E_kin, E_loss, -W_drive
+    and -E_added (as `outputs` reports them): their sum is constant
+    (docs/energy_ledger.md). E_p goes in parts so that the ledger's rounding allowance
+    (which scales with the sum of |term|) sees the moments that cancel in it, as
+    `rocking_counterweight.ledger_terms` explains. The outputs come with them, from the same
+    energies, kept for `outputs` (the end of a step is evaluated once, for the ledger's
+    control and the slave)."""
     theta, omega, payload = s.theta, s.omega, u.payload
     OB, dOB, _, J, _, _, gravity = _arm_terms(p, payload, theta)
     _, _, _, m2, g, _, _, w, G2, _, arm_held, _ = _held(p, payload)
@@ -356,7 +360,9 @@ def ledger_terms(p: Parameters, u: Inputs, s: State) -> tuple[float, ...]:
         theta, omega, OB, gravity, E_p, E_kin, M_g, M_b, M_u,
         G2 * dOB * math.sin(HALF_PI - theta),                               # M_bar
         W_drive, E_loss, E_added)))
-    return E_p, E_kin, E_loss, -W_drive, -E_added
+    lever = g * math.cos(theta)
+    return (lever * (p.m * p.c + payload * w), -lever * (p.m_fixed_cw * p.c_fixed_cw),
+            -lever * m2 * OB, E_kin, E_loss, -W_drive, -E_added)
 
 
 def advance(p: Parameters, u: Inputs, s: State, dt: float) -> State:
