@@ -172,12 +172,19 @@ def ease_in(s: Any) -> Any:
 # angle, "quintic_ease_out" is ease_out of the angle's fraction of the move.
 RAMP_SHAPES = {
     "linear": lambda s: s,
-    "quintic": quintic,
+    "quintic": lambda s: at_most_one(quintic(s)),
     "ease_out": ease_out,
     "ease_in": ease_in,
     "quintic_ease_out": lambda s: ease_out(quintic(s)),
-    "quintic_ease_in": lambda s: ease_in(quintic(s)),
+    "quintic_ease_in": lambda s: ease_in(at_most_one(quintic(s))),
 }
+
+
+def at_most_one(x: Any) -> Any:
+    """min(x, 1), elementwise on floats and numpy arrays alike (x itself where x <= 1). The
+    quintic rounds to 1 + 2^-52 at some s just below 1, and a ramp to 0 through it ends at
+    -2^-52 of its start: a payload of -5.6e-17 kg, which the FMUs refuse."""
+    return x - (x - 1.0 + abs(x - 1.0)) * 0.5
 
 
 def ramp(start: Any, end: Any, shape: str, s: Any) -> Any:
