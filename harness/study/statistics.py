@@ -21,7 +21,7 @@ import pandas as pd
 RESAMPLES = 10_000
 SEED = 20261206
 LEVEL = 0.95
-QUANTILES = (0.05, 0.5, 0.95)
+QUANTILES = {0.05: "q05", 0.5: "median", 0.95: "q95"}   # quantile: its column's suffix
 BINS = 4
 TASK_AXES = {"changes_per_min": "payload changes per minute [1/min]",
              "hold_fraction": "fraction of the task spent holding [-]"}
@@ -58,8 +58,9 @@ def summary(runs: pd.DataFrame, variants: list[str], reference: str) -> pd.DataF
             drawn, eps = wide[variant].to_numpy(), mine.eps.to_numpy(dtype=float)
             row = {"losses": loss_set, "variant": variant, "tasks": len(tasks)}
             for name, values in (("E_drawn", drawn), ("eps", eps)):
-                for q, value in zip(QUANTILES, np.quantile(values, QUANTILES)):
-                    row[f"{name}_{'median' if q == 0.5 else f'q{round(q * 100):02d}'}"] = value
+                for suffix, value in zip(QUANTILES.values(),
+                                         np.quantile(values, list(QUANTILES))):
+                    row[f"{name}_{suffix}"] = value
             row["ratio_median"] = float(np.median(drawn / wide[reference].to_numpy()))
             row["least_fraction"] = least[variant]
             row["drive_ok_fraction"] = float(mine.drive_ok.astype(bool).mean())
