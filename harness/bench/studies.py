@@ -17,13 +17,12 @@ import pandas as pd
 from distributed import LocalCluster
 
 from harness import scenarios, study
-from harness.drive import catalogue
 from harness.drive.metrics import ENERGIES
 from harness.engines import DEFAULT_STEP, fmpy_master, reference
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
-from harness.run.sizing import stored_pins
+from harness.run.sizing import pinned_drives, stored_pins
 from harness.study import execution as study_execution
 from harness.study import model as study_model
 from harness.study import tasks as study_tasks
@@ -293,10 +292,8 @@ def study_step(steps: int = 0, repeats: int = 0) -> pd.DataFrame:
             for loss_set, scenario in task.loss_sets():
                 for variant in scenario.variants:
                     chosen = scenario.variant(variant)
-                    resolved = scenario.for_variant(chosen)
-                    drives = {j.name: catalogue.pinned(dict(j.drive), j.screw, task.name)
-                              .joint_drive(lossless=loss_set == "ideal")
-                              for j in resolved.joints}
+                    drives = pinned_drives(scenario.for_variant(chosen), loss_set,
+                                           f"{task.name} variant {variant}")
                     drawn_energy = {}
                     for step in STUDY_STEPS:
                         try:

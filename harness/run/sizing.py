@@ -63,11 +63,25 @@ def size_variant(loss_sets: list[scenarios.Scenario], variant: str,
             raise UserError(f"{where}: a prismatic joint needs its lead screw (`screw`, one "
                             f"of {', '.join(catalogue.catalogue()[2])}) to be sized")
         if joint.drive:
-            drive = catalogue.pinned(dict(joint.drive), joint.screw, where)
-            sized[joint.name] = combined([evaluate(drive, load) for load in loads])
+            sized[joint.name] = combined([evaluate(pinned_drive(joint, where), load)
+                                          for load in loads])
         else:
             sized[joint.name] = choose(catalogue.drives(joint.screw), loads)
     return sized
+
+
+def pinned_drive(joint: scenarios.Joint, where: str) -> catalogue.Drive:
+    """The catalogue drive a joint pins (`drive`, or its variant's `drives`); UserError
+    naming where the pin is when the catalogue has no such drive."""
+    return catalogue.pinned(dict(joint.drive), joint.screw, where)
+
+
+def pinned_drives(resolved: scenarios.Scenario, loss_set: str, where: str
+                  ) -> dict[str, JointDrive]:
+    """The drives every joint of a scenario resolved for a variant pins, as the loss set runs
+    them (lossless in the ideal set, as `joint_drives`): a study task's."""
+    return {joint.name: pinned_drive(joint, f"{where} joint {joint.name}")
+            .joint_drive(lossless=loss_set == "ideal") for joint in resolved.joints}
 
 
 def joint_drives(sized: dict[str, Sizing], loss_set: str) -> dict[str, JointDrive]:

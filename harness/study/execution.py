@@ -27,15 +27,19 @@ from distributed import Client, KilledWorker, as_completed
 from tqdm import tqdm
 
 from harness import interrupts
-from harness.drive import catalogue
 from harness.drive.metrics import TOTALS
 from harness.engines import fmpy_master
 from harness.errors import UserError
 from harness.fmu.loader import FMUCallError
-from harness.io import write_atomic
 from harness.run import sizing
 from harness.study.tasks import Task
-from harness.sweeps.execution import CloseFMUs, discard, model_instance
+from harness.sweeps.execution import (
+    CloseFMUs,
+    discard,
+    model_instance,
+    store_rows,
+    stored_rows,
+)
 
 KEY = ("task", "variant", "losses")
 # the run's figures a row keeps: the energies summed over the drives, the drives' verdict
@@ -62,8 +66,7 @@ def run_one(task: Task, variant: str, loss_set: str, step: float) -> dict[str, A
         chosen = scenario.variant(variant)
         model = chosen.model or scenario.model
         resolved = scenario.for_variant(chosen)
-        drives = {joint.name: catalogue.pinned(dict(joint.drive), joint.screw, task.name)
-                  .joint_drive(lossless=loss_set == "ideal") for joint in resolved.joints}
+        drives = sizing.pinned_drives(resolved, loss_set, f"{task.name} variant {variant}")
         fmu = model_instance(model)
         result = fmpy_master.run(scenario, chosen, step, fmu=fmu, drives=drives)
         row.update(status="ok", error="", duration=resolved.duration,
@@ -90,18 +93,12 @@ def parts_dir(folder: Path) -> Path:
 
 def stored(folder: Path) -> pd.DataFrame:
     """Every stored row, one per key (the later of a key stored twice)."""
-    parts = sorted(parts_dir(folder).glob("part-*.parquet"))
-    if not parts:
-        return pd.DataFrame(columns=[*KEY, "status"])
-    table = pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
-    return table.drop_duplicates(list(KEY), keep="last").reset_index(drop=True)
+    return stored_rows(parts_dir(folder), list(KEY))
 
 
 def write_part(folder: Path, rows: list[dict[str, Any]]) -> Path:
-    """Store a finished task's rows atomically; names sort in the order written."""
-    path = parts_dir(folder) / f"part-{time.time_ns():020d}-{rows[0]['task']:05d}.parquet"
-    frame = pd.DataFrame(rows)
-    return write_atomic(path, lambda tmp: frame.to_parquet(tmp, index=False))
+    """Store a finished task's rows atomically (`store_rows`)."""
+    return store_rows(parts_dir(folder), rows, f"{rows[0]['task']:05d}")
 
 
 def pending(folder: Path, tasks: Sequence[Task], variants: Sequence[str],

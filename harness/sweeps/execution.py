@@ -145,20 +145,32 @@ def parts_dir(sweep: Sweep, out: Path) -> Path:
     return out / sweep.name
 
 
+def stored_rows(folder: Path, key: list[str]) -> pd.DataFrame:
+    """Every row in a folder's parts (`store_rows`), one per key: of a key stored twice (a
+    retried run), the later one; no parts, no rows (the key's columns and status)."""
+    parts = sorted(folder.glob("part-*.parquet"))
+    if not parts:
+        return pd.DataFrame(columns=[*key, "status"])
+    table = pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
+    return table.drop_duplicates(key, keep="last").reset_index(drop=True)
+
+
+def store_rows(folder: Path, rows: list[dict[str, Any]], tag: str) -> Path:
+    """Store finished rows atomically as folder/part-<time>-<tag>.parquet; part names sort
+    in the order they were written."""
+    path = folder / f"part-{time.time_ns():020d}-{tag}.parquet"
+    frame = pd.DataFrame(rows)
+    return write_atomic(path, lambda tmp: frame.to_parquet(tmp, index=False))
+
+
 def stored(sweep: Sweep, out: Path) -> pd.DataFrame:
     """Every row in the sweep's parts; of a run stored twice (retried), the later one."""
-    parts = sorted(parts_dir(sweep, out).glob("part-*.parquet"))
-    if not parts:
-        return pd.DataFrame(columns=["run_id", "status"])
-    table = pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
-    return table.drop_duplicates("run_id", keep="last").reset_index(drop=True)
+    return stored_rows(parts_dir(sweep, out), ["run_id"])
 
 
 def write_part(sweep: Sweep, out: Path, rows: list[dict[str, Any]]) -> Path:
-    """Store finished rows atomically; part names sort in the order they were written."""
-    path = parts_dir(sweep, out) / f"part-{time.time_ns():020d}-{rows[0]['run_id'][:8]}.parquet"
-    frame = pd.DataFrame(rows)
-    return write_atomic(path, lambda tmp: frame.to_parquet(tmp, index=False))
+    """Store finished rows atomically (`store_rows`)."""
+    return store_rows(parts_dir(sweep, out), rows, rows[0]["run_id"][:8])
 
 
 def pending(sweep: Sweep, out: Path, retry_failed: bool = False) -> list[Run]:
