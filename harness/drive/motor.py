@@ -93,7 +93,7 @@ def discretise(motor: MotorParameters, dt: float) -> StepCoefficients:
     discrete = ct.c2d(ct.ss(A, B, np.eye(2), np.zeros((2, 2))), dt, method="zoh")
     (a, _), (avg_a, _) = (discrete.A / np.array([[1.0], [dt]])).tolist()
     (b_v, b_w), (avg_b_v, avg_b_w) = (discrete.B / np.array([[1.0], [dt]])).tolist()
-    return StepCoefficients(a, b_v, b_w, avg_a, avg_b_v, avg_b_w)
+    return StepCoefficients(a, b_v, b_w, avg_a, avg_b_v, avg_b_w, dt)
 
 
 def sampled_motor(motor: MotorParameters, dt: float, current: float = 0.0) -> SampledMotor:

@@ -14,6 +14,8 @@ from fmu_src.units.drive.dc_motor import (
     DriveEnergies,
     MotorParameters,
     SampledMotor,
+    flushed,
+    held_effort,
     step_energies,
     transmitted_effort,
 )
@@ -31,14 +33,22 @@ class SampledDrive:
     enabled[k]: whether the drive is on over step k. Off, the controller holds its state and
     the motor carries no current; switched on again, the controller starts from the error then
     with its integral reset (no derivative kick, no push left over from before: a drive
-    resting while its axis holds by itself has nothing to hold when it comes on)."""
+    resting while its axis holds by itself has nothing to hold when it comes on).
+
+    inertia: the joint's [kg m^2 or kg], the drive's own included: the effort of a lossy
+    transmission inside its stuck mode is then held linearly implicit (`held_effort`), with
+    the other efforts on the joint estimated from the last step, the acceleration they and
+    the held effort gave: load = inertia (omega[k] - omega[k-1]) / dt - effort[k-1]. None:
+    the effort at the step's start speed, as the `DcMotorDrive` FMU holds it."""
 
     def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: Sequence[float],
-                 enabled: Sequence[bool] | None = None) -> None:
+                 enabled: Sequence[bool] | None = None, inertia: float | None = None) -> None:
         """A drive for a run of len(reference) - 1 steps following reference [rad or m] at
         each communication point; always on unless enabled says otherwise."""
         n_steps = len(reference) - 1
         self.pid, self.motor, self.reference = pid, motor, list(reference)
+        lossy = motor.motor.eta < 1.0 or motor.motor.eta_back < 1.0
+        self.inertia = inertia if lossy else None
         self.enabled = [True] * n_steps if enabled is None else list(enabled)
         self.on = self.enabled[0] if n_steps else True
         self.position, self.speed = [0.0] * (n_steps + 1), [0.0] * (n_steps + 1)
@@ -54,6 +64,11 @@ class SampledDrive:
                 self.on = True
             voltage = self.pid.update(error)
             average, effort = self.motor.step(voltage, speed)
+            if self.inertia is not None and k > 0 and self.enabled[k - 1]:
+                dt = self.motor.coefficients.dt
+                load = self.inertia * (speed - self.speed[k - 1]) / dt - self.effort[k - 1]
+                effort = flushed(held_effort(self.motor.motor, average, speed, self.inertia,
+                                             dt, load))
         else:
             self.on = False
             voltage = 0.0
@@ -69,11 +84,12 @@ class SampledDrive:
 
     def trace(self, joint: Joint, step_size: float) -> DriveTrace:
         """The drive's record of the run as a `DriveTrace` of steps of step_size [s]."""
+        effort = np.array(self.effort)
         return DriveTrace(joint, self.motor.motor, step_size, np.array(self.voltage),
-                          np.array(self.current), np.array(self.effort),
-                          np.array(self.start_current), np.array(self.position),
-                          np.array(self.speed), np.array(self.reference),
-                          np.array(self.enabled, dtype=bool))
+                          np.array(self.current), effort, np.array(self.start_current),
+                          np.array(self.position), np.array(self.speed),
+                          np.array(self.reference), np.array(self.enabled, dtype=bool),
+                          applied=effort)
 
 
 @dataclass(frozen=True)
@@ -95,6 +111,7 @@ class DriveTrace:
     speed: np.ndarray          # joint speed at t_k, which the drive holds over step k
     reference: np.ndarray      # position reference at t_k
     enabled: np.ndarray | None = None  # whether the drive was on over step k (None: always)
+    applied: np.ndarray | None = None  # the effort the drive applied over step k (None: below)
 
     @property
     def final_current(self) -> float:
@@ -115,9 +132,11 @@ class DriveTrace:
 
     @property
     def shaft_effort(self) -> np.ndarray:
-        """The effort the drive applies over each step at the speed it holds
-        (`transmitted_effort` of the step-average current; it is `effort` when the
-        mechanism gets it without delay) [N m or N]."""
+        """The effort the drive applied over each step [N m or N]: `applied`, or else
+        `transmitted_effort` of the step-average current at the speed it held (it is `effort`
+        when the mechanism gets it without delay)."""
+        if self.applied is not None:
+            return self.applied
         return transmitted_effort(self.motor, self.current, self.speed[:len(self.current)])
 
     @property

@@ -32,6 +32,7 @@ from harness.engines.setup import (
     enabled_steps,
     joint_drive,
     joint_drives,
+    joint_inertia,
     run_parameters,
 )
 from harness.errors import UserError
@@ -102,7 +103,8 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
             pid.reset(references[j][0] - state[2 * j],
                       integral=armature_voltage(drive_motor, hold_current, 0.0))
             sampled.append(SampledDrive(pid, sampled_motor(drive_motor, step_size, hold_current),
-                                        references[j].tolist(), enabled[j]))
+                                        references[j].tolist(), enabled[j],
+                                        joint_inertia(values, joint, drive_motor)))
         run_steps(calls, [drive.step for drive in sampled], times.tolist(), step_size,
                   progress)
         for j, drive in enumerate(sampled):  # the joints at the end of the run

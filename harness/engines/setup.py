@@ -63,9 +63,16 @@ def joint_drive(values: Mapping[str, float], joint: Joint, drive_motor: MotorPar
     static output by name): the joint's PID, designed for its inertia (plus the drive's) and
     friction, and the motor current [A] that holds the static effort, the run's equilibrium
     start."""
-    gains = design_pid(drive_motor, values[joint.inertia] + drive_motor.J_drive,
+    gains = design_pid(drive_motor, joint_inertia(values, joint, drive_motor),
                        values[joint.friction], design)
     return gains, hold_current(drive_motor, joint, values[joint.static_output])
+
+
+def joint_inertia(values: Mapping[str, float], joint: Joint, drive_motor: MotorParameters
+                  ) -> float:
+    """The joint's inertia with its drive's reflected rotor [kg m^2 or kg], values: the
+    mechanism's outputs by name."""
+    return values[joint.inertia] + drive_motor.J_drive
 
 
 def hold_current(drive_motor: MotorParameters, joint: Joint, static_output: float) -> float:

@@ -121,6 +121,53 @@ def transmitted_effort(p: MotorParameters, current: Any, omega: Any) -> Any:
     return p.N * p.K_t * current * transmission_factor(p, current, omega)
 
 
+def stuck_damping(p: MotorParameters, current: float, omega: float) -> float:
+    """The regularised stuck mode's damping, -d(transmitted_effort)/d(omega) at (i, omega)
+    [N m s/rad or N s/m]: N K_t |i| N / STUCK_SPEED times the direction's loss, 1 - eta where
+    the motor drives the joint and 1/eta_back - 1 where the joint drives it (the larger at
+    standstill), inside the blend (motor speed below STUCK_SPEED); 0 outside it."""
+    motor_speed = omega * p.N
+    if not -STUCK_SPEED < motor_speed < STUCK_SPEED:
+        return 0.0
+    forward, backward = 1.0 - p.eta, 1.0 / p.eta_back - 1.0
+    drive = motor_speed * current
+    loss = forward if drive > 0.0 else backward if drive < 0.0 else max(forward, backward)
+    return p.standstill_torque_per_amp * abs(current) * p.N / STUCK_SPEED * loss
+
+
+def held_effort(p: MotorParameters, current: float, omega: float, inertia: float, dt: float,
+                load: float) -> float:
+    """The effort [N m or N] a drive holds over a step of dt [s] in a co-simulation: the
+    transmission's effort at the joint's speed at the step's end rather than at its start.
+
+    Inside the blend of the stuck mode the effort falls steeply with the speed (damping c,
+    `stuck_damping`); held at the start speed omega, it makes the loop unstable once c dt /
+    inertia > 2, and the joint then chatters through standstill at a rate set by the step
+    (docs/drives.md). Linearly implicit instead: with the joint's inertia [kg m^2 or kg]
+    and the other efforts on it, load [N m or N] (as estimated from the last step), the
+    speed at the step's end is omega + dt (load + effort) / inertia, and the effort is
+
+        (transmitted_effort(i, omega) - r load) / (1 + r),   r = c dt / inertia,
+
+    kept within what the gear can pass at that speed: between its lossless value N K_t i and
+    its value at full efficiency in omega's direction, or between its two efficiencies'
+    values at standstill, so that its loss (N K_t i - effort) omega is never negative.
+    Outside the blend, or with a lossless transmission, it is transmitted_effort(i, omega);
+    as dt goes to 0 it tends to it, so the scheme converges to the same model."""
+    explicit = transmitted_effort(p, current, omega)
+    damping = stuck_damping(p, current, omega)
+    if damping == 0.0:
+        return explicit
+    ratio = damping * dt / inertia
+    implicit = (explicit - ratio * load) / (1.0 + ratio)
+    lossless = p.standstill_torque_per_amp * current
+    if omega == 0.0:
+        ends = (lossless * p.eta, lossless / p.eta_back)
+    else:
+        ends = (lossless, lossless * (p.eta if current * omega > 0.0 else 1.0 / p.eta_back))
+    return min(max(implicit, min(ends)), max(ends))
+
+
 def armature_rate(p: MotorParameters, voltage: Any, current: Any, omega: Any) -> Any:
     """The armature equation, di/dt = (V - R_a i - K_e N omega) / L_a [A/s]."""
     return (voltage - armature_voltage(p, current, omega)) / p.L_a
@@ -141,8 +188,8 @@ def armature_matrices(p: MotorParameters) -> tuple[list, list, list, list]:
 
 
 class StepCoefficients(NamedTuple):
-    """Zero-order-hold step of the armature, i[k+1] = a i + b_v V + b_w omega, and the
-    step-average current i_avg = avg_a i + avg_b_v V + avg_b_w omega."""
+    """Zero-order-hold step of dt [s] of the armature, i[k+1] = a i + b_v V + b_w omega, and
+    the step-average current i_avg = avg_a i + avg_b_v V + avg_b_w omega."""
 
     a: float
     b_v: float
@@ -150,6 +197,7 @@ class StepCoefficients(NamedTuple):
     avg_a: float
     avg_b_v: float
     avg_b_w: float
+    dt: float
 
     def start_current(self, average: Any, voltage: Any, omega: Any) -> Any:
         """The current [A] at the start of a step from its average [A] and the V [V] and
@@ -168,7 +216,7 @@ def zoh_coefficients(p: MotorParameters, dt: float) -> StepCoefficients:
     settle = -math.expm1(-x)                  # 1 - exp(-dt R_a/L_a)
     per_volt, per_speed = steady_current(p, 1.0, 0.0), steady_current(p, 0.0, 1.0)
     return StepCoefficients(math.exp(-x), settle * per_volt, settle * per_speed, 1.0 - rise,
-                            rise * per_volt, rise * per_speed)
+                            rise * per_volt, rise * per_speed, dt)
 
 
 @lru_cache(maxsize=8)  # one step size at a time, in practice
@@ -214,7 +262,7 @@ class SampledMotor:
         if not enabled:
             self.current = 0.0
             return 0.0, 0.0
-        a, b_v, b_w, avg_a, avg_b_v, avg_b_w = self.coefficients
+        a, b_v, b_w, avg_a, avg_b_v, avg_b_w, _ = self.coefficients
         i0 = self.current
         average = flushed(avg_a * i0 + avg_b_v * voltage + avg_b_w * omega)
         self.current = flushed(a * i0 + b_v * voltage + b_w * omega)
