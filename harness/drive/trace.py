@@ -11,6 +11,7 @@ import numpy as np
 
 from fmu_src.units.controller.pid import DiscretePID
 from fmu_src.units.drive.dc_motor import (
+    STUCK_SPEED,
     DriveEnergies,
     MotorParameters,
     SampledMotor,
@@ -49,6 +50,7 @@ class SampledDrive:
         self.pid, self.motor, self.reference = pid, motor, list(reference)
         lossy = motor.motor.eta < 1.0 or motor.motor.eta_back < 1.0
         self.inertia = inertia if lossy else None
+        self.stuck_speed = STUCK_SPEED / motor.motor.N  # the blend's edge at the joint
         self.enabled = [True] * n_steps if enabled is None else list(enabled)
         self.on = self.enabled[0] if n_steps else True
         self.position, self.speed = [0.0] * (n_steps + 1), [0.0] * (n_steps + 1)
@@ -64,7 +66,8 @@ class SampledDrive:
                 self.on = True
             voltage = self.pid.update(error)
             average, effort = self.motor.step(voltage, speed)
-            if self.inertia is not None and k > 0 and self.enabled[k - 1]:
+            if (self.inertia is not None and -self.stuck_speed < speed < self.stuck_speed
+                    and k > 0 and self.enabled[k - 1]):
                 dt = self.motor.coefficients.dt
                 load = self.inertia * (speed - self.speed[k - 1]) / dt - self.effort[k - 1]
                 effort = flushed(held_effort(self.motor.motor, average, speed, self.inertia,

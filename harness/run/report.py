@@ -12,6 +12,7 @@ sentences are about the shipped scenarios and sweeps, and name their variants an
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import textwrap
@@ -784,12 +785,28 @@ def study_lead(results: Results) -> list[str]:
             "the same random tasks (moves, holds and payload changes drawn from each "
             "scenario's task model) with its own drives, sized by one rule from catalogue "
             "parts, with ideal and with real parts; intervals are 95 % bootstrap intervals "
-            "over the tasks. The runs take 2 ms steps, which bias a run's E_drawn by up to "
-            "2.3e-3 with ideal parts and up to 2 % with real ones, beyond what the intervals "
-            "hold ([docs/study.md](docs/study.md#the-step-and-its-error)).", "",
+            f"over the tasks. {study_step_error(results, names)}", "",
             *[line for name in names for line in (
                 study_report.scenario_sentence(name, results.csv, number, percent), "")],
             *markdown_table(header, rows), ""]
+
+
+def study_step_error(results: Results, names: list[str]) -> str:
+    """The studies' step and the largest error it leaves in a run's E_drawn per loss set,
+    against 0.5 ms steps (`bench/study_step.csv`, where `make bench` wrote it)."""
+    steps = sorted({json.loads((results.folder / "study" / name / "settings.json").read_text())
+                    ["step"] for name in names})
+    took = f"The runs take steps of {' and '.join(plain(1e3 * h) for h in steps)} ms"
+    link = "([docs/study.md](docs/study.md#the-step-and-its-error))"
+    if not (results.folder / "bench" / "study_step.csv").is_file():
+        return f"{took}; `make bench` measures the error they leave {link}."
+    table = results.csv("bench/study_step")
+    worst = table[table.step_size.isin(steps)].groupby("losses").rel_error.apply(
+        lambda errors: errors.abs().max())
+    return (f"{took}, which leave a run's E_drawn within "
+            + " and ".join(f"{number(error, 2)} ({loss_set} set)"
+                           for loss_set, error in worst.items())
+            + f" of its value at {plain(1e3 * table.step_size.min())} ms {link}.")
 
 
 # franchetti2021's E_drawn [J] with ideal parts in the tables before the fair drive protocol
@@ -891,7 +908,8 @@ def study_performance(results: Results) -> list[str]:
     table, steps = results.csv("bench/study"), results.csv("bench/study_step")
     one = table[table.setting == "one process"].iloc[0]
     dask = table[table.setting != "one process"]
-    worst = steps.groupby(["step_size", "losses"]).rel_error.max().unstack()
+    worst = steps.assign(rel_error=steps.rel_error.abs()).groupby(
+        ["step_size", "losses"]).rel_error.max().unstack()
     return [
         f"A study (`study.csv`: the {int(one.runs)} runs of franchetti2021's first study tasks, "
         "every variant in both loss sets): in one process "
