@@ -54,6 +54,22 @@ def test_the_top_level_help_must_take_under_a_second(best_s: float, passed: bool
     assert (table.bound.iloc[0], table.unit.iloc[0]) == (1.0, "s")
 
 
+def study_step_table(error_at_study_step: float) -> pd.DataFrame:
+    """A study_step table for franchetti2021 (whose task model steps at 2 ms): its error at
+    2 ms is error_at_study_step, at 4 ms far above any bound, at 0.5 ms 0 (the finest)."""
+    return pd.DataFrame({"scenario": "franchetti2021", "task": 0, "variant": "ciupitu",
+                         "losses": "realistic", "step_size": [0.004, 0.002, 0.0005],
+                         "E_drawn": 1.0, "rel_error": [0.05, error_at_study_step, 0.0]})
+
+
+@pytest.mark.parametrize(("error", "passed"), [(4e-4, True), (1e-3, False), (2.1e-2, False)])
+def test_a_study_step_must_leave_under_1e_3_of_e_drawn(error: float, passed: bool) -> None:
+    """Only the task model's own step is checked (4 ms's error is not the study's)."""
+    table = bench.checks({"study_step": study_step_table(error)})
+    assert verdicts(table) == {"franchetti2021 rel_error at 2 ms": passed}
+    assert table.value.iloc[0] == error and table.bound.iloc[0] == 1e-3
+
+
 def test_unchecked_benchmarks_give_no_checks() -> None:
     """The convergence table, and the master's share of a step, are reported figures: the
     latter compares two timings taken seconds apart, which the machine's load moves more than

@@ -33,9 +33,9 @@ recording read included), best of repeats each, and their difference, the master
 (also as a fraction of the step): its set-up and result assembly spread over the steps, and
 the controller and motor. A reported figure, not a check: the two are timed seconds apart.
 
-`convergence`: the franchetti2021 variants at 4, 2, 1 and 0.5 ms against the monolithic
-reference (harness.engines.reference): the relative error of each drive energy, which must shrink
-with the step.
+`convergence`: the variants of the shipped scenarios at 4, 2, 1 and 0.5 ms against the
+monolithic reference (harness.engines.reference), with the legacy drives: the relative error of
+each drive energy, which must shrink with the step.
 
 `ecco`: the coupling's own energy error (docs/results.md#power-bonds) against the steps
 taken, for franchetti2021's self_regulating and demian2022's compensated variants run as
@@ -54,7 +54,8 @@ per second on local Dask clusters of 1, 2 and 4 workers reached by their schedul
 address, per worker (`harness.bench.studies.study_benchmark`).
 
 `study_step`: the error the study's communication step leaves in E_drawn, over the first
-tasks of each committed study at 4, 2, 1 and 0.5 ms, relative to 0.5 ms.
+tasks of each committed study at 4, 2, 1 and 0.5 ms, relative to 0.5 ms; checked at each task
+model's step (`harness.bench.targets.STUDY_STEP_BOUND`).
 
 `cli_help`: wall time of `python -m harness --help` in a fresh interpreter, best of repeats.
 
