@@ -20,7 +20,7 @@ from fmpy import read_model_description
 
 from fmu_src.mechanisms.self_regulating import physics as self_regulating
 from fmu_src.units.controller.PositionController import ControllerParameters
-from fmu_src.units.drive.dc_motor import step_energies
+from fmu_src.units.drive.dc_motor import STUCK_SPEED, step_energies, stuck_mode_effort
 from fmu_src.units.sequencer.scenario import Joint
 from harness.drive.controller import design_pid, discrete_pid, discretise
 from harness.drive.metrics import drive_metrics
@@ -122,6 +122,52 @@ def test_motor_fmu_with_a_lossy_gear_and_rests_gives_the_harness_sampled_motor(
     np.testing.assert_allclose(out[:, 0], torque, rtol=0, atol=1e-12 * np.abs(torque).max())
     np.testing.assert_allclose(out[:, 1], current, rtol=0, atol=1e-12 * np.abs(current).max())
     assert (out[-1, 2], out[-1, 3]) == pytest.approx((gear, copper), rel=1e-11)
+
+
+def test_motor_fmu_given_the_joints_inertia_holds_the_stuck_mode_as_the_harness(
+        motor_fmu: Path) -> None:
+    """With J_joint set, speeds in and around the lossy transmission's blend and the drive
+    switched off and on: tau_drive is the harness's stuck_mode_effort (from the step before
+    while the drive was on), which in the blend is not the effort at the start speed; an FMU
+    state taken mid-run and set again replays the same efforts."""
+    rng = np.random.default_rng(12)
+    n, i0, inertia = 600, 0.5, 0.08
+    lossy = replace(MOTOR, eta=0.7, eta_back=0.6)
+    edge = STUCK_SPEED / lossy.N
+    voltage = rng.uniform(-2.0, 2.0, n)
+    omega = rng.choice([0.0, 0.3 * edge, -0.7 * edge, 2.0 * edge], n)
+    enabled = (np.arange(n) // 100) % 3 != 2
+    drive, expected, explicit, previous = sampled_motor(lossy, DT, current=i0), [], [], None
+    for v, w, on in zip(voltage, omega, enabled):
+        current, effort = drive.step(v, w, bool(on))
+        explicit.append(effort)
+        if on:
+            effort = stuck_mode_effort(lossy, current, w, effort, inertia, DT, previous)
+        previous = (w, effort, DT) if on else None
+        expected.append(effort)
+    assert np.abs(np.subtract(expected, explicit)).max() > 0.01 * np.abs(expected).max()
+
+    def run(fmu: CoSimFMU, steps: range) -> list[float]:
+        out = []
+        for k in steps:
+            fmu.set({"V": voltage[k], "omega": omega[k], "enable": bool(enabled[k])})
+            fmu.step(k * DT, DT)
+            out.append(fmu.get(["tau_drive"])["tau_drive"])
+        return out
+
+    start = {"i0": i0, "eta": 0.7, "eta_back": 0.6, "J_joint": inertia}
+    with open_fmu(motor_fmu, start) as fmu:
+        first = run(fmu, range(n // 2))
+        taken = fmu.slave.getFMUstate()
+        try:
+            rest = run(fmu, range(n // 2, n))
+            fmu.slave.setFMUstate(taken)
+            again = run(fmu, range(n // 2, n))
+        finally:
+            fmu.slave.freeFMUstate(taken)
+    np.testing.assert_allclose(first + rest, expected, rtol=0,
+                               atol=1e-12 * np.abs(expected).max())
+    assert again == rest
 
 
 def test_motor_fmu_recomputes_the_hold_when_the_step_size_changes(motor_fmu: Path) -> None:

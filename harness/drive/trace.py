@@ -11,13 +11,11 @@ import numpy as np
 
 from fmu_src.units.controller.pid import DiscretePID
 from fmu_src.units.drive.dc_motor import (
-    STUCK_SPEED,
     DriveEnergies,
     MotorParameters,
     SampledMotor,
-    flushed,
-    held_effort,
     step_energies,
+    stuck_mode_effort,
     transmitted_effort,
 )
 from fmu_src.units.sequencer.scenario import Joint
@@ -37,10 +35,9 @@ class SampledDrive:
     resting while its axis holds by itself has nothing to hold when it comes on).
 
     inertia: the joint's [kg m^2 or kg], the drive's own included: the effort of a lossy
-    transmission inside its stuck mode is then held linearly implicit (`held_effort`), with
-    the other efforts on the joint estimated from the last step, the acceleration they and
-    the held effort gave: load = inertia (omega[k] - omega[k-1]) / dt - effort[k-1]. None:
-    the effort at the step's start speed, as the `DcMotorDrive` FMU holds it."""
+    transmission inside its stuck mode is then held linearly implicit (`stuck_mode_effort`),
+    as the `DcMotorDrive` FMU holds it when given J_joint. None: the effort at the step's
+    start speed."""
 
     def __init__(self, pid: DiscretePID, motor: SampledMotor, reference: Sequence[float],
                  enabled: Sequence[bool] | None = None, inertia: float | None = None) -> None:
@@ -50,7 +47,6 @@ class SampledDrive:
         self.pid, self.motor, self.reference = pid, motor, list(reference)
         lossy = motor.motor.eta < 1.0 or motor.motor.eta_back < 1.0
         self.inertia = inertia if lossy else None
-        self.stuck_speed = STUCK_SPEED / motor.motor.N  # the blend's edge at the joint
         self.enabled = [True] * n_steps if enabled is None else list(enabled)
         self.on = self.enabled[0] if n_steps else True
         self.position, self.speed = [0.0] * (n_steps + 1), [0.0] * (n_steps + 1)
@@ -66,12 +62,12 @@ class SampledDrive:
                 self.on = True
             voltage = self.pid.update(error)
             average, effort = self.motor.step(voltage, speed)
-            if (self.inertia is not None and -self.stuck_speed < speed < self.stuck_speed
-                    and k > 0 and self.enabled[k - 1]):
+            if self.inertia is not None:
                 dt = self.motor.coefficients.dt
-                load = self.inertia * (speed - self.speed[k - 1]) / dt - self.effort[k - 1]
-                effort = flushed(held_effort(self.motor.motor, average, speed, self.inertia,
-                                             dt, load))
+                previous = ((self.speed[k - 1], self.effort[k - 1], dt)
+                            if k > 0 and self.enabled[k - 1] else None)
+                effort = stuck_mode_effort(self.motor.motor, average, speed, effort,
+                                           self.inertia, dt, previous)
         else:
             self.on = False
             voltage = 0.0

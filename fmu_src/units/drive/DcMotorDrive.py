@@ -9,10 +9,13 @@ Outputs after fmi2DoStep(t, h) belong to the step just taken: i is the average a
 current over [t, t + h], tau_drive the effort the drive applies over that step (N K_t i through
 the lossy transmission: times eta where the motor drives the joint, over eta_back where the
 joint drives the motor, `transmitted_effort`) and P_elec = V i its average electrical power
-(so P_elec h is the step's exact electrical energy). With `enable` false over a step the
+(so P_elec h is the step's exact electrical energy). Given the joint's inertia J_joint, a
+lossy transmission's effort inside its stuck mode is held linearly implicit, as the harness's
+master holds it (`stuck_mode_effort`: the joint's other efforts estimated from the step
+before; docs/drives.md). With `enable` false over a step the
 drive is switched off: no current, no effort. A master that steps this FMU before the
 mechanism over the same interval and passes tau_drive on (Gauss-Seidel) reproduces the
-harness's co-simulation.
+harness's co-simulation (with J_joint set, where the transmission is lossy).
 
 Energies from the start, summed over the steps as the harness's metrics sum them (both take
 each step's energies from `fmu_src.units.drive.dc_motor.step_energies`): E_in = integral of V i dt
@@ -37,6 +40,7 @@ from fmu_src.units.drive.dc_motor import (
     MotorParameters,
     SampledMotor,
     step_energies,
+    stuck_mode_effort,
     transmitted_effort,
     zoh_coefficients,
 )
@@ -50,6 +54,10 @@ class DriveParameters(MotorParameters):
 
     i0: float = parameter(0.0, "A", "Armature current at the start time (e.g. the current "
                           "holding a static load: -tau_gravity / (eta N K_t))")
+    J_joint: float = parameter(0.0, "kg.m2", "Inertia of the joint the drive turns, J_drive "
+                               "included (kg for a prismatic joint); above 0, the effort of a "
+                               "lossy transmission in its stuck mode is held linearly implicit; "
+                               "0: at the step's start speed", min=0.0)
 
 
 class DcMotorDrive(ModelSlave):
@@ -57,7 +65,7 @@ class DcMotorDrive(ModelSlave):
     tau_drive = N K_t i through the lossy transmission."""
 
     parameters_type = DriveParameters
-    hidden_state = ("armature",)
+    hidden_state = ("armature", "previous")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.5, step_size=STEP_SIZE)
 
     def __init__(self, **kwargs: Any) -> None:
@@ -78,6 +86,10 @@ class DcMotorDrive(ModelSlave):
                             initial_depends_on=INITIAL_DEPENDENCIES.get(name, ()))
         self.motor: SampledMotor | None = None
         self.step_size = 0.0  # the step size the motor's coefficients are for [s]
+        # (omega, tau_drive, step size, whether the drive was on) of the last step: the stuck
+        # mode's estimate of the joint's other efforts; a fixed shape, as an FMU state's
+        # hidden part
+        self.previous: tuple[float, float, float, bool] = (0.0, 0.0, STEP_SIZE, False)
 
     def voltage(self) -> float:
         """The input voltage limited to +-V_supply [V]."""
@@ -91,6 +103,7 @@ class DcMotorDrive(ModelSlave):
         self.tau_drive = transmitted_effort(params, params.i0, float(self.omega))
         self.P_elec = self.voltage() * params.i0
         self.E_in = self.E_drawn = self.E_copper = self.E_gear = 0.0
+        self.previous = (0.0, 0.0, STEP_SIZE, False)
 
     def step(self, dt: float) -> None:
         p, motor = self.params, self.motor
@@ -100,6 +113,11 @@ class DcMotorDrive(ModelSlave):
         enabled, omega, i_start = bool(self.enable), float(self.omega), motor.current
         voltage = self.voltage() if enabled else 0.0
         self.i, self.tau_drive = motor.step(voltage, omega, enabled)
+        if p.J_joint > 0.0 and enabled:
+            *before, was_on = self.previous
+            self.tau_drive = stuck_mode_effort(p, self.i, omega, self.tau_drive, p.J_joint, dt,
+                                               tuple(before) if was_on else None)
+        self.previous = (omega, self.tau_drive, dt, enabled)
         self.P_elec = voltage * self.i
         # the drive does not see the joint's travel: its mechanical work is not an output
         energies = step_energies(p, dt, voltage, omega, i_start, self.i, self.tau_drive, 0.0,
@@ -116,6 +134,8 @@ class DcMotorDrive(ModelSlave):
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         current, self.step_size = hidden["armature"]
+        before_omega, before_tau, before_dt, was_on = hidden["previous"]
+        self.previous = (before_omega, before_tau, before_dt, was_on)
         self.motor = SampledMotor(self.params, zoh_coefficients(self.params, self.step_size),
                                   current)
 

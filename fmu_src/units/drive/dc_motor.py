@@ -168,6 +168,25 @@ def held_effort(p: MotorParameters, current: float, omega: float, inertia: float
     return min(max(implicit, min(ends)), max(ends))
 
 
+
+def stuck_mode_effort(p: MotorParameters, current: float, omega: float, effort: float,
+                      inertia: float, dt: float,
+                      previous: tuple[float, float, float] | None) -> float:
+    """The effort [N m or N] a drive holds over a step of dt [s] in a co-simulation, given
+    the effort at the step's start speed: inside the blend of the stuck mode (a joint speed
+    below STUCK_SPEED / N) the linearly implicit `held_effort`, with the joint's inertia [kg
+    m^2 or kg] and the other efforts on the joint estimated from the step before, the
+    acceleration they and its held effort gave: load = inertia (omega - omega_before) /
+    dt_before - effort_before. previous: (omega_before, effort_before, dt_before) of the step
+    before, None when the drive was off over it or there was none (the effort is then the one
+    given)."""
+    edge = STUCK_SPEED / p.N
+    if previous is None or not -edge < omega < edge:
+        return effort
+    omega_before, effort_before, dt_before = previous
+    load = inertia * (omega - omega_before) / dt_before - effort_before
+    return flushed(held_effort(p, current, omega, inertia, dt, load))
+
 def armature_rate(p: MotorParameters, voltage: Any, current: Any, omega: Any) -> Any:
     """The armature equation, di/dt = (V - R_a i - K_e N omega) / L_a [A/s]."""
     return (voltage - armature_voltage(p, current, omega)) / p.L_a
