@@ -11,6 +11,7 @@ import numpy as np
 
 from fmu_src.units.controller.pid import DiscretePID
 from fmu_src.units.drive.dc_motor import (
+    STUCK_SPEED,
     DriveEnergies,
     MotorParameters,
     SampledMotor,
@@ -47,6 +48,7 @@ class SampledDrive:
         self.pid, self.motor, self.reference = pid, motor, list(reference)
         lossy = motor.motor.eta < 1.0 or motor.motor.eta_back < 1.0
         self.inertia = inertia if lossy else None
+        self.blend = STUCK_SPEED / motor.motor.N  # the joint speed below which it blends
         self.enabled = [True] * n_steps if enabled is None else list(enabled)
         self.on = self.enabled[0] if n_steps else True
         self.position, self.speed = [0.0] * (n_steps + 1), [0.0] * (n_steps + 1)
@@ -62,12 +64,13 @@ class SampledDrive:
                 self.on = True
             voltage = self.pid.update(error)
             average, effort = self.motor.step(voltage, speed)
-            if self.inertia is not None:
+            # in the stuck mode's blend only (no call per step outside it)
+            if (self.inertia is not None and -self.blend < speed < self.blend and k > 0
+                    and self.enabled[k - 1]):
                 dt = self.motor.coefficients.dt
-                previous = ((self.speed[k - 1], self.effort[k - 1], dt)
-                            if k > 0 and self.enabled[k - 1] else None)
                 effort = stuck_mode_effort(self.motor.motor, average, speed, effort,
-                                           self.inertia, dt, previous)
+                                           self.inertia, dt,
+                                           (self.speed[k - 1], self.effort[k - 1], dt))
         else:
             self.on = False
             voltage = 0.0

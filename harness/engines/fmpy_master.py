@@ -48,9 +48,9 @@ DriveStep = Callable[[int, float, float], float]  # (k, position, speed) -> effo
 def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         progress: Callable[[int], None] | None = None, motor: Motors = None,
         design: ControllerDesign = ControllerDesign(), fmu: CoSimFMU | None = None,
-        keep_traces: bool = False, drives: Drives = None) -> RunResult:
+        keep_traces: bool = False, drives: Drives = None, series: bool = True) -> RunResult:
     """Co-simulate one variant of a scenario at step_size [s] and return its series and
-    metrics; progress(steps) after every recorded block of steps.
+    metrics; progress(steps) after every block of steps of RECORD_INTERVAL.
 
     drives: each joint's drive by name, else motor's legacy drives
     (`harness.engines.setup.joint_drives`). The variant's own joints are driven too
@@ -58,7 +58,10 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
     that hold it (`Scenario.drive_enabled`). fmu: an instance of the variant's model to reuse (it
     is reset first and left open), e.g. one per worker in a parameter sweep; by default a new
     instance is made and freed. keep_traces: return each joint's `DriveTrace` of every step
-    too (`RunResult.traces`), e.g. to replay the run's efforts.
+    too (`RunResult.traces`), e.g. to replay the run's efforts. series: False records the
+    mechanism's outputs at t = 0 only, for a run whose metrics alone are kept (a study's:
+    reading them every RECORD_INTERVAL takes about a tenth of a run, and changes nothing of
+    it).
     """
     if not (step_size > 0.0 and math.isfinite(step_size)):
         raise UserError(f"step size = {step_size} s is outside (0, inf)")
@@ -106,7 +109,7 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
                                         references[j].tolist(), enabled[j],
                                         joint_inertia(values, joint, drive_motor)))
         run_steps(calls, [drive.step for drive in sampled], times.tolist(), step_size,
-                  progress)
+                  progress, series)
         for j, drive in enumerate(sampled):  # the joints at the end of the run
             drive.end(*calls.states[2 * j:2 * j + 2])
         messages = calls.messages()
@@ -120,12 +123,13 @@ def run(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
 
 
 def run_steps(calls: MasterCalls, drive_steps: list[DriveStep], step_times: list[float],
-              step_size: float, progress: Callable[[int], None] | None = None) -> None:
+              step_size: float, progress: Callable[[int], None] | None = None,
+              record: bool = True) -> None:
     """The master's loop over steps k = 0 .. len(step_times) - 2 of step_size [s]: per step,
     each joint's drive step gives its effort from the joint's position and speed at t_k
     (calls.states[2 j] and [2 j + 1]), then the FMU steps from step_times[k]
-    (`MasterCalls.step`). `calls.record()` at t = 0 and after every full block of steps of
-    RECORD_INTERVAL, each followed by progress(steps in the block).
+    (`MasterCalls.step`). `calls.record()` at t = 0 and (unless record is False) after every
+    full block of steps of RECORD_INTERVAL, each block followed by progress(steps in it).
 
     FMUCallError when the FMU refuses a call."""
     efforts, states, n_steps = calls.efforts, calls.states, len(step_times) - 1
@@ -139,6 +143,7 @@ def run_steps(calls: MasterCalls, drive_steps: list[DriveStep], step_times: list
                 efforts[j] = drive_step(k, states[2 * j], states[2 * j + 1])
             calls.step(k, step_times[k], step_size)
         if last - first == record_every:
-            calls.record()
+            if record:
+                calls.record()
             if progress is not None:
                 progress(record_every)

@@ -798,17 +798,20 @@ def study_lead(results: Results) -> list[str]:
 
 
 def study_step_error(results: Results, names: list[str]) -> str:
-    """The studies' step and the largest error it leaves in a run's E_drawn per loss set,
-    against 0.5 ms steps (`bench/study_step.csv`, where `make bench` wrote it)."""
-    steps = sorted({json.loads((results.folder / "study" / name / "settings.json").read_text())
-                    ["step"] for name in names})
-    took = f"The runs take steps of {' and '.join(plain(1e3 * h) for h in steps)} ms"
+    """The studies' steps and the largest error each study's own step leaves in a run's
+    E_drawn per loss set, against the finest step (`bench/study_step.csv`, where `make
+    bench` wrote it)."""
+    steps = {name: json.loads((results.folder / "study" / name / "settings.json").read_text())
+             ["step"] for name in names}
+    took = ("The runs take steps of "
+            + ", ".join(f"{plain(1e3 * step)} ms ({name})" for name, step in steps.items()))
     link = "([docs/study.md](docs/study.md#the-step-and-its-error))"
     if not (results.folder / "bench" / "study_step.csv").is_file():
         return f"{took}; `make bench` measures the error they leave {link}."
     table = results.csv("bench/study_step")
-    worst = table[table.step_size.isin(steps)].groupby("losses").rel_error.apply(
-        lambda errors: errors.abs().max())
+    own = table[[steps.get(name) == step for name, step in zip(table.scenario,
+                                                                    table.step_size)]]
+    worst = own.groupby("losses").rel_error.apply(lambda errors: errors.abs().max())
     return (f"{took}, which leave a run's E_drawn within "
             + " and ".join(f"{number(error, 2)} ({loss_set} set)"
                            for loss_set, error in worst.items())

@@ -21,6 +21,7 @@ import argparse
 import hashlib
 import json
 import shlex
+import signal
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -215,10 +216,11 @@ def run(args: argparse.Namespace) -> int:
                 print(f"error: all {len(runs)} runs of {name} failed; the first: "
                       f"{runs.error.iloc[0]}", file=sys.stderr)
                 return 1
-    except KeyboardInterrupt:   # harness.cli exits with 130 (SIGINT) or 143 (SIGTERM)
-        print("the finished tasks' runs are stored; run the same command to resume",
-              file=sys.stderr)
-        raise
+    except KeyboardInterrupt:   # SIGINT (exit 130) or SIGTERM (143), as harness.cli's
+        terminated = interrupts.received == signal.SIGTERM
+        print(f"{'terminated' if terminated else 'interrupted'}: the finished tasks' runs are "
+              "stored; run the same command to resume", file=sys.stderr)
+        return 143 if terminated else 130
     finally:
         with interrupts.deferred():
             for c in clients:
