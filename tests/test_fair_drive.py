@@ -110,15 +110,17 @@ def test_the_held_effort_is_implicit_euler_inside_the_stuck_mode() -> None:
     the blend is linear); outside it, or lossless, it is the effort at the start speed."""
     p, i, inertia, dt, load = LOSSY, 1.5, 0.1, 2e-3, -3.8
     omega = 0.6 * STUCK_SPEED / p.N
-    effort = held_effort(p, i, omega, inertia, dt, load)
+    effort = held_effort(p, i, omega, transmitted_effort(p, i, omega), inertia, dt, load)
     end = omega + dt * (load + effort) / inertia
     assert 0.0 < end < omega
     assert effort == pytest.approx(transmitted_effort(p, i, end), rel=1e-12)
     assert stuck_damping(p, i, omega) * dt / inertia > 2.0  # explicit: unstable here
     fast = 1.5 * STUCK_SPEED / p.N
-    assert held_effort(p, i, fast, inertia, dt, load) == transmitted_effort(p, i, fast)
+    assert held_effort(p, i, fast, transmitted_effort(p, i, fast), inertia, dt,
+                       load) == transmitted_effort(p, i, fast)
     lossless = MotorParameters(N=111.0)
-    assert held_effort(lossless, i, omega, inertia, dt, load) == p.N * p.K_t * i
+    assert held_effort(lossless, i, omega, transmitted_effort(lossless, i, omega), inertia,
+                       dt, load) == p.N * p.K_t * i
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -132,7 +134,8 @@ def test_the_held_effort_stays_within_what_the_gear_passes(seed: int) -> None:
                             eta_back=rng.uniform(0.3, 1.0))
         i = rng.choice([0.0, rng.uniform(-5.0, 5.0)])
         omega = rng.choice([0.0, rng.uniform(-2.0, 2.0) * STUCK_SPEED / p.N])
-        effort = held_effort(p, i, omega, rng.uniform(1e-3, 2.0), rng.choice([1e-4, 2e-3, 8e-3]),
+        effort = held_effort(p, i, omega, transmitted_effort(p, i, omega),
+                             rng.uniform(1e-3, 2.0), rng.choice([1e-4, 2e-3, 8e-3]),
                              rng.uniform(-50.0, 50.0))
         ideal = p.N * p.K_t * i
         low, high = sorted((ideal * p.eta, ideal / p.eta_back))

@@ -11,7 +11,6 @@ import numpy as np
 
 from fmu_src.units.controller.pid import DiscretePID
 from fmu_src.units.drive.dc_motor import (
-    STUCK_SPEED,
     DriveEnergies,
     MotorParameters,
     SampledMotor,
@@ -48,7 +47,7 @@ class SampledDrive:
         self.pid, self.motor, self.reference = pid, motor, list(reference)
         lossy = motor.motor.eta < 1.0 or motor.motor.eta_back < 1.0
         self.inertia = inertia if lossy else None
-        self.blend = STUCK_SPEED / motor.motor.N  # the joint speed below which it blends
+        self.blend = motor.motor.blend_speed
         self.enabled = [True] * n_steps if enabled is None else list(enabled)
         self.on = self.enabled[0] if n_steps else True
         self.position, self.speed = [0.0] * (n_steps + 1), [0.0] * (n_steps + 1)
@@ -64,7 +63,7 @@ class SampledDrive:
                 self.on = True
             voltage = self.pid.update(error)
             average, effort = self.motor.step(voltage, speed)
-            # in the stuck mode's blend only (no call per step outside it)
+            # inside the stuck mode's blend only: no call per step outside it
             if (self.inertia is not None and -self.blend < speed < self.blend and k > 0
                     and self.enabled[k - 1]):
                 dt = self.motor.coefficients.dt

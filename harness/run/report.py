@@ -811,7 +811,7 @@ def study_step_error(results: Results, names: list[str]) -> str:
     table = results.csv("bench/study_step")
     own = table[[steps.get(name) == step for name, step in zip(table.scenario,
                                                                     table.step_size)]]
-    worst = own.groupby("losses").rel_error.apply(lambda errors: errors.abs().max())
+    worst = own.groupby("losses").rel_error.max()
     return (f"{took}, which leave a run's E_drawn within "
             + " and ".join(f"{number(error, 2)} ({loss_set} set)"
                            for loss_set, error in worst.items())
@@ -917,8 +917,7 @@ def study_performance(results: Results) -> list[str]:
     table, steps = results.csv("bench/study"), results.csv("bench/study_step")
     one = table[table.setting == "one process"].iloc[0]
     dask = table[table.setting != "one process"]
-    worst = steps.assign(rel_error=steps.rel_error.abs()).groupby(
-        ["step_size", "losses"]).rel_error.max().unstack()
+    worst = steps.groupby(["step_size", "losses"]).rel_error.max().unstack()
     return [
         f"A study (`study.csv`: the {int(one.runs)} runs of franchetti2021's first study tasks, "
         "every variant in both loss sets): in one process "

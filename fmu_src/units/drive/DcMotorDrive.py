@@ -114,9 +114,10 @@ class DcMotorDrive(ModelSlave):
         voltage = self.voltage() if enabled else 0.0
         self.i, self.tau_drive = motor.step(voltage, omega, enabled)
         if p.J_joint > 0.0 and enabled:
-            *before, was_on = self.previous
-            self.tau_drive = stuck_mode_effort(p, self.i, omega, self.tau_drive, p.J_joint, dt,
-                                               tuple(before) if was_on else None)
+            omega_before, tau_before, dt_before, was_on = self.previous
+            self.tau_drive = stuck_mode_effort(
+                p, self.i, omega, self.tau_drive, p.J_joint, dt,
+                (omega_before, tau_before, dt_before) if was_on else None)
         self.previous = (omega, self.tau_drive, dt, enabled)
         self.P_elec = voltage * self.i
         # the drive does not see the joint's travel: its mechanical work is not an output
@@ -134,8 +135,7 @@ class DcMotorDrive(ModelSlave):
 
     def restore_hidden_state(self, hidden: dict[str, Any]) -> None:
         current, self.step_size = hidden["armature"]
-        before_omega, before_tau, before_dt, was_on = hidden["previous"]
-        self.previous = (before_omega, before_tau, before_dt, was_on)
+        self.previous = tuple(hidden["previous"])
         self.motor = SampledMotor(self.params, zoh_coefficients(self.params, self.step_size),
                                   current)
 

@@ -83,6 +83,12 @@ class MotorParameters:
         return self.N * self.K_t
 
     @property
+    def blend_speed(self) -> float:
+        """The joint speed below which the transmission blends into its stuck mode,
+        STUCK_SPEED / N [rad/s or m/s]."""
+        return STUCK_SPEED / self.N
+
+    @property
     def back_emf_per_link_speed(self) -> float:
         """Armature back-EMF per joint speed, K_e N [V s/rad]."""
         return self.K_t * self.N
@@ -126,40 +132,40 @@ def stuck_damping(p: MotorParameters, current: float, omega: float) -> float:
     [N m s/rad or N s/m]: N K_t |i| N / STUCK_SPEED times the direction's loss, 1 - eta where
     the motor drives the joint and 1/eta_back - 1 where the joint drives it (the larger at
     standstill), inside the blend (motor speed below STUCK_SPEED); 0 outside it."""
-    motor_speed = omega * p.N
-    if not -STUCK_SPEED < motor_speed < STUCK_SPEED:
+    edge = p.blend_speed
+    if not -edge < omega < edge:
         return 0.0
     forward, backward = 1.0 - p.eta, 1.0 / p.eta_back - 1.0
-    drive = motor_speed * current
+    drive = omega * current
     loss = forward if drive > 0.0 else backward if drive < 0.0 else max(forward, backward)
     return p.standstill_torque_per_amp * abs(current) * p.N / STUCK_SPEED * loss
 
 
-def held_effort(p: MotorParameters, current: float, omega: float, inertia: float, dt: float,
-                load: float) -> float:
+def held_effort(p: MotorParameters, current: float, omega: float, effort: float,
+                inertia: float, dt: float, load: float) -> float:
     """The effort [N m or N] a drive holds over a step of dt [s] in a co-simulation: the
     transmission's effort at the joint's speed at the step's end rather than at its start.
 
     Inside the blend of the stuck mode the effort falls steeply with the speed (damping c,
     `stuck_damping`); held at the start speed omega, it makes the loop unstable once c dt /
     inertia > 2, and the joint then chatters through standstill at a rate set by the step
-    (docs/drives.md). Linearly implicit instead: with the joint's inertia [kg m^2 or kg]
-    and the other efforts on it, load [N m or N] (as estimated from the last step), the
-    speed at the step's end is omega + dt (load + effort) / inertia, and the effort is
+    (docs/drives.md). Linearly implicit instead: from effort, transmitted_effort(i, omega),
+    with the joint's inertia [kg m^2 or kg] and the other efforts on it, load [N m or N] (as
+    estimated from the last step), the speed at the step's end is omega + dt (load + E) /
+    inertia, and the held effort is
 
-        (transmitted_effort(i, omega) - r load) / (1 + r),   r = c dt / inertia,
+        E = (effort - r load) / (1 + r),   r = c dt / inertia,
 
     kept within what the gear can pass at that speed: between its lossless value N K_t i and
     its value at full efficiency in omega's direction, or between its two efficiencies'
     values at standstill, so that its loss (N K_t i - effort) omega is never negative.
-    Outside the blend, or with a lossless transmission, it is transmitted_effort(i, omega);
-    as dt goes to 0 it tends to it, so the scheme converges to the same model."""
-    explicit = transmitted_effort(p, current, omega)
+    Outside the blend, or with a lossless transmission, it is effort; as dt goes to 0 it
+    tends to it, so the scheme converges to the same model."""
     damping = stuck_damping(p, current, omega)
     if damping == 0.0:
-        return explicit
+        return effort
     ratio = damping * dt / inertia
-    implicit = (explicit - ratio * load) / (1.0 + ratio)
+    implicit = (effort - ratio * load) / (1.0 + ratio)
     lossless = p.standstill_torque_per_amp * current
     if omega == 0.0:
         ends = (lossless * p.eta, lossless / p.eta_back)
@@ -168,24 +174,22 @@ def held_effort(p: MotorParameters, current: float, omega: float, inertia: float
     return min(max(implicit, min(ends)), max(ends))
 
 
-
 def stuck_mode_effort(p: MotorParameters, current: float, omega: float, effort: float,
                       inertia: float, dt: float,
                       previous: tuple[float, float, float] | None) -> float:
     """The effort [N m or N] a drive holds over a step of dt [s] in a co-simulation, given
-    the effort at the step's start speed: inside the blend of the stuck mode (a joint speed
-    below STUCK_SPEED / N) the linearly implicit `held_effort`, with the joint's inertia [kg
-    m^2 or kg] and the other efforts on the joint estimated from the step before, the
-    acceleration they and its held effort gave: load = inertia (omega - omega_before) /
-    dt_before - effort_before. previous: (omega_before, effort_before, dt_before) of the step
-    before, None when the drive was off over it or there was none (the effort is then the one
-    given)."""
-    edge = STUCK_SPEED / p.N
-    if previous is None or not -edge < omega < edge:
+    the effort at the step's start speed: the linearly implicit `held_effort` (the effort
+    given outside the stuck mode's blend), with the joint's inertia [kg m^2 or kg] and the
+    other efforts on the joint estimated from the step before, the acceleration they and its
+    held effort gave: load = inertia (omega - omega_before) / dt_before - effort_before.
+    previous: (omega_before, effort_before, dt_before) of the step before, None when the
+    drive was off over it or there was none (the effort is then the one given)."""
+    if previous is None:
         return effort
     omega_before, effort_before, dt_before = previous
     load = inertia * (omega - omega_before) / dt_before - effort_before
-    return flushed(held_effort(p, current, omega, inertia, dt, load))
+    return flushed(held_effort(p, current, omega, effort, inertia, dt, load))
+
 
 def armature_rate(p: MotorParameters, voltage: Any, current: Any, omega: Any) -> Any:
     """The armature equation, di/dt = (V - R_a i - K_e N omega) / L_a [A/s]."""
