@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import sys
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -16,8 +16,8 @@ import pandas as pd
 import pytest
 
 from fmu_src import integration
-from harness import registry
-from harness.engines import fmpy_master
+from harness import engines, registry
+from harness.engines import DEFAULT_STEP
 from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU, FMICallException
@@ -182,12 +182,13 @@ def failed_initialisation(model: str, parameters: Mapping[str, float]) -> str:
 
 
 def fair_run(scenario: Scenario, variant: str, loss_set: str = "ideal",
-             engine: Callable[..., RunResult] | None = None, **options: Any) -> RunResult:
+             engine: str = "fmpy", step_size: float = DEFAULT_STEP, **options: Any
+             ) -> RunResult:
     """A run of the variant (scenario: the loss set's) with the drives its committed result
-    set ran with (results/<scenario>/drives.csv), by the FMPy master or engine."""
-    return (engine or fmpy_master.run)(scenario, scenario.variant(variant),
-                                       drives=committed_drives(scenario, variant, loss_set),
-                                       **options)
+    set ran with (results/<scenario>/drives.csv), by the named engine (the FMPy master by
+    default) with its options."""
+    return engines.run(engine, scenario, scenario.variant(variant), step_size,
+                       drives=committed_drives(scenario, variant, loss_set), **options)
 
 
 def committed_drives(scenario: Scenario, variant: str, loss_set: str = "ideal"

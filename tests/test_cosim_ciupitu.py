@@ -24,7 +24,8 @@ from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from harness import scenarios
 from harness.design import ciupitu as ciupitu_design
 from harness.drive.motor import MotorParameters
-from harness.engines import fmpy_master, reference
+from harness.engines import fmpy_master
+from harness.engines.plan import physics_parameters, prepare
 from harness.engines.result import RunResult
 from harness.run import results
 
@@ -58,7 +59,7 @@ def cycle() -> dict[str, RunResult]:
 def monolithic() -> dict[str, RunResult]:
     """The monolithic reference of each cycle variant (rtol 1e-6: E_drawn to 1e-7 of the
     rtol 1e-9 result, in a fifth of the time)."""
-    return {v: fair_run(CYCLE, v, engine=reference.run, rtol=1e-6) for v in CYCLE_VARIANTS}
+    return {v: fair_run(CYCLE, v, engine="reference", rtol=1e-6) for v in CYCLE_VARIANTS}
 
 
 def stroke_work(variant: str, direction: float) -> float:
@@ -181,7 +182,7 @@ def rigid_arm_energy(m2: float, AB: float, step: float = 1e-3) -> float:
     J_drive + m_fixed_cw c_fixed_cw^2 + m2 AB^2 + payload w^2, the motor without inductance,
     and P = (R_a i + K_e theta') i integrated where positive."""
     variant = FRANCHETTI.variant("ciupitu")
-    p = reference.parameters(ciupitu, FRANCHETTI, variant, MOTOR)
+    p = physics_parameters(ciupitu, prepare(FRANCHETTI, variant, motor=MOTOR).parameters)
     times = np.arange(round(FRANCHETTI.duration / step) + 1) * step
     theta = FRANCHETTI.reference(times)
     omega = np.gradient(theta, step)
@@ -235,7 +236,7 @@ def test_ciupitu_saves_drive_energy(franchetti: dict[str, RunResult],
     # the design's prediction (perfect tracking, no inductance) is what its drive, the legacy
     # one it is made for, draws
     legacy = FRANCHETTI.drives_always_on()
-    assert fmpy_master.run(legacy, legacy.variant("ciupitu")).metrics["E_drawn"] == (
+    assert fmpy_master.run(prepare(legacy, legacy.variant("ciupitu"))).metrics["E_drawn"] == (
         pytest.approx(chosen.E_drawn, rel=0.005))
     # 0.023 deg rms measured: the design's loop alone leaves 0.019 deg on this reference
     # (test_cosim_franchetti), the counterweight's small unbalance the rest
@@ -246,7 +247,7 @@ def test_ciupitu_saves_drive_energy(franchetti: dict[str, RunResult],
 def test_franchetti_ciupitu_matches_monolithic_reference(
         franchetti: dict[str, RunResult]) -> None:
     assert_matches_reference(franchetti["ciupitu"],
-                             fair_run(FRANCHETTI, "ciupitu", engine=reference.run))
+                             fair_run(FRANCHETTI, "ciupitu", engine="reference"))
 
 
 def test_rerun_reproduces_committed_results(cycle: dict[str, RunResult],

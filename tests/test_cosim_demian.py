@@ -17,7 +17,6 @@ from conftest import (
 
 from harness import scenarios
 from harness.drive.motor import MOTORS
-from harness.engines import reference
 from harness.engines.result import RunResult
 
 SCENARIO = scenarios.load("demian2022")
@@ -146,7 +145,7 @@ def test_compensation_saves_the_drive_energy(runs: dict[str, RunResult]) -> None
 
 @pytest.fixture(scope="module")
 def monolithic() -> dict[str, RunResult]:
-    return {v: fair_run(SCENARIO, v, engine=reference.run) for v in VARIANTS}
+    return {v: fair_run(SCENARIO, v, engine="reference") for v in VARIANTS}
 
 
 @pytest.mark.parametrize("variant", VARIANTS)

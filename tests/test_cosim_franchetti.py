@@ -19,7 +19,6 @@ from fmu_src.mechanisms.active_spring import physics as active_spring
 from fmu_src.mechanisms.self_regulating.physics import Parameters
 from harness import scenarios
 from harness.drive.motor import MOTORS, MotorParameters
-from harness.engines import reference
 from harness.engines.result import RunResult
 from harness.run import results
 
@@ -177,7 +176,7 @@ def test_active_relocation_draws_for_both_drives(runs: dict[str, RunResult]) -> 
 
 @pytest.fixture(scope="module")
 def monolithic() -> dict[str, RunResult]:
-    return {v: fair_run(SCENARIO, v, engine=reference.run) for v in VARIANTS}
+    return {v: fair_run(SCENARIO, v, engine="reference") for v in VARIANTS}
 
 
 # about 9 s: the monolithic reference of every variant (demian2022's runs in make test)

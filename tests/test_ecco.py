@@ -23,7 +23,9 @@ from harness.drive import metrics
 from harness.engines import DEFAULT_STEP, fmpy_master, result, writers
 from harness.engines import libcosim as engines
 from harness.engines import system as description
+from harness.engines.plan import prepare
 from harness.engines.result import RunResult
+from harness.engines.settings import EccoSettings
 from harness.fmu import osp
 
 FRANCHETTI = scenarios.load("franchetti2021")
@@ -34,7 +36,7 @@ OSP = f"{{{writers.OSP_NS}}}"
 @functools.cache
 def harness_run(scenario_name: str, variant: str, step: float) -> RunResult:
     scenario = scenarios.load(scenario_name)
-    return fmpy_master.run(scenario, scenario.variant(variant), step, keep_traces=True)
+    return fmpy_master.run(prepare(scenario, scenario.variant(variant), step), keep_traces=True)
 
 
 @pytest.mark.parametrize(("scenario", "variant", "count"), [
@@ -42,7 +44,7 @@ def harness_run(scenario_name: str, variant: str, step: float) -> RunResult:
     (DEMIAN, "compensated", 2)])
 def test_bonds_are_the_registered_ports_the_osp_files_declare(
         scenario: scenarios.Scenario, variant: str, count: int) -> None:
-    described = description.describe(scenario, scenario.variant(variant))
+    described = description.describe(prepare(scenario, scenario.variant(variant)))
     bonds = described.bonds
     assert len(bonds) == count == len(scenario.for_variant(scenario.variant(variant)).joints)
     for bond in bonds:
@@ -109,9 +111,9 @@ def test_ecco_osp_file_loads_in_libcosim(tmp_path: Path) -> None:
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimObserver import CosimObserver
 
-    settings = description.EccoSettings(abs_tolerance=1e-6)
-    described = description.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"),
-                                ecco=settings)
+    settings = EccoSettings(abs_tolerance=1e-6)
+    described = description.describe(prepare(FRANCHETTI, FRANCHETTI.variant("self_regulating")),
+                                     ecco=settings)
     path = writers.write_osp(described, tmp_path / "one")
     root = ET.parse(path).getroot()
     assert root.find(f"{OSP}Algorithm").text == "ecco"
@@ -125,13 +127,13 @@ def test_ecco_osp_file_loads_in_libcosim(tmp_path: Path) -> None:
     execution.add_observer(CosimObserver.create_last_value())  # exposes the bonds' inputs
     assert execution.step(5)
     assert execution.status().current_time > 0
-    two = description.describe(DEMIAN, DEMIAN.variant("compensated"), ecco=settings)
+    two = description.describe(prepare(DEMIAN, DEMIAN.variant("compensated")), ecco=settings)
     with pytest.raises(AssertionError, match="number of powerbonds"):
         CosimExecution.from_osp_config_file(str(writers.write_osp(two, tmp_path / "two")))
 
 
 def test_fixed_algorithm_is_the_default_and_writes_no_bond(tmp_path: Path) -> None:
-    described = description.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"))
+    described = description.describe(prepare(FRANCHETTI, FRANCHETTI.variant("self_regulating")))
     assert described.ecco is None
     text = writers.write_osp(described, tmp_path).read_text()
     assert "<Algorithm>fixedStep</Algorithm>" in text
@@ -156,8 +158,9 @@ def test_ecco_runs_demian2022_with_variable_steps_and_reports_its_events() -> No
     """ECCO's steps vary; its E_drawn agrees with the harness's; the phases' starts are not
     all hit, and the lag it reports is the first point at or after each start, at most the
     largest step; the mechanism sees the scenario's switches no earlier than scheduled."""
-    settings = description.EccoSettings(abs_tolerance=1e-5)
-    described = description.describe(DEMIAN, DEMIAN.variant("compensated"), ecco=settings)
+    settings = EccoSettings(abs_tolerance=1e-5)
+    described = description.describe(prepare(DEMIAN, DEMIAN.variant("compensated")),
+                                     ecco=settings)
     run = engines.run_libcosim(described)
     harness = harness_run("demian2022", "compensated", DEFAULT_STEP)
     assert run.metrics["E_drawn"] == pytest.approx(harness.metrics["E_drawn"], rel=0.01)
@@ -175,9 +178,9 @@ def test_ecco_runs_demian2022_with_variable_steps_and_reports_its_events() -> No
 
 @pytest.mark.slow   # about 20 s: ECCO on the 35 s task with its locks
 def test_ecco_lock_switches_at_the_first_point_after_the_phase_start() -> None:
-    settings = description.EccoSettings(abs_tolerance=1e-6)
-    described = description.describe(FRANCHETTI, FRANCHETTI.variant("self_regulating"),
-                                ecco=settings)
+    settings = EccoSettings(abs_tolerance=1e-6)
+    described = description.describe(prepare(FRANCHETTI, FRANCHETTI.variant("self_regulating")),
+                                     ecco=settings)
     run = engines.run_libcosim(described)
     series = run.series
     lag = run.metrics["event_lag_max"]
@@ -218,11 +221,11 @@ def test_ecco_with_its_step_frozen_reproduces_the_fixed_step(tmp_path: Path) -> 
     """Change rates of 1 keep ECCO at its first step (to libcosim's rounding of the step to
     the time, about 1 ns a step): the same Jacobi master as the fixed step, so the variable-
     step accounting must give the fixed step's figures."""
-    fixed_system = description.describe(DEMIAN, DEMIAN.variant("compensated"))
+    fixed_system = description.describe(prepare(DEMIAN, DEMIAN.variant("compensated")))
     fixed = engines.run_libcosim(fixed_system, writers.write_osp(fixed_system, tmp_path))
     frozen = engines.run_libcosim(description.describe(
-        DEMIAN, DEMIAN.variant("compensated"),
-        ecco=description.EccoSettings(min_change_rate=1.0, max_change_rate=1.0)))
+        prepare(DEMIAN, DEMIAN.variant("compensated")),
+        ecco=EccoSettings(min_change_rate=1.0, max_change_rate=1.0)))
     assert frozen.metrics["steps"] == pytest.approx(DEMIAN.duration / DEFAULT_STEP,
                                                     rel=1e-3)
     for name in ("E_drawn", "E_in", "E_copper", "W_link", *(

@@ -32,6 +32,7 @@ from harness.drive.motor import sampled_motor
 from harness.drive.sizing import MARGIN, JointLoad, choose, evaluate
 from harness.drive.trace import SampledDrive
 from harness.engines import fmpy_master
+from harness.engines.plan import prepare
 from harness.run.report import LEGACY_E_DRAWN
 from harness.run.results import RESULTS_DIR
 
@@ -298,5 +299,5 @@ def test_the_legacy_configuration_reproduces_the_tables_before_the_fair_protocol
     legacy = scenarios.load("franchetti2021").drives_always_on()
     for variant, drawn in (("self_regulating", 0.06990653125),
                            ("active_relocation", LEGACY_E_DRAWN["active_relocation"])):
-        run = fmpy_master.run(legacy, legacy.variant(variant))
+        run = fmpy_master.run(prepare(legacy, legacy.variant(variant)))
         assert run.metrics["E_drawn"] == pytest.approx(drawn, rel=1e-9)

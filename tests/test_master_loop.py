@@ -15,6 +15,7 @@ from fmu_src.units.drive.dc_motor import MotorParameters, SampledMotor, zoh_coef
 from harness import bench, scenarios
 from harness.drive.trace import SampledDrive
 from harness.engines import fmpy_master
+from harness.engines.plan import prepare
 from harness.fmu.loader import FMUCallError
 
 
@@ -34,7 +35,7 @@ def test_a_refused_step_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
     assembled = []
     monkeypatch.setattr(fmpy_master, "assemble", lambda *args: assembled.append(args))
     with pytest.raises(FMUCallError) as failure:
-        fmpy_master.run(scenario, scenario.variant("self_regulating"))
+        fmpy_master.run(prepare(scenario, scenario.variant("self_regulating")))
     assert failure.value.function == "fmi2SetReal" and failure.value.status == 3  # fmi2Error
     assert "input tau_drive = nan N.m is not a finite number in [-inf, inf]" in str(
         failure.value) and "\n" not in str(failure.value)

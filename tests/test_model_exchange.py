@@ -29,6 +29,7 @@ from fmpy.validation import validate_fmu
 
 from harness import registry, scenarios
 from harness.engines import fmpy_master, fmu_me, reference
+from harness.engines.plan import prepare
 from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
 from harness.fmu import model_exchange as me
@@ -81,7 +82,7 @@ def test_one_model_description_offers_both_interfaces(model: str) -> None:
 def master_run(scenario_name: str, variant: str) -> RunResult:
     """The co-simulation run whose efforts drive the open-loop runs (one per variant)."""
     scenario = scenarios.load(scenario_name)
-    return fmpy_master.run(scenario, scenario.variant(variant))
+    return fmpy_master.run(prepare(scenario, scenario.variant(variant)))
 
 
 def staircase_of(model: str, stop: float) -> tuple:
@@ -213,8 +214,8 @@ def test_engine_draws_the_energy_of_the_monolithic_reference() -> None:
     10 rtol of each other (measured 5e-9 relative)."""
     scenario = scenarios.load("demian2022")
     variant = scenario.variant("compensated")
-    engine = fmu_me.run(scenario, variant, rtol=1e-7).metrics["E_drawn"]
-    monolithic = reference.run(scenario, variant).metrics["E_drawn"]
+    engine = fmu_me.run(prepare(scenario, variant), rtol=1e-7).metrics["E_drawn"]
+    monolithic = reference.run(prepare(scenario, variant)).metrics["E_drawn"]
     assert engine == pytest.approx(monolithic, rel=1e-6)
 
 
@@ -226,9 +227,9 @@ def test_engine_draws_the_energy_of_the_master_within_its_coupling_error() -> No
     from rtol to rtol / 10)."""
     scenario = scenarios.load("demian2022")
     variant = scenario.variant("compensated")
-    drawn = {step: fmpy_master.run(scenario, variant, step).metrics["E_drawn"]
+    drawn = {step: fmpy_master.run(prepare(scenario, variant, step)).metrics["E_drawn"]
              for step in (1e-3, 2e-3)}
-    engine = {rtol: fmu_me.run(scenario, variant, rtol=rtol).metrics["E_drawn"]
+    engine = {rtol: fmu_me.run(prepare(scenario, variant), rtol=rtol).metrics["E_drawn"]
               for rtol in (1e-7, 1e-8)}
     allowed = 2.0 * (abs(drawn[2e-3] - drawn[1e-3]) + abs(engine[1e-7] - engine[1e-8]))
     assert abs(engine[1e-8] - drawn[1e-3]) <= allowed, (engine, drawn)

@@ -25,6 +25,7 @@ from fmu_src.mechanisms.prismatic import physics as prismatic
 from harness import registry, scenarios
 from harness.bench import steps as bench_steps
 from harness.engines import reference
+from harness.engines.plan import physics_module, prepare
 from harness.fmu import build as fmu_build
 from harness.fmu import docs as fmu_docs
 from harness.fmu import osp
@@ -198,7 +199,7 @@ def test_a_mechanism_added_as_its_own_files_is_wired_by_the_harness(
     models = registry.models(scratch_source)
     assert set(models) == {*fmu_build.MODELS, SCRATCH_MODEL}
     assert SCRATCH_MODEL in registry.mechanisms(scratch_source)
-    assert (reference.physics_module(SCRATCH_MODEL).__name__
+    assert (physics_module(SCRATCH_MODEL).__name__
             == "fmu_src.mechanisms.pendulum.physics")
     (joint,) = osp.model_groups(SCRATCH_MODEL)
     assert (joint.kind, [m.variables for m in joint.members]) == (
@@ -221,7 +222,7 @@ def test_the_monolithic_reference_runs_the_added_mechanism(scratch_source: Path)
     held) in the monolithic reference: the drive's work on the link is the potential energy
     it gained, m g l (1 - cos theta_end), and it ends at the target."""
     scenario = scenarios.load(SCRATCH / "scratch_swing.toml")
-    result = reference.run(scenario, scenario.variant("pendulum"))
+    result = reference.run(prepare(scenario, scenario.variant("pendulum")))
     assert result.series.time.iloc[-1] == pytest.approx(scenario.duration, abs=1e-12)
     theta_end = result.series[scenario.joints[0].position].iloc[-1]
     assert theta_end == pytest.approx(math.pi / 2, abs=1e-8)

@@ -26,7 +26,7 @@ from fmu_src.units.sequencer import scenario as core
 from fmu_src.units.sequencer.ScenarioSequencer import EMBEDDED_MODULE
 from harness import scenarios
 from harness.drive import motor as drive
-from harness.engines.setup import enabled_steps
+from harness.engines.plan import enabled_steps
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
 from harness.scenarios import RAMP_SHAPES

@@ -23,6 +23,7 @@ from harness import scenarios
 from harness import sweeps as sweep
 from harness.drive.controller import ControllerDesign
 from harness.engines import fmpy_master
+from harness.engines.plan import prepare
 from harness.errors import UserError
 from harness.scenarios import Ramp
 from harness.sweeps import definition, execution, paths, plots
@@ -146,10 +147,10 @@ def test_sweep_equals_runs_one_by_one_and_records_failures(tmp_path: Path) -> No
             assert row.status == "failed"
             assert "k = -1.0 N/m is outside [0.0, inf)" in row.error
             with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
-                fmpy_master.run(scenario, scenario.variant(row.variant))
+                fmpy_master.run(prepare(scenario, scenario.variant(row.variant)))
             continue
         assert row.status == "ok" and row.error == ""
-        expected = fmpy_master.run(scenario, scenario.variant(row.variant)).metrics
+        expected = fmpy_master.run(prepare(scenario, scenario.variant(row.variant))).metrics
         for metric in loaded.metrics:
             assert getattr(row, metric) == expected[metric], (row.run_id, metric)
         assert row.payload_max == pytest.approx(8.2857, abs=1e-4)

@@ -25,6 +25,7 @@ from fmpy.ssp.ssd import read_ssd
 from harness import cli, scenarios
 from harness.engines import fmpy_master, libcosim, writers
 from harness.engines import system as description
+from harness.engines.plan import prepare
 from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
 from harness.run import results
@@ -49,8 +50,8 @@ def harness_run() -> RunResult:
 
 @pytest.fixture(scope="module")
 def described() -> description.System:
-    return description.describe(SCENARIO, SCENARIO.variant(VARIANT),
-                                drives=committed_drives(SCENARIO, VARIANT))
+    return description.describe(prepare(SCENARIO, SCENARIO.variant(VARIANT),
+                                        drives=committed_drives(SCENARIO, VARIANT)))
 
 
 def run_command(engine: str, out: Path, variant: str = VARIANT) -> pd.DataFrame:
@@ -191,7 +192,7 @@ def test_ssd_is_valid_ssp_with_the_harness_parameters(
     for name, value in gains._asdict().items():
         assert float(values["controller"][name]) == value, name
     # the drive starts holding the link's static load: i0 K_t N = -tau_gravity(60 deg)
-    motor = described.drives[0].parameters
+    motor = described.plan.drives[0].motor
     tau_gravity = 3.0 * 9.81 * 0.2 * np.sin(np.radians(60.0))   # m g c sin(theta0), k = 0
     assert float(values["drive"]["i0"]) * motor.standstill_torque_per_amp == pytest.approx(
         -tau_gravity)
@@ -205,7 +206,7 @@ def test_ssd_is_valid_ssp_with_the_harness_parameters(
 def test_libcosim_runs_active_relocation_with_the_variants_own_drive(tmp_path: Path) -> None:
     """active_relocation's own joint q (the spring anchor's carriage) gets a controller and a
     trapezoidal-screw drive of its own, fed by the sequencer's q_ref."""
-    described = description.describe(SCENARIO, SCENARIO.variant("active_relocation"))
+    described = description.describe(prepare(SCENARIO, SCENARIO.variant("active_relocation")))
     assert set(described.models) == {"sequencer", "controller_theta", "drive_theta",
                                      "controller_q", "drive_q", "mechanism"}
     assert ("sequencer", "q_ref", "controller_q", "theta_ref") in described.connections
@@ -234,7 +235,7 @@ def test_libcosim_runs_the_two_drive_demian2022_system_like_the_harness(
     smallest drive energies, where the loop's delay weighs most."""
     demian = scenarios.load("demian2022")
     variant = demian.variant("compensated")
-    described = description.describe(demian, variant)
+    described = description.describe(prepare(demian, variant))
     assert set(described.models) == {"sequencer", "controller_q1", "drive_q1",
                                      "controller_q2", "drive_q2", "mechanism"}
     assert described.parameters["drive_q2"]["N"] == pytest.approx(2 * np.pi / 0.04)  # screw
@@ -247,7 +248,7 @@ def test_libcosim_runs_the_two_drive_demian2022_system_like_the_harness(
     assert (("drive_q1", "shaft"), ("mechanism", "q1")) in groups
     assert not any("drive_q2" in (a[0], b[0]) and "shaft" in (a[1], b[1]) for a, b in groups)
     run = libcosim.run_libcosim(described, tmp_path / "osp" / "OspSystemStructure.xml")
-    expected = fmpy_master.run(demian, variant)
+    expected = fmpy_master.run(prepare(demian, variant))
     assert list(run.series.columns) == list(expected.series.columns)
     for name in ("E_drawn", "E_in", "E_copper", "E_mech", "tau_rms_q1", "F_rms_q2",
                  "i_rms_q1", "i_rms_q2", "V_peak_q1", "V_peak_q2", "track_err_rms_q1",
@@ -388,7 +389,7 @@ def test_every_input_is_connected(variant: str) -> None:
     signal by FMPy's SSP runner: the systems leave none unconnected."""
     from fmpy import read_model_description
 
-    described = description.describe(SCENARIO, SCENARIO.variant(variant))
+    described = description.describe(prepare(SCENARIO, SCENARIO.variant(variant)))
     connected = {(component, name) for _, _, component, name in described.connections}
     for component, model in described.models.items():
         variables = read_model_description(fmu_build.fmu_path(model)).modelVariables

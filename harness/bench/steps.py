@@ -13,7 +13,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 from fmpy import read_model_description
 
@@ -21,10 +20,10 @@ from fmu_src.mechanism import Port
 from harness import registry, scenarios
 from harness.engines import fmpy_master
 from harness.engines.fmpy_master import DriveStep, run_steps
+from harness.engines.plan import RunPlan, prepare
 from harness.engines.result import RunResult
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
-from harness.fmu.calls import MasterCalls
 from harness.fmu.loader import CoSimFMU
 from harness.run.results import RESULTS_DIR
 
@@ -186,7 +185,7 @@ def cosim(steps: int = 20_000, repeats: int = 3) -> pd.DataFrame:
         scenario = scenarios.load(name)
         for variant in scenario.variants.values():
             start, cpu_start = time.perf_counter(), time.thread_time()
-            run = fmpy_master.run(scenario, variant, STEP_SIZE)
+            run = fmpy_master.run(prepare(scenario, variant, STEP_SIZE))
             wall, cpu = time.perf_counter() - start, time.thread_time() - cpu_start
             n_steps = round(scenario.duration / STEP_SIZE)
             rows.append({"scenario": name, "variant": variant.name, "model": run.model,
@@ -213,36 +212,25 @@ def replay_step(effort: list[float]) -> DriveStep:
     return step
 
 
-def replay_seconds(scenario: scenarios.Scenario, variant: scenarios.Variant,
-                   run: RunResult) -> float:
-    """CPU time [s] of this thread in the master's loop (`fmpy_master.run_steps`) over a
-    run made with keep_traces, each joint's drive step replaced by its recorded efforts
-    (`replay_step`): the FMU calls (setReal of the efforts, the input changes, doStep, getReal
-    of the joints' states, and the recording read every RECORD_INTERVAL) and the loop's own
-    work, one call per joint and step included, with no controller and no motor; the FMU
-    instantiated and initialised as in the run, untimed. RuntimeError if the replay does not
-    end where the run ended."""
-    scenario = scenario.for_variant(variant)
-    joints, step_size = scenario.joints, run.step_size
-    n_steps = round(scenario.duration / step_size)
-    times = np.arange(n_steps + 1) * step_size
-    inputs = scenario.inputs(times, variant)
-    with CoSimFMU(fmu_build.locate(run.model), f"replay.{scenario.name}") as fmu:
-        fmu.set({name: signal[0] for name, signal in inputs.items()})
-        fmu.initialize(run.parameters, stop_time=scenario.duration)
-        calls = MasterCalls(fmu, [joint.effort for joint in joints],
-                            [name for joint in joints for name in (joint.position, joint.speed)],
-                            fmu.names("output") + list(inputs), inputs, len(fmu.messages))
-        calls.read_states()
+def replay_seconds(plan: RunPlan, run: RunResult) -> float:
+    """CPU time [s] of this thread in the master's loop (`fmpy_master.run_steps`) over the
+    plan's run made with keep_traces, each joint's drive step replaced by its recorded
+    efforts (`replay_step`): the FMU calls (setReal of the efforts, the input changes, doStep,
+    getReal of the joints' states, and the recording read every RECORD_INTERVAL) and the
+    loop's own work, one call per joint and step included, with no controller and no motor;
+    the FMU instantiated and initialised as in the run, untimed. RuntimeError if the replay
+    does not end where the run ended."""
+    with CoSimFMU(fmu_build.locate(run.model), f"replay.{plan.name}") as fmu:
+        calls = fmpy_master.master_calls(plan, fmu)
         drive_steps = [replay_step(trace.effort.tolist()) for trace in run.traces]
-        step_times = times.tolist()
+        step_times = plan.times.tolist()
         start = time.thread_time()
-        run_steps(calls, drive_steps, step_times, step_size)
+        run_steps(calls, drive_steps, step_times, plan.step_size)
         seconds = time.thread_time() - start
         end = [value for trace in run.traces for value in (trace.position[-1], trace.speed[-1])]
         if calls.states[:] != end:
-            raise RuntimeError(f"{scenario.name}.{variant.name}: the replay ends at "
-                               f"{calls.states[:]}, the run at {end}")
+            raise RuntimeError(f"{plan.name}: the replay ends at {calls.states[:]}, the run "
+                               f"at {end}")
         return seconds
 
 
@@ -259,9 +247,10 @@ def master_share(steps: int = 0, repeats: int = 3,
         run_cost = fmu_cost = float("inf")
         for _ in range(repeats):
             start = time.thread_time()
-            run = fmpy_master.run(scenario, variant, STEP_SIZE, keep_traces=True)
+            plan = prepare(scenario, variant, STEP_SIZE)
+            run = fmpy_master.run(plan, keep_traces=True)
             run_cost = min(run_cost, time.thread_time() - start)
-            fmu_cost = min(fmu_cost, replay_seconds(scenario, variant, run))
+            fmu_cost = min(fmu_cost, replay_seconds(plan, run))
         n_steps = round(scenario.duration / STEP_SIZE)
         rows.append({"scenario": scenario_name, "variant": variant.name, "model": run.model,
                      "steps": n_steps, "us_per_step": 1e6 * run_cost / n_steps,

@@ -19,6 +19,7 @@ from distributed import LocalCluster
 from harness import scenarios, study
 from harness.drive.metrics import ENERGIES
 from harness.engines import DEFAULT_STEP, fmpy_master, reference
+from harness.engines.plan import prepare
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
@@ -49,10 +50,10 @@ def convergence(steps: int = 0, repeats: int = 0,
         for variant in scenario.variants.values():
             if not reference.supports(variant.model or scenario.model):
                 continue  # no monolithic reference (active_relocation's self-locking screw)
-            ref = reference.run(scenario, variant, DEFAULT_STEP).metrics
+            ref = reference.run(prepare(scenario, variant, DEFAULT_STEP)).metrics
             scale = {name: max(abs(ref[name]), ref["E_drawn"]) for name in ENERGIES}
             for step in CONVERGENCE_STEPS:
-                run = fmpy_master.run(scenario, variant, step)
+                run = fmpy_master.run(prepare(scenario, variant, step))
                 errors = {f"err_{name}": abs(run.metrics[name] - ref[name]) / scale[name]
                           for name in ENERGIES}
                 rows.append({"scenario": scenario_name, "variant": variant.name,
@@ -74,19 +75,19 @@ def ecco(steps: int = 0, repeats: int = 0,
     each tolerance (its first step 1 ms, the other settings their defaults)."""
     from harness.engines.libcosim import run as fixed_step
     from harness.engines.libcosim import run_ecco
-    from harness.engines.system import EccoSettings
+    from harness.engines.settings import EccoSettings
 
     rows = []
     for scenario_name, variant_name in cases:
         scenario = scenarios.load(scenario_name)
         variant = scenario.variant(variant_name)
-        ref = reference.run(scenario, variant, DEFAULT_STEP).metrics
+        ref = reference.run(prepare(scenario, variant, DEFAULT_STEP)).metrics
         drawn = ref["E_drawn"]
-        runs = [("fixed", h, None, partial(fixed_step, scenario, variant, h))
+        runs = [("fixed", h, None, partial(fixed_step, prepare(scenario, variant, h)))
                 for h in step_sizes]
         runs += [("ecco", DEFAULT_STEP, tolerance, partial(
-            run_ecco, scenario, variant, DEFAULT_STEP, ecco=EccoSettings(abs_tolerance=tolerance)))
-                 for tolerance in tolerances]
+            run_ecco, prepare(scenario, variant, DEFAULT_STEP),
+            ecco=EccoSettings(abs_tolerance=tolerance))) for tolerance in tolerances]
         for algorithm, h, tolerance, make_run in runs:
             run = make_run()
             bond_errors = [value for name, value in run.metrics.items()
@@ -300,8 +301,8 @@ def study_step(steps: int = 0, repeats: int = 0) -> pd.DataFrame:
                     drawn_energy = {}
                     for step in STUDY_STEPS:
                         try:
-                            drawn_energy[step] = fmpy_master.run(
-                                scenario, chosen, step, drives=drives).metrics["E_drawn"]
+                            drawn_energy[step] = fmpy_master.run(prepare(
+                                scenario, chosen, step, drives)).metrics["E_drawn"]
                         except UserError:   # an FMU refuses too long a step
                             drawn_energy[step] = float("nan")
                     finest = drawn_energy[STUDY_STEPS[-1]]

@@ -45,7 +45,7 @@ from fmu_src.mechanisms.ciupitu import physics as ciupitu
 from fmu_src.units.drive.dc_motor import armature_voltage, drive_powers
 from harness import scenarios
 from harness.drive.motor import MotorParameters
-from harness.engines import reference
+from harness.engines.plan import physics_parameters, prepare
 from harness.errors import UserError
 
 SCENARIO = "franchetti2021"
@@ -77,7 +77,8 @@ class TaskEnergy:
                  motor: MotorParameters = MotorParameters(), sample: float = SAMPLE) -> None:
         if (variant.model or scenario.model) != MODEL:
             raise UserError(f"variant {variant.name} of {scenario.name} is not a {MODEL}")
-        self.params = reference.parameters(ciupitu, scenario, variant, motor)
+        self.params = physics_parameters(ciupitu, prepare(scenario, variant, motor=motor)
+                                         .parameters)
         self.motor = motor
         self.sample = sample
         times = np.arange(round(scenario.duration / sample) + 1) * sample

@@ -1,11 +1,11 @@
-"""The engines that run a scenario variant, behind one seam: each is a function
-(scenario, variant, step_size [s], progress=None, **options) -> RunResult
-(`harness.engines.result`), and ENGINES names them. Adding an engine (FMI 3, Model Exchange,
-a distributed co-simulation) is one module and one line here.
+"""The engines that run a scenario variant, behind one seam: a run is planned once
+(`harness.engines.plan.prepare` -> `RunPlan`) and an engine is a function
+(plan, progress=None, **options) -> RunResult (`harness.engines.result`); ENGINES names
+them. Adding an engine (FMI 3, a distributed co-simulation) is one module and one line here;
+a drive change is made in `harness.drive` and reaches every engine through the plan.
 
-An engine's module is imported when it is first called, so that naming the engines costs
-nothing and an engine whose package is not installed (libcosimpy comes with the `dev`
-extra) fails only when it is used.
+An engine's module is imported when it is first called, so that an engine whose package is
+not installed (libcosimpy comes with the `dev` extra) fails only when it is used.
 """
 
 from __future__ import annotations
@@ -15,10 +15,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from harness.drive.controller import ControllerDesign
+from harness.engines.plan import DEFAULT_STEP, Drives, Motors, RunPlan, prepare
 from harness.engines.result import RunResult
 from harness.scenarios import Scenario, Variant
 
-DEFAULT_STEP = 1e-3  # communication step [s]
+__all__ = ["DEFAULT_STEP", "ENGINES", "Engine", "run"]
 
 
 @dataclass(frozen=True)
@@ -37,10 +39,10 @@ class Engine:
         supports = getattr(importlib.import_module(self.module), "supports", None)
         return supports is None or supports(model)
 
-    def __call__(self, scenario: Scenario, variant: Variant, step_size: float,
-                 progress: Callable[[int], None] | None = None, **options: Any) -> RunResult:
-        run = getattr(importlib.import_module(self.module), self.function)
-        return run(scenario, variant, step_size, progress, **options)
+    def __call__(self, plan: RunPlan, progress: Callable[[int], None] | None = None,
+                 **options: Any) -> RunResult:
+        return getattr(importlib.import_module(self.module), self.function)(
+            plan, progress, **options)
 
 
 ENGINES = {
@@ -50,6 +52,9 @@ ENGINES = {
     "reference": Engine("harness.engines.reference", "run",
                         "the monolithic reference: the whole system as one ODE in scipy's "
                         "solve_ivp, continuous controllers, no FMI"),
+    "fmu-me": Engine("harness.engines.fmu_me", "run",
+                     "the mechanism FMU as FMI 2.0 Model Exchange, integrated with the "
+                     "drives' ODE by scipy's solve_ivp, its state events included"),
     "libcosim": Engine("harness.engines.libcosim", "run",
                        "the system of FMUs (sequencer, controllers, drives, mechanism) in "
                        "DNV's libcosim at the fixed step, from OSP or SSP files",
@@ -59,7 +64,14 @@ ENGINES = {
                             "the power bonds' energy residuals", ("ecco",)),
     "fmpy-ssp": Engine("harness.engines.fmpy_ssp", "run",
                        "the system of FMUs as an SSP archive in FMPy's SSP runner"),
-    "fmu-me": Engine("harness.engines.fmu_me", "run",
-                     "the mechanism FMU as FMI 2.0 Model Exchange, integrated with the "
-                     "drives' ODE by scipy's solve_ivp, its state events included"),
 }
+
+
+def run(engine: str, scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
+        progress: Callable[[int], None] | None = None, drives: Drives = None,
+        motor: Motors = None, design: ControllerDesign = ControllerDesign(),
+        **options: Any) -> RunResult:
+    """One run of the variant in the named engine: its plan (`prepare`, with the drives,
+    motor and design), then the engine with its options."""
+    return ENGINES[engine](prepare(scenario, variant, step_size, drives, motor, design),
+                          progress, **options)

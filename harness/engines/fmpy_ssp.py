@@ -19,11 +19,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
+from harness.engines.plan import RunPlan
 from harness.engines.result import RunResult
-from harness.engines.setup import Drives
 from harness.engines.system import (
     MECHANISM,
     SEQUENCER,
@@ -36,18 +35,16 @@ from harness.engines.system import (
     system_result,
 )
 from harness.engines.writers import write_ssp
-from harness.scenarios import Scenario, Variant
 
 
-def run(scenario: Scenario, variant: Variant, step_size: float,
-        progress: Callable[[int], None] | None = None, drives: Drives = None) -> RunResult:
-    """The variant's system run by FMPy's SSP runner at the fixed step, from its SSP archive
-    (build/system/<scenario>/<variant>.ssp)."""
-    system = describe(scenario, variant, step_size, drives=drives)
-    result = run_fmpy_ssp(system, write_ssp(system, SYSTEM_DIR / scenario.name /
-                                            f"{variant.name}.ssp"))
+def run(plan: RunPlan, progress: Callable[[int], None] | None = None) -> RunResult:
+    """The planned run's system run by FMPy's SSP runner at the fixed step, from its SSP
+    archive (build/system/<scenario>/<variant>.ssp)."""
+    system = describe(plan)
+    result = run_fmpy_ssp(system, write_ssp(system, SYSTEM_DIR / plan.scenario.name /
+                                            f"{plan.variant.name}.ssp"))
     if progress is not None:
-        progress(round(scenario.duration / step_size))
+        progress(plan.n_steps)
     return result
 
 
@@ -69,7 +66,7 @@ def run_fmpy_ssp(system: System, ssp: Path) -> RunResult:
     frame = pd.DataFrame({name: table[name] for name in table.dtype.names[1:]})
     scenario = system.scenario
     start = frame.iloc[[0]].copy()
-    start_inputs = scenario.inputs(np.zeros(1), system.variant)
+    start_inputs = system.plan.inputs
     for joint, initial in zip(scenario.joints, scenario.initial_angle, strict=True):
         start[f"{MECHANISM}.{joint.position}"] = initial
         start[f"{SEQUENCER}.{joint.position}_ref"] = initial

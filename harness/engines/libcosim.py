@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.engines.plan import RunPlan
 from harness.engines.result import RunResult
-from harness.engines.setup import Drives
+from harness.engines.settings import SOURCES, EccoSettings
 from harness.engines.system import (
     SYSTEM_DIR,
-    EccoSettings,
     System,
     describe,
     model_variables,
@@ -26,44 +26,40 @@ from harness.engines.system import (
 )
 from harness.engines.writers import write_osp, write_ssp
 from harness.errors import UserError
-from harness.scenarios import Scenario, Variant
 
 ECCO_CHUNK = 1000  # an ECCO run's steps between two reads of its time series
-SOURCES = ("osp", "ssp")  # the fixed-step run's description: OspSystemStructure.xml or .ssp
 
 
-def run(scenario: Scenario, variant: Variant, step_size: float,
-        progress: Callable[[int], None] | None = None, source: str = "osp",
-        drives: Drives = None) -> RunResult:
-    """The variant's system run by libcosim at the fixed step, from its OSP description
+def run(plan: RunPlan, progress: Callable[[int], None] | None = None,
+        source: str = "osp") -> RunResult:
+    """The planned run's system run by libcosim at the fixed step, from its OSP description
     (build/system/<scenario>/osp/<variant>/OspSystemStructure.xml) or its SSP archive
     (build/system/<scenario>/<variant>.ssp)."""
     if source not in SOURCES:
         raise UserError(f"--source = {source!r} must be one of {', '.join(SOURCES)}")
-    system = describe(scenario, variant, step_size, drives=drives)
-    files = SYSTEM_DIR / scenario.name
-    path = (write_osp(system, files / "osp" / variant.name) if source == "osp"
-            else write_ssp(system, files / f"{variant.name}.ssp"))
+    system = describe(plan)
+    files, variant = SYSTEM_DIR / plan.scenario.name, plan.variant.name
+    path = (write_osp(system, files / "osp" / variant) if source == "osp"
+            else write_ssp(system, files / f"{variant}.ssp"))
     result = run_libcosim(system, path)
     if progress is not None:
-        progress(round(scenario.duration / step_size))
+        progress(plan.n_steps)
     return result
 
 
-def run_ecco(scenario: Scenario, variant: Variant, step_size: float,
-             progress: Callable[[int], None] | None = None,
-             ecco: EccoSettings | None = None, drives: Drives = None) -> RunResult:
-    """The variant's system run by libcosim under ECCO (default EccoSettings), step_size [s]
-    its first step; its OSP description with the ECCO configuration is written to
-    build/system/<scenario>/osp-ecco/<variant>/ for libcosim's own command line, the run is
-    made through libcosimpy's API (`ecco_execution`)."""
+def run_ecco(plan: RunPlan, progress: Callable[[int], None] | None = None,
+             ecco: EccoSettings | None = None) -> RunResult:
+    """The planned run's system run by libcosim under ECCO (default EccoSettings), the
+    plan's step its first step; its OSP description with the ECCO configuration is written
+    to build/system/<scenario>/osp-ecco/<variant>/ for libcosim's own command line, the run
+    is made through libcosimpy's API (`ecco_execution`)."""
     ecco = ecco or EccoSettings()
     ecco.check()
-    system = describe(scenario, variant, step_size, ecco=ecco, drives=drives)
-    write_osp(system, SYSTEM_DIR / scenario.name / "osp-ecco" / variant.name)
+    system = describe(plan, ecco)
+    write_osp(system, SYSTEM_DIR / plan.scenario.name / "osp-ecco" / plan.variant.name)
     result = run_libcosim(system)
     if progress is not None:
-        progress(round(scenario.duration / step_size))
+        progress(plan.n_steps)
     return result
 
 
@@ -116,7 +112,7 @@ def _ecco_steps(execution, system: System, series, last, index: dict[str, int],
                 columns[f"{c}.{v.name}"].append(values)
             times.append(stamps)
             drained = steps
-    start = system.scenario.inputs(np.zeros(1), system.variant)
+    start = system.plan.inputs
     first_row = {name: bool(start[name][0]) if name in start else value
                  for name, value in boolean_rows[0].items()}
     return (np.concatenate(times),
@@ -232,7 +228,7 @@ def run_libcosim(system: System, source: Path | None = None) -> RunResult:
                                                                    [v.valueReference])})
     if steps % every and not execution.step(steps % every):
         raise RuntimeError("libcosim failed in the last steps")
-    start = system.scenario.inputs(np.zeros(1), system.variant)
+    start = system.plan.inputs
     first = {name: bool(start[name][0]) if name in start else value
              for name, value in boolean_rows[0].items()} if boolean_rows else {}
     frame = pd.DataFrame({f"{c}.{v.name}": _time_series(series, index[c], v.valueReference,

@@ -15,7 +15,8 @@ from fmu_src.units.controller.pid import PIDGains
 from harness.drive import metrics
 from harness.drive.motor import JointDrive
 from harness.drive.trace import DriveTrace
-from harness.scenarios import Joint, Scenario, Variant
+from harness.engines.plan import RunPlan
+from harness.scenarios import Joint, Scenario
 
 RECORD_INTERVAL = 0.01    # CSV sampling interval [s] (100 Hz)
 
@@ -50,20 +51,19 @@ def suffix(scenario: Scenario, joint: Joint) -> str:
     return "" if len(scenario.joints) == 1 else f"_{joint.name}"
 
 
-def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.DataFrame,
-             traces: list[DriveTrace], gains: dict[str, PIDGains],
-             parameters: dict[str, float | bool], messages: list[str],
-             exact: list[dict[str, np.ndarray]] | None = None,
-             drives: list[JointDrive] | None = None) -> RunResult:
-    """A RunResult from a run's records, whatever engine produced them.
+def assemble(plan: RunPlan, recorded: pd.DataFrame, traces: list[DriveTrace],
+             messages: list[str], exact: list[dict[str, np.ndarray]] | None = None
+             ) -> RunResult:
+    """A RunResult of a run's plan from its records, whatever engine produced them.
 
     recorded: the mechanism's variables recorded every RECORD_INTERVAL from t = 0, one row
     each; traces: each joint's drive over the run, in the scenario's joint order. exact: per
     joint, its energies (ENERGIES and BOND of `harness.drive.metrics`) integrated up to every
     communication point by an engine that solves them [J], which replace those the trace's
-    held values give (the monolithic reference's). drives: each joint's drive, reported
-    with its metrics (`harness.drive.metrics.drive_report`).
+    held values give (a continuous solver's). Each joint's drive is reported with its metrics
+    (`harness.drive.metrics.drive_report`).
     """
+    scenario, drives = plan.scenario, plan.joint_drives
     first = traces[0]
     times = first.times
     rows = recorded_points(times, first.step_size)[:len(recorded)]
@@ -90,8 +90,7 @@ def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.Data
             joint_phase_work[joint.name] = {
                 name: float(cumulative["W_link"][k1] - cumulative["W_link"][k0])
                 for name, k0, k1 in phases}
-        if drives is not None:
-            per_joint[joint.name] = metrics.drive_report(drives[j], per_joint[joint.name])
+        per_joint[joint.name] = metrics.drive_report(drives[j], per_joint[joint.name])
         _add_drive_columns(series, trace, cumulative, suffix(scenario, joint), rows)
     if len(scenario.joints) > 1:
         _add_total_columns(series, [suffix(scenario, joint) for joint in scenario.joints])
@@ -104,10 +103,10 @@ def assemble(scenario: Scenario, variant: Variant, model: str, recorded: pd.Data
         run_metrics |= {"steps": len(step_size),
                         "event_lag_max": event_lag(times, scenario.phase_times())}
         step_size = float(times[-1] / len(step_size))
-    return RunResult(scenario.name, variant.name, model, step_size, series, run_metrics,
-                     gains, parameters, joint_phase_work, messages,
-                     drives={} if drives is None else dict(zip(
-                         [joint.name for joint in scenario.joints], drives, strict=True)))
+    return RunResult(scenario.name, plan.variant.name, plan.model, step_size, series,
+                     run_metrics, plan.gains, plan.parameters, joint_phase_work, messages,
+                     drives=dict(zip([joint.name for joint in scenario.joints], drives,
+                                     strict=True)))
 
 
 def recorded_points(times: np.ndarray, step_size: float | np.ndarray) -> np.ndarray:

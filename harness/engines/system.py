@@ -15,10 +15,10 @@ The ScenarioSequencer FMU plays the scenario it was built for: build/fmus' one w
 the scenario (franchetti2021 by default), else one built for the scenario into
 build/system/<scenario>/fmus/.
 
-Its parameters are the harness's (`harness.engines.setup`): the mechanism's scenario and
-variant parameters, the motor parameters, the PID gains designed for the joint and the
-equilibrium start (motor current and integrator holding the static load at t = 0), bound in
-the SSP's SystemStructure.ssd (inline ssv:ParameterSet per component) and as InitialValues in
+Its parameters are the run plan's (`harness.engines.plan`): the mechanism's scenario and
+variant parameters, and per joint the drive's model, PID gains and equilibrium start as the
+controller's and drive's FMU parameters (`DrivePlan.fmu_parameters`), bound in the SSP's
+SystemStructure.ssd (inline ssv:ParameterSet per component) and as InitialValues in
 OspSystemStructure.xml (`harness.engines.writers`).
 
 The system's masters step every FMU in parallel (Jacobi) at the fixed step: each connection
@@ -29,24 +29,20 @@ changes the drive energies by less than the tolerances of tests/test_system.py.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from fmu_src.units.drive.dc_motor import armature_voltage
 from harness import scenarios
-from harness.drive.controller import ControllerDesign, PIDGains
-from harness.drive.motor import JointDrive, start_currents
+from harness.drive.motor import start_currents
 from harness.drive.trace import DriveTrace
-from harness.engines import DEFAULT_STEP
+from harness.engines.plan import RunPlan, enabled_steps
 from harness.engines.result import RECORD_INTERVAL, RunResult, assemble, recorded_points, suffix
-from harness.engines.setup import Drives, enabled_steps, joint_drive, joint_drives, run_parameters
-from harness.errors import UserError
+from harness.engines.settings import EccoSettings
 from harness.fmu import build as fmu_build
 from harness.fmu import osp
-from harness.fmu.loader import CoSimFMU
 
 # the component names of the system's FMUs
 SEQUENCER, CONTROLLER, DRIVE, MECHANISM = "sequencer", "controller", "drive", "mechanism"
@@ -56,66 +52,29 @@ SYSTEM_DIR = fmu_build.DEFAULT_DEST.parent / "system"
 
 
 @dataclass(frozen=True)
-class EccoSettings:
-    """libcosim's ECCO algorithm (Sadjina et al. 2017): after each step it takes the power
-    each side of every power bond sees (its held input times its new output), and sizes the
-    next step with a PI controller on the bonds' energy residuals |P_a - P_b| h, scaled by
-    abs_tolerance + rel_tolerance max|P_a - P_b| h; no step is rejected. Times in s,
-    tolerances in J."""
-
-    abs_tolerance: float = 1e-7
-    rel_tolerance: float = 1e-4
-    min_step: float = 1e-4
-    max_step: float = 1e-2
-    safety_factor: float = 0.8
-    # the factor the step may change by at once, min and max (libcosim's own test data)
-    min_change_rate: float = 0.2
-    max_change_rate: float = 1.5
-    p_gain: float = 0.2
-    i_gain: float = 0.15
-
-    def check(self) -> None:
-        """UserError naming the first setting outside its range."""
-        for name, value in asdict(self).items():
-            if not (value > 0.0 and np.isfinite(value)):
-                raise UserError(f"ECCO {name} = {value} is outside (0, inf)")
-        if self.min_step > self.max_step:
-            raise UserError(f"ECCO min_step = {self.min_step} s exceeds max_step = "
-                            f"{self.max_step} s")
-        if self.min_change_rate > 1.0 or self.max_change_rate < 1.0:
-            raise UserError(f"ECCO change rates [{self.min_change_rate}, "
-                            f"{self.max_change_rate}] must hold 1")
-
-    def osp_elements(self, initial_step: float) -> dict[str, float]:
-        """The EccoConfiguration elements of an OspSystemStructure.xml, by tag."""
-        return {"SafetyFactor": self.safety_factor,
-                "StepSize": min(max(initial_step, self.min_step), self.max_step),
-                "MinimumStepSize": self.min_step, "MaximumStepSize": self.max_step,
-                "MinimumChangeRate": self.min_change_rate,
-                "MaximumChangeRate": self.max_change_rate,
-                "ProportionalGain": self.p_gain, "IntegralGain": self.i_gain,
-                "RelativeTolerance": self.rel_tolerance,
-                "AbsoluteTolerance": self.abs_tolerance}
-
-
-@dataclass(frozen=True)
 class System:
-    """A scenario variant as FMUs: components (name -> model and parameters), the FMU of
-    each model, and connections (source component, output, destination component, input)."""
+    """A planned run as FMUs: components (name -> model and parameters), the FMU of each
+    model, and connections (source component, output, destination component, input)."""
 
-    scenario: scenarios.Scenario
-    variant: scenarios.Variant
-    step_size: float
+    plan: RunPlan
     models: dict[str, str]
     parameters: dict[str, dict[str, Value]]
     connections: tuple[tuple[str, str, str, str], ...]
     fmus: dict[str, Path]
     ecco: EccoSettings | None = None   # None: libcosim's fixed step
-    drives: tuple[JointDrive, ...] = ()  # each joint's drive, in the scenario's joint order
+
+    @property
+    def scenario(self) -> scenarios.Scenario:
+        return self.plan.scenario
+
+    @property
+    def step_size(self) -> float:
+        """The fixed step [s], or ECCO's first."""
+        return self.plan.step_size
 
     @property
     def name(self) -> str:
-        return f"{self.scenario.name}_{self.variant.name}"
+        return f"{self.scenario.name}_{self.plan.variant.name}"
 
     @property
     def bonds(self) -> list[osp.PowerBond]:
@@ -133,55 +92,36 @@ def drive(scenario: scenarios.Scenario, joint: scenarios.Joint) -> str:
     return DRIVE + suffix(scenario, joint)
 
 
-def describe(scenario: scenarios.Scenario, variant: scenarios.Variant,
-             step_size: float = DEFAULT_STEP,
-             design: ControllerDesign = ControllerDesign(),
-             ecco: EccoSettings | None = None, drives: Drives = None) -> System:
-    """The system of FMUs for a variant, with the harness's parameters and start (the
-    ScenarioSequencer built for the scenario if build/fmus' one plays another). A variant's
-    own joints get their controllers and drives too (`Scenario.for_variant`), each drive
-    switched on and off by the sequencer (`<position>_enable`). ecco: run it with ECCO
-    (step_size is then its first step), else at the fixed step. drives: each joint's drive by
-    name, else the legacy drives (`harness.engines.setup.joint_drives`)."""
-    scenario = scenario.for_variant(variant)
-    joint_drive_set = joint_drives(scenario, drives=drives)
-    drive_motors = [drive.parameters for drive in joint_drive_set]
-    model = variant.model or scenario.model
-    mechanism_parameters = run_parameters(scenario, variant, drive_motors)
-    inputs = {name: signal[0] for name, signal in
-              scenario.inputs(np.zeros(1), variant).items()}
+def describe(plan: RunPlan, ecco: EccoSettings | None = None) -> System:
+    """The system of FMUs for a planned run (the ScenarioSequencer built for the scenario if
+    build/fmus' one plays another). A variant's own joints get their controllers and drives
+    too, each drive switched on and off by the sequencer (`<position>_enable`). ecco: run it
+    with ECCO (the plan's step is then its first step), else at the fixed step."""
+    scenario, variant = plan.scenario, plan.variant
+    inputs = {name: signal[0] for name, signal in plan.inputs.items()}
     # the variant by number: SSP tools read Integer parameters, not all read Strings
     number = list(scenario.variants).index(variant.name) + 1
     parameters: dict[str, dict[str, Value]] = {SEQUENCER: {"variant_number": number}}
     models = {SEQUENCER: fmu_build.SEQUENCER}
     connections = []
-    with CoSimFMU(fmu_build.locate(model), f"{scenario.name}.{variant.name}.design") as fmu:
-        fmu.set(inputs)
-        fmu.initialize(mechanism_parameters, stop_time=scenario.duration)
-        for j, (joint, motor) in enumerate(zip(scenario.joints, drive_motors, strict=True)):
-            values = fmu.get([joint.inertia, joint.friction, joint.static_output])
-            gains, hold_current = joint_drive(values, joint, motor, design)
-            if not scenario.drive_enabled(j)[0]:  # off from the start: nothing to hold
-                hold_current = 0.0
-            control, power = controller(scenario, joint), drive(scenario, joint)
-            models |= {control: "PositionController", power: "DcMotorDrive"}
-            parameters[control] = {**gains._asdict(), "V_supply": motor.V_supply,
-                                   "integral0": armature_voltage(motor, hold_current, 0.0)}
-            parameters[power] = {**asdict(motor), "i0": hold_current}
-            connections += [(SEQUENCER, f"{joint.position}_ref", control, "theta_ref"),
-                            (MECHANISM, joint.position, control, "theta"),
-                            (control, "V", power, "V"),
-                            (MECHANISM, joint.speed, power, "omega"),
-                            (power, "tau_drive", MECHANISM, joint.effort),
-                            (SEQUENCER, f"{joint.position}_enable", control, "enable"),
-                            (SEQUENCER, f"{joint.position}_enable", power, "enable")]
-    models[MECHANISM] = model
-    parameters[MECHANISM] = mechanism_parameters
+    for planned in plan.drives:
+        joint = planned.joint
+        control, power = controller(scenario, joint), drive(scenario, joint)
+        models |= {control: "PositionController", power: "DcMotorDrive"}
+        parameters[control], parameters[power] = planned.fmu_parameters()
+        connections += [(SEQUENCER, f"{joint.position}_ref", control, "theta_ref"),
+                        (MECHANISM, joint.position, control, "theta"),
+                        (control, "V", power, "V"),
+                        (MECHANISM, joint.speed, power, "omega"),
+                        (power, "tau_drive", MECHANISM, joint.effort),
+                        (SEQUENCER, f"{joint.position}_enable", control, "enable"),
+                        (SEQUENCER, f"{joint.position}_enable", power, "enable")]
+    models[MECHANISM] = plan.model
+    parameters[MECHANISM] = plan.parameters
     connections += [(SEQUENCER, name, MECHANISM, name) for name in inputs]
     fmus = {m: fmu_build.locate(m) for m in set(models.values()) - {fmu_build.SEQUENCER}}
     fmus[fmu_build.SEQUENCER] = sequencer_fmu(scenario)
-    return System(scenario, variant, step_size, models, parameters, tuple(connections), fmus,
-                  ecco, tuple(joint_drive_set))
+    return System(plan, models, parameters, tuple(connections), fmus, ecco)
 
 
 def _plays(fmu: Path, scenario: scenarios.Scenario) -> bool:
@@ -251,23 +191,19 @@ def system_result(system: System, frame: pd.DataFrame, booleans: pd.DataFrame,
                           for n in mechanism_columns})
     # Jacobi: over step k the drive holds the controller's V(t_k) and the speed omega(t_k),
     # and the mechanism gets the drive's effort of step k - 1, i.e. its output at t_k
-    traces, gains = [], {}
+    traces = []
     point_times = np.arange(len(frame)) * system.step_size if times is None else times
-    for j, (joint, joint_drive_) in enumerate(zip(scenario.joints, system.drives, strict=True)):
-        motor = joint_drive_.parameters
+    for j, planned in enumerate(system.plan.drives):
+        joint, motor = planned.joint, planned.motor
         control, power = controller(scenario, joint), drive(scenario, joint)
         voltage = frame[f"{control}.V"].to_numpy()
         speed = frame[f"{MECHANISM}.{joint.speed}"].to_numpy()
         current = frame[f"{power}.i"].to_numpy()[1:]
-        enabled = np.array(enabled_steps(scenario, j, point_times))
+        enabled = enabled_steps(scenario, j, point_times)
         traces.append(DriveTrace(
             joint, motor, step, voltage[:-1], current,
             frame[f"{power}.tau_drive"].to_numpy()[:-1],
             start_currents(motor, step, voltage[:-1], speed[:-1], current, enabled),
             frame[f"{MECHANISM}.{joint.position}"].to_numpy(), speed,
             frame[f"{SEQUENCER}.{joint.position}_ref"].to_numpy(), enabled))
-        gains[joint.name] = PIDGains(*(float(system.parameters[control][n])
-                                       for n in PIDGains._fields))
-    return assemble(scenario, system.variant, system.models[MECHANISM], table, traces,
-                    gains, dict(system.parameters[MECHANISM]), messages,
-                    drives=list(system.drives))
+    return assemble(system.plan, table, traces, messages)

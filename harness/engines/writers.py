@@ -45,7 +45,7 @@ def ssd_tree(system: System) -> ET.ElementTree:
     bindings = _bindings(system)
     root = ET.Element(f"{ssd}SystemStructureDescription", version="1.0", name=system.name)
     root_system = ET.SubElement(root, f"{ssd}System", name=system.name,
-                                description=system.variant.description or system.name)
+                                description=system.plan.variant.description or system.name)
     elements = ET.SubElement(root_system, f"{ssd}Elements")
     for component, model in system.models.items():
         element = ET.SubElement(elements, f"{ssd}Component", name=component,

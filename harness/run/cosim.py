@@ -39,12 +39,10 @@ from harness import interrupts, scenarios
 from harness.drive.motor import JointDrive
 from harness.drive.sizing import Sizing
 from harness.engines import DEFAULT_STEP, ENGINES, Engine
-from harness.engines.libcosim import SOURCES
+from harness.engines import plan as run_plan
 from harness.engines.result import RunResult
-from harness.engines.setup import joint_motors, run_parameters
-from harness.engines.system import EccoSettings
+from harness.engines.settings import SOURCES, EccoSettings
 from harness.errors import UserError
-from harness.fmu.models import check_names
 from harness.run import results, sizing
 from harness.scenarios import losses
 
@@ -207,10 +205,7 @@ def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
                             f"choose --variants among the others")
         for loss_set, scenario in losses.loss_sets(base, args.losses):
             for name in variants:
-                variant = scenario.variant(name)
-                resolved = scenario.for_variant(variant)
-                check_names(scenario, variant, run_parameters(
-                    resolved, variant, joint_motors(resolved)))
+                run_plan.check(scenario, scenario.variant(name))
             folder = losses.result_folder(out, scenario, loss_set)
             results.check_result_set(folder)
             plans.append(Plan(scenario, variants, loss_set, folder, loaded if sized else None))
@@ -229,9 +224,8 @@ def run_variant(engine: Engine, scenario: scenarios.Scenario, name: str, step: f
             progress(steps)
 
     interrupts.stop_if_requested()
-    if drives is not None:
-        options = options | {"drives": drives}
-    return engine(scenario, scenario.variant(name), step, advance, **options)
+    return engine(run_plan.prepare(scenario, scenario.variant(name), step, drives), advance,
+                  **options)
 
 
 def size_variant(loaded: scenarios.Scenario, name: str, step: float) -> dict[str, Sizing]:

@@ -24,8 +24,8 @@ from harness.drive import catalogue
 from harness.drive.motor import JointDrive
 from harness.drive.sizing import JointLoad, Sizing, choose, combined, evaluate
 from harness.engines import DEFAULT_STEP, fmpy_master
+from harness.engines.plan import enabled_steps, prepare
 from harness.engines.result import RunResult
-from harness.engines.setup import enabled_steps
 from harness.errors import UserError
 
 
@@ -39,8 +39,8 @@ def joint_loads(scenario: scenarios.Scenario, run: RunResult) -> list[JointLoad]
         speed = trace.speed[:n]
         acceleration = np.gradient(trace.speed, dt)[:n]
         rotor = run.parameters[joint.drive_inertia] * acceleration
-        enabled = np.array(enabled_steps(scenario, j, trace.times), dtype=bool)
-        loads.append(JointLoad(dt, trace.effort - rotor, speed, acceleration, enabled))
+        loads.append(JointLoad(dt, trace.effort - rotor, speed, acceleration,
+                               enabled_steps(scenario, j, trace.times)))
     return loads
 
 
@@ -51,7 +51,8 @@ def size_variant(loss_sets: list[scenarios.Scenario], variant: str,
     tasks = []
     for scenario in loss_sets:
         legacy = scenario.drives_always_on()
-        run = fmpy_master.run(legacy, legacy.variant(variant), step_size, keep_traces=True)
+        run = fmpy_master.run(prepare(legacy, legacy.variant(variant), step_size),
+                              keep_traces=True)
         resolved = scenario.for_variant(scenario.variant(variant))
         tasks.append(joint_loads(resolved, run))
     resolved = loss_sets[0].for_variant(loss_sets[0].variant(variant))

@@ -29,6 +29,7 @@ from tqdm import tqdm
 from harness import interrupts
 from harness.drive.metrics import TOTALS
 from harness.engines import fmpy_master
+from harness.engines.plan import prepare
 from harness.errors import UserError
 from harness.fmu.loader import FMUCallError
 from harness.run import sizing
@@ -68,7 +69,7 @@ def run_one(task: Task, variant: str, loss_set: str, step: float) -> dict[str, A
         resolved = scenario.for_variant(chosen)
         drives = sizing.pinned_drives(resolved, loss_set, f"{task.name} variant {variant}")
         fmu = model_instance(model)
-        result = fmpy_master.run(scenario, chosen, step, fmu=fmu, drives=drives, series=False)
+        result = fmpy_master.run(prepare(scenario, chosen, step, drives), fmu=fmu, series=False)
         row.update(status="ok", error="", duration=resolved.duration,
                    **{name: result.metrics[name] for name in KEPT})
     except UserError as error:  # recorded, and the study goes on

@@ -47,8 +47,8 @@ from fmu_src.units.sequencer.scenario import check_name, finite_number, shown
 from harness import scenarios
 from harness.drive.metrics import METRICS
 from harness.engines import DEFAULT_STEP
+from harness.engines import plan as run_plan
 from harness.errors import UserError
-from harness.fmu.models import check_names
 from harness.sweeps.paths import RefusedValueError, configure
 
 SWEEP_DIR = Path(__file__).resolve().parent  # the sweep files beside this code
@@ -267,7 +267,7 @@ def _check_first_point(scenario: scenarios.Scenario, variants: Sequence[str],
         return
     for name in variants:
         variant = configured.variant(name)
-        check_names(configured, variant, configured.parameters | variant.parameters)
+        run_plan.check(configured, variant, values=False)
 
 
 def _plots(raw: Any, axes: Sequence[str], variants: Sequence[str], metrics: Sequence[str],

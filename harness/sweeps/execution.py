@@ -40,6 +40,7 @@ from tqdm import tqdm
 
 from harness import interrupts
 from harness.engines import fmpy_master
+from harness.engines.plan import prepare
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU, FMUCallError
@@ -112,8 +113,8 @@ def run_one(sweep: Sweep, run: Run) -> dict[str, Any]:
         model = variant.model or scenario.model
         fmu = model_instance(model)
         fmu.messages.clear()
-        result = fmpy_master.run(scenario, variant, sweep.step_size, motor=motor, design=design,
-                                 fmu=fmu)
+        result = fmpy_master.run(prepare(scenario, variant, sweep.step_size, motor=motor,
+                                         design=design), fmu=fmu)
         row.update(status="ok", error="", **result.metrics,
                    **fmu.get(fmu.names("calculatedParameter")),
                    **{name: float(result.series[name].iloc[-1]) if name in result.series
