@@ -43,7 +43,7 @@ Rules:
   parameters built apart do not share what they keep.
 
 The slots pay their way with the integration kernels they serve (fmu_src/integration.py:
-together, 36 to 69 % of a closed-loop step, measured with callgrind).
+together, 36 to 99 % of a closed-loop step, measured with callgrind).
 """
 
 from __future__ import annotations

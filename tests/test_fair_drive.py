@@ -254,10 +254,13 @@ def test_the_rule_takes_the_smallest_motor_that_does_the_task_then_the_least_ene
 
 
 def summaries() -> dict[str, pd.DataFrame]:
-    return {f"{name}{'' if s == 'ideal' else '/realistic'}": pd.read_csv(
-        RESULTS_DIR / name / ("summary.csv" if s == "ideal" else "realistic/summary.csv"))
-        for name in scenarios.available() for s in ("ideal", "realistic")
-        if (RESULTS_DIR / name / ("" if s == "ideal" else "realistic") / "summary.csv").exists()}
+    """The summary of every committed result set, both loss sets of every shipped scenario;
+    a missing one fails the test that reads them."""
+    paths = {f"{name}{folder}": RESULTS_DIR / f"{name}{folder}" / "summary.csv"
+             for name in scenarios.available() for folder in ("", "/realistic")}
+    missing = [str(path) for path in paths.values() if not path.is_file()]
+    assert not missing, f"committed result sets missing: {', '.join(missing)}"
+    return {name: pd.read_csv(path) for name, path in paths.items()}
 
 
 def test_every_committed_drive_runs_within_its_nominal_current() -> None:

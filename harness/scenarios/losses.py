@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from fmu_src.units.sequencer import scenario as core
-from fmu_src.units.sequencer import scenario_format
+from fmu_src.units.sequencer.checks import parameter_values, position, table, unknown_keys
 from harness.errors import UserError
 from harness.scenarios import SCENARIO_DIR, Scenario, read_toml
 
@@ -58,25 +58,24 @@ def realistic(scenario: Scenario, data: dict[str, Any] | None = None) -> Scenari
     data = read_toml(path) if data is None else data
     where = path.name
     try:
-        scenario_format._unknown_keys(data, ("models", "variants"), where)
-        models = {model: scenario_format._parameter_values(values, f"{where} models.{model}")
-                  for model, values in core.table(data.get("models", {}), "models").items()}
+        unknown_keys(data, ("models", "variants"), where)
+        models = {model: parameter_values(values, f"{where} models.{model}")
+                  for model, values in table(data.get("models", {}), "models").items()}
         used = {variant.model or scenario.model for variant in scenario.variants.values()}
         unused = sorted(set(models) - used)
         if unused:
             raise ValueError(f"models.{unused[0]} is no model of scenario {scenario.name}'s "
                              f"variants ({', '.join(sorted(used))})")
-        overrides = core.table(data.get("variants", {}), "variants")
+        overrides = table(data.get("variants", {}), "variants")
         unknown = sorted(set(overrides) - set(scenario.variants))
         if unknown:
             raise ValueError(f"variants.{unknown[0]} names no variant of scenario "
                              f"{scenario.name}; choose from {', '.join(scenario.variants)}")
         variants = {}
         for name, variant in scenario.variants.items():
-            raw = core.table(overrides.get(name, {}), f"variants.{name}")
-            scenario_format._unknown_keys(raw, VARIANT_KEYS, f"variants.{name}")
-            own = scenario_format._parameter_values(raw.get("parameters", {}),
-                                                    f"variants.{name} parameters")
+            raw = table(overrides.get(name, {}), f"variants.{name}")
+            unknown_keys(raw, VARIANT_KEYS, f"variants.{name}")
+            own = parameter_values(raw.get("parameters", {}), f"variants.{name} parameters")
             targets = _phase_targets(scenario, variant, raw.get("phase_targets", {}),
                                      f"variants.{name} phase_targets")
             variants[name] = replace(
@@ -94,15 +93,15 @@ def _phase_targets(scenario: Scenario, variant: core.Variant, raw: object, where
     phases = {phase.name for phase in scenario.phases}
     own = {joint.name for joint in variant.joints}
     targets = {}
-    for phase, changes in core.table(raw, where).items():
+    for phase, changes in table(raw, where).items():
         if phase not in phases:
             raise ValueError(f"{where} names no phase {phase!r}")
-        changes = core.table(changes, f"{where} {phase}")
+        changes = table(changes, f"{where} {phase}")
         unknown = sorted(set(changes) - own)
         if unknown:
             raise ValueError(f"{where} {phase}: {unknown[0]} is no joint of the variant's own "
                              f"({', '.join(sorted(own)) or 'none'})")
-        targets[phase] = {joint: core.position(value, f"{where} {phase} {joint}")
+        targets[phase] = {joint: position(value, f"{where} {phase} {joint}")
                           for joint, value in changes.items()}
     return targets
 

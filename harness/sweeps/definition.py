@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from fmu_src.units.sequencer.scenario import check_name, finite_number, shown
+from fmu_src.units.sequencer.checks import check_name, finite_number, shown
 from harness import scenarios
 from harness.drive.metrics import METRICS
 from harness.engines import DEFAULT_STEP

@@ -1,7 +1,8 @@
 """Task scenarios as data: the one definition of the scenario file format and of its meaning
 (standard library only, so the `ScenarioSequencer` FMU plays a scenario exactly as the
 harness does; `harness.scenarios` finds the files and evaluates them on numpy arrays).
-This module holds the data model; `scenario_format.parse` reads a file's data into it.
+This module holds the data model; `scenario_format.parse` reads a file's data into it, each
+value checked by `checks`.
 
 A scenario (a TOML file) names the mechanism FMU, its parameters, the joints the drives move
 and a list of phases, and optionally the work it reproduces (`source`, which figures cite).
@@ -60,14 +61,11 @@ Loading and evaluating take time linear in the number of phases.
 from __future__ import annotations
 
 import math
-import re
 from bisect import bisect_right
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
-
-from fmu_src.parameters import MAGNITUDE_LIMIT
 
 JOINT_KINDS = ("revolute", "prismatic")
 # the legacy drives the harness can put on a joint: the default geared DC motor, a DC motor
@@ -92,63 +90,6 @@ STEP_TIME_TOLERANCE = 1e-3
 # phases per scenario: a scenario of this many loads in about 0.1 s; a file of more is a
 # generated mistake rather than a task
 MAX_PHASES = 10_000
-
-
-# scenario and variant names become file and folder names: no path separators, no "..",
-# not empty, not hidden
-NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_+-]*(\.[A-Za-z0-9_+-]+)*")
-
-
-def check_name(name: Any, what: str) -> str:
-    """name if it is a usable file name (NAME_PATTERN), else ValueError naming `what`."""
-    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
-        raise ValueError(f"{what} = {shown(name)} must be letters, digits, '_', '-', '+' and inner "
-                         "dots, starting with a letter or digit (it names result files)")
-    return name
-
-
-def table(value: Any, what: str) -> dict[str, Any]:
-    """value if it is a table (dict), else ValueError naming `what`."""
-    if not isinstance(value, dict):
-        raise ValueError(f"{what} = {shown(value)} must be a table")
-    return value
-
-
-def table_list(value: Any, what: str) -> list[dict[str, Any]]:
-    """value if it is a non-empty list of tables ([[what]]), else ValueError naming it."""
-    if not isinstance(value, list) or not value or not all(isinstance(v, dict) for v in value):
-        raise ValueError(f"{what} = {shown(value)} must be a list of [[{what}]] tables")
-    return value
-
-
-def shown(value: Any, width: int = 60) -> str:
-    """repr(value) for a message, shortened to about width characters."""
-    text = repr(value) if not isinstance(value, int) or value.bit_length() < 200 else (
-        f"an integer of about {int(value.bit_length() * math.log10(2))} digits")
-    return text if len(text) <= width else f"{text[:width - 5]} ...{text[-1]}"
-
-
-def finite_number(value: Any, what: str, allowed: str = "a finite number") -> float:
-    """value as a float if it is a finite number (not a boolean; an integer beyond the range
-    of a float is not), else ValueError naming it."""
-    if not isinstance(value, bool) and isinstance(value, (int, float)):
-        try:
-            number = float(value)
-        except OverflowError:  # a TOML integer beyond 1.8e308
-            number = math.inf
-        if math.isfinite(number):
-            return number
-    raise ValueError(f"{what} = {shown(value)} is not {allowed}")
-
-
-def position(value: Any, what: str, unit: str = "rad or m") -> float:
-    """A joint position [rad or m]: finite and of magnitude at most MAGNITUDE_LIMIT, else
-    ValueError naming it."""
-    number = finite_number(value, what, f"a finite number [{unit}]")
-    if abs(number) > MAGNITUDE_LIMIT:
-        raise ValueError(f"{what} = {shown(value)} {unit} is outside [-{MAGNITUDE_LIMIT:g}, "
-                         f"{MAGNITUDE_LIMIT:g}]")
-    return number
 
 
 def quintic(s: Any) -> Any:

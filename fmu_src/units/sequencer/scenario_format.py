@@ -1,12 +1,22 @@
 """Reading a scenario file's data (a parsed TOML table) into a `Scenario` (standard library
-only): the file format of `fmu_src.units.sequencer.scenario`, checked key by key, every
-problem a ValueError naming the key and what it allows."""
+only): the file format of `fmu_src.units.sequencer.scenario`, checked key by key (`checks`),
+every problem a ValueError naming the key and what it allows."""
 
 from __future__ import annotations
 
 import math
 from typing import Any
 
+from fmu_src.units.sequencer.checks import (
+    check_name,
+    finite_number,
+    parameter_values,
+    position,
+    shown,
+    table,
+    table_list,
+    unknown_keys,
+)
 from fmu_src.units.sequencer.scenario import (
     DEFAULT_JOINT,
     JOINT_KEYS,
@@ -19,12 +29,6 @@ from fmu_src.units.sequencer.scenario import (
     Ramp,
     Scenario,
     Variant,
-    check_name,
-    finite_number,
-    position,
-    shown,
-    table,
-    table_list,
 )
 
 
@@ -49,24 +53,9 @@ def _input_changes(raw: Any, where: str) -> dict[str, Any]:
         raise ValueError(f"{where}: {error}") from None
 
 
-def _parameter_values(raw: Any, where: str) -> dict[str, float | bool]:
-    if not isinstance(raw, dict):
-        raise ValueError(f"{where} = {shown(raw)} must be a table of name = number or boolean")
-    return {k: v if isinstance(v, bool) else finite_number(v, f"{where} {k}", "a finite "
-                                                           "number or boolean")
-            for k, v in raw.items()}
-
-
-def _unknown_keys(raw: dict[str, Any], allowed: tuple[str, ...], where: str) -> None:
-    unknown = sorted(set(raw) - set(allowed))
-    if unknown:
-        raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)}; "
-                         f"allowed: {', '.join(allowed)}")
-
-
 def _joint(name: str, raw: dict[str, Any]) -> Joint:
     """A joint from its table; exactly one of static_effort and static_load."""
-    _unknown_keys(raw, JOINT_KEYS + OPTIONAL_JOINT_KEYS, f"joint {name}")
+    unknown_keys(raw, JOINT_KEYS + OPTIONAL_JOINT_KEYS, f"joint {name}")
     statics = [key for key in ("static_effort", "static_load") if key in raw]
     missing = [key for key in JOINT_KEYS if key not in raw]
     if missing or len(statics) != 1:
@@ -142,7 +131,7 @@ def _phases(data: dict[str, Any], joints: tuple[Joint, ...], initial: tuple[floa
     for i, raw in enumerate(raw_phases):
         name = str(raw.get("name", i + 1))
         where = f"phase {name}"
-        _unknown_keys(raw, PHASE_KEYS, where)
+        unknown_keys(raw, PHASE_KEYS, where)
         if "duration" not in raw:
             raise ValueError(f"{where}: duration [s] is missing")
         try:
@@ -222,8 +211,8 @@ def _variants(data: dict[str, Any], phase_names: set[str], joints: tuple[Joint, 
                              f"{', '.join(sorted(unknown))}")
         variants[name] = Variant(
             name, raw.get("description", ""), raw.get("model"),
-            _parameter_values(raw.get("parameters", {}), f"variant {name} parameters"),
-            _parameter_values(raw.get("inputs", {}), f"variant {name} inputs"),
+            parameter_values(raw.get("parameters", {}), f"variant {name} parameters"),
+            parameter_values(raw.get("inputs", {}), f"variant {name} inputs"),
             tuple(drop),
             {phase: _input_changes(changes, f"variant {name} phase {phase}")
              for phase, changes in phase_inputs.items()},
@@ -259,7 +248,7 @@ def parse(data: dict[str, Any], where: str, scenario_type: type[Scenario] = Scen
         scenario = scenario_type(
             name=check_name(data["name"], "name"), description=data.get("description", ""),
             model=data["model"],
-            parameters=_parameter_values(data.get("parameters", {}), "parameters"),
+            parameters=parameter_values(data.get("parameters", {}), "parameters"),
             initial_angle=initial, phases=phases, variants=variants,
             baseline=data.get("baseline", next(iter(variants), "")), joints=joints,
             source=data.get("source", ""))
