@@ -33,7 +33,8 @@ COMMANDS = {
                           "build the FMUs of fmu_src whose inputs changed into build/fmus"),
     "cosim": Command("harness.run.cosim",
                      "run scenario variants in an engine (FMPy master, monolithic reference, "
-                     "libcosim, FMPy's SSP runner) and write CSV series, summary and plots"),
+                     "FMI Model Exchange, libcosim at a fixed step or under ECCO, FMPy's SSP "
+                     "runner) and write CSV series, summary and plots"),
     "compare": Command("harness.run.compare",
                        "compare two result CSV files signal by signal within tolerances"),
     "ciupitu-example": Command("harness.design.ciupitu_example",

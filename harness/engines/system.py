@@ -43,6 +43,7 @@ from harness.engines.result import RECORD_INTERVAL, RunResult, assemble, recorde
 from harness.engines.settings import EccoSettings
 from harness.fmu import build as fmu_build
 from harness.fmu import osp
+from harness.scenarios import losses
 
 # the component names of the system's FMUs
 SEQUENCER, CONTROLLER, DRIVE, MECHANISM = "sequencer", "controller", "drive", "mechanism"
@@ -124,23 +125,23 @@ def describe(plan: RunPlan, ecco: EccoSettings | None = None) -> System:
     return System(plan, models, parameters, tuple(connections), fmus, ecco)
 
 
-def _plays(fmu: Path, scenario: scenarios.Scenario) -> bool:
-    """Whether a ScenarioSequencer FMU plays this scenario (its description names it)."""
-    from fmpy import read_model_description
-    return f"plays scenario {scenario.name} " in (read_model_description(fmu).description or "")
-
-
 def sequencer_fmu(scenario: scenarios.Scenario) -> Path:
-    """A ScenarioSequencer FMU that plays the scenario: build/fmus' one if it does, else one
-    built for the (shipped) scenario into build/system/<scenario>/fmus/, rebuilt when its
-    inputs change (`fmu_build.fmu_path`): the one FMU a system builds, as it is part of the
-    system's description."""
+    """A ScenarioSequencer FMU that plays the scenario as its loss set runs it: build/fmus'
+    one where that plays the shipped file the scenario was loaded from, else one built into
+    build/system/<scenario>/<loss set>/fmus/ from the file `losses.played_file` gives,
+    rebuilt when its inputs change (`fmu_build.fmu_path`): the one FMU a system builds, as
+    it is part of the system's description."""
+    from fmpy import read_model_description
+
     default = fmu_build.locate(fmu_build.SEQUENCER)
-    if _plays(default, scenario):
+    shipped = (scenarios.SCENARIO_DIR / f"{scenario.name}.toml").resolve()
+    plays = f"plays scenario {scenario.name} " in (
+        read_model_description(str(default)).description or "")
+    if plays and scenario.loss_set == "ideal" and scenario.file == shipped:
         return default
-    source = scenarios.scenario_file(scenario.name)  # ValueError naming the known scenarios
-    return fmu_build.fmu_path(fmu_build.SEQUENCER, SYSTEM_DIR / scenario.name / "fmus",
-                              sequencer_scenario=source)
+    folder = SYSTEM_DIR / scenario.name / scenario.loss_set
+    return fmu_build.fmu_path(fmu_build.SEQUENCER, folder / "fmus",
+                              sequencer_scenario=losses.played_file(scenario, folder))
 
 
 def model_variables(system: System) -> dict[str, dict]:

@@ -32,11 +32,17 @@ MAX_STEPS = 10_000_000  # communication steps per run: the series stay well insi
 
 @dataclass(frozen=True)
 class Scenario(core.Scenario):
-    """A scenario with vectorised evaluation (numpy arrays of times [s]), and the folder of
-    the file it was loaded from (where a file outside harness/scenarios may keep its realistic
-    loss set, `harness.scenarios.losses`)."""
+    """A scenario with vectorised evaluation (numpy arrays of times [s]), the file it was
+    loaded from (beside which a file outside harness/scenarios may keep its realistic loss
+    set) and the loss set it is (`harness.scenarios.losses`: `ideal` as written)."""
 
-    folder: Path | None = field(default=None, repr=False, compare=False)
+    file: Path | None = field(default=None, repr=False, compare=False)
+    loss_set: str = field(default="ideal", repr=False, compare=False)
+
+    @property
+    def folder(self) -> Path | None:
+        """The folder of the file it was loaded from."""
+        return None if self.file is None else self.file.parent
 
     def check_step(self, step: float, what: str = "--step") -> None:
         """UserError unless the communication step [s] is in [duration / MAX_STEPS, duration],
@@ -140,8 +146,7 @@ def load(name_or_path: str | Path) -> Scenario:
     path = scenario_file(name_or_path)
     data = read_toml(path)
     try:
-        return replace(scenario_format.parse(data, path.name, Scenario),
-                       folder=path.resolve().parent)
+        return replace(scenario_format.parse(data, path.name, Scenario), file=path.resolve())
     except ValueError as error:  # the core is standard library only: it raises ValueError
         raise UserError(str(error)) from None
 

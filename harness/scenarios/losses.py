@@ -23,9 +23,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import tomli_w
+
 from fmu_src.units.sequencer import scenario as core
 from fmu_src.units.sequencer.checks import parameter_values, position, table, unknown_keys
 from harness.errors import UserError
+from harness.io import write_atomic
 from harness.scenarios import SCENARIO_DIR, Scenario, read_toml
 
 LOSSES_DIR = Path(__file__).resolve().parent / "realistic"
@@ -84,7 +87,31 @@ def realistic(scenario: Scenario, data: dict[str, Any] | None = None) -> Scenari
                 phase_targets={**variant.phase_targets, **targets})
     except ValueError as error:
         raise UserError(f"{where}: {error}") from None
-    return replace(scenario, variants=variants)
+    return replace(scenario, variants=variants, loss_set="realistic")
+
+
+def played_file(scenario: Scenario, folder: Path) -> Path:
+    """The scenario file a ScenarioSequencer plays the scenario's loss set from: the file it
+    was loaded from for the ideal set; for the realistic set that file's data with the loss
+    file's phase targets over its variants' (what a loss set changes of the task itself, its
+    parameters being the mechanism's), written as folder/<scenario>.toml when it differs
+    from what is there. UserError when the scenario was not loaded from a file."""
+    if scenario.file is None:
+        raise UserError(f"scenario {scenario.name} was not loaded from a file, which a "
+                        "ScenarioSequencer plays")
+    if scenario.loss_set == "ideal":
+        return scenario.file
+    data = read_toml(scenario.file)
+    for name, raw in read_toml(loss_file(scenario)).get("variants", {}).items():
+        variant = data.setdefault("variants", {}).setdefault(name, {})
+        targets = variant.setdefault("phase_targets", {})
+        for phase, changes in raw.get("phase_targets", {}).items():
+            targets[phase] = {**targets.get(phase, {}), **changes}
+    path = folder / f"{scenario.name}.toml"
+    text = tomli_w.dumps(data)
+    if not path.is_file() or path.read_text(encoding="utf-8") != text:
+        write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    return path
 
 
 def _phase_targets(scenario: Scenario, variant: core.Variant, raw: object, where: str
