@@ -32,7 +32,7 @@ from harness.drive.motor import sampled_motor
 from harness.drive.sizing import MARGIN, JointLoad, choose, evaluate
 from harness.drive.trace import SampledDrive
 from harness.engines import fmpy_master
-from harness.run.report import LEGACY_E_DRAWN
+from harness.report.headline import LEGACY_E_DRAWN
 from harness.run.results import RESULTS_DIR
 
 LOSSY = MotorParameters(N=111.0, eta=0.7, eta_back=0.57)

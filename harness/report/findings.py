@@ -1,10 +1,6 @@
-"""The pages made from the committed results (`make docs`): docs/findings.md, what the results
-say (every scenario's summary, ideal and realistic, the co-simulation's accuracy and the
-sweeps, in tables and in sentences whose numbers are read from the CSV files under
-results/); the README's headline table; and docs/performance.md's current figures (from
-results/bench/). The last two are sections between markers in hand-written pages
-(`harness.fmu.variable_pages.with_generated_section`). tests/test_docs.py fails when a page
-differs from what the committed CSV files give.
+"""docs/findings.md (`make docs`): what the committed results say. Every scenario's summary,
+ideal and realistic, the study over random tasks, the co-simulation's accuracy and the
+sweeps, in tables and in sentences whose numbers are read from the CSV files under results/.
 
 Nothing runs: the files are read. The tables cover every result set results/ holds; the
 sentences are about the shipped scenarios and sweeps, and name their variants and columns.
@@ -12,152 +8,24 @@ sentences are about the shipped scenarios and sweeps, and name their variants an
 
 from __future__ import annotations
 
-import json
 import math
-import re
-import textwrap
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections.abc import Callable, Sequence
 
-import numpy as np
 import pandas as pd
 
-from harness import registry, scenarios
-from harness.errors import UserError
-from harness.fmu.variable_pages import GENERATED_END, with_generated_section
-from harness.io import write_atomic
-from harness.run import study_report
-from harness.run.results import RESULTS_DIR
-from harness.scenarios.losses import REALISTIC_FOLDER
-
-ROOT = RESULTS_DIR.parent
-FINDINGS = ROOT / "docs" / "findings.md"
-README = ROOT / "README.md"
-PERFORMANCE = ROOT / "docs" / "performance.md"
-GENERATED_START = ("<!-- written by `make docs` from the committed results: edits here are "
-                   "replaced -->")
-WIDTH = 96  # the generated prose is wrapped to this many characters, for reading in a terminal
-BLOCK_START = re.compile(r"([-+*>]|\d+[.)]|#+|\||=+)( |$)")  # what Markdown reads as a block
-# the shipped scenarios in the order the findings discuss them (others follow by name)
-SHIPPED = ("franchetti2021", "ciupitu2018", "demian2022")
-
-
-# ---- reading -------------------------------------------------------------------------------
-@dataclass
-class Results:
-    """The committed result files under folder (results/), each read once."""
-
-    folder: Path = RESULTS_DIR
-    _tables: dict[str, pd.DataFrame] = field(default_factory=dict, repr=False)
-
-    def csv(self, name: str) -> pd.DataFrame:
-        """results/<name>.csv; UserError naming it when it is missing."""
-        if name not in self._tables:
-            path = self.folder / f"{name}.csv"
-            if not path.is_file():
-                raise UserError(f"{path} is missing: run `make cosim`, `make sweep` or "
-                                "`make bench` first")
-            self._tables[name] = pd.read_csv(path)
-        return self._tables[name]
-
-    def summary(self, result_set: str) -> pd.DataFrame:
-        """results/<result_set>/summary.csv by variant."""
-        return self.csv(f"{result_set}/summary").set_index("variant", drop=False)
-
-    def at(self, result_set: str, variant: str, time: float) -> pd.Series:
-        """The recorded row of results/<result_set>/<variant>.csv nearest to time [s]."""
-        series = self.csv(f"{result_set}/{variant}")
-        return series.iloc[int(np.abs(series.time - time).argmin())]
-
-    def scenarios(self) -> list[str]:
-        """The scenarios with a result set: the shipped ones first, then others by name."""
-        found = sorted(p.parent.name for p in self.folder.glob("*/summary.csv"))
-        return [n for n in SHIPPED if n in found] + [n for n in found if n not in SHIPPED]
-
-    def studies(self) -> list[str]:
-        """The scenarios with a committed study (results/study/<scenario>/summary.csv), the
-        shipped ones first."""
-        found = sorted(p.parent.name for p in self.folder.glob("study/*/summary.csv"))
-        return [n for n in SHIPPED if n in found] + [n for n in found if n not in SHIPPED]
-
-    def has_realistic(self, scenario: str) -> bool:
-        return (self.folder / scenario / REALISTIC_FOLDER / "summary.csv").is_file()
-
-
-def realistic(scenario: str) -> str:
-    """The result set of the scenario's realistic loss set."""
-    return f"{scenario}/{REALISTIC_FOLDER}"
-
-
-# ---- numbers and tables --------------------------------------------------------------------
-def number(value: float, digits: int = 3) -> str:
-    """value to `digits` significant digits: plain from 1e-3 up (trailing zeros kept, no
-    exponent), in e-notation below ("4.2e-4"); "-" for NaN."""
-    if not math.isfinite(value):
-        return "-"
-    if value == 0:
-        return "0"
-    magnitude = math.floor(math.log10(abs(float(f"{value:.{digits - 1}e}"))))
-    if magnitude < -3:
-        mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
-        return f"{mantissa}e{int(exponent)}"
-    return f"{value:.{max(digits - 1 - magnitude, 0)}f}"
-
-
-def plain(value: float) -> str:
-    """A parameter or an axis value as given (1, 0.05, 0.406037, 90): shortest form."""
-    return f"{value:g}"
-
-
-def percent(fraction: float, digits: int = 3) -> str:
-    """A fraction as a percentage to `digits` significant digits (without the sign %)."""
-    return number(100 * fraction, digits)
-
-
-def span(values: Iterable[float], digits: int = 3, scale: float = 1.0) -> str:
-    """The range of values ("a-b", or "a" when they agree at the digits shown), times scale."""
-    low, high = (number(scale * v, digits) for v in (min(values), max(values)))
-    return low if low == high else f"{low}-{high}"
-
-
-def more_or_less(delta: float, unit: str, digits: int = 3) -> str:
-    """A difference as "<|delta|> <unit> more" or "... less"."""
-    return f"{number(abs(delta), digits)} {unit} {'more' if delta >= 0 else 'less'}"
-
-
-def falls_or_rises(before: float, after: float, digits: int = 3) -> str:
-    """"falls from a to b", "rises from a to b" or "stays at a" (at the digits shown)."""
-    a, b = number(before, digits), number(after, digits)
-    if a == b:
-        return f"stays at {a}"
-    return f"{'falls' if after < before else 'rises'} from {a} to {b}"
-
-
-def wrapped(lines: Iterable[str]) -> list[str]:
-    """Lines of Markdown with each paragraph line wrapped to WIDTH (headings, tables, comments
-    and code kept as they are). A piece that would start a line as Markdown starts a list, a
-    heading, a quote or a table stays at the end of the line before."""
-    out = []
-    for line in lines:
-        if not line or line.startswith(("#", "|", "<!--", "    ")):
-            out.append(line)
-            continue
-        pieces = textwrap.wrap(line, WIDTH, break_long_words=False, break_on_hyphens=False)
-        out.append(pieces[0])
-        for piece in pieces[1:]:
-            if BLOCK_START.match(piece):
-                out[-1] += " " + piece
-            else:
-                out.append(piece)
-    return out
-
-
-def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list[str]:
-    """A Markdown table's lines (cells as given; '|' escaped)."""
-    def line(cells: Sequence[str]) -> str:
-        return "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"
-    return [line(header), line(["---"] * len(header)), *(line(row) for row in rows)]
+from harness import scenarios
+from harness.report import study
+from harness.report.committed import Results, realistic
+from harness.report.text import (
+    falls_or_rises,
+    markdown_table,
+    more_or_less,
+    number,
+    percent,
+    plain,
+    span,
+    wrapped,
+)
 
 
 def joints(summary: pd.DataFrame) -> list[str]:
@@ -715,46 +583,6 @@ def findings_markdown(results: Results) -> str:
     return "\n".join(wrapped(lines)).rstrip("\n") + "\n"
 
 
-def drive_cell(results: Results, scenario: str, variant: str) -> str:
-    """A variant's drives, compact: per joint its motor, gearhead ratio and the RMS current
-    against the motor's nominal one, from the set's drives.csv and summary.csv."""
-    drives = results.csv(f"{scenario}/drives").set_index(["variant", "joint"])
-    summary = results.summary(scenario).loc[variant]
-    rows = drives.loc[variant]
-    several = len(rows) > 1
-    cells = []
-    for joint, row in rows.iterrows():
-        ratio = f" {plain(row.gear_ratio)}:1" if pd.notna(row.gearhead) else " direct"
-        screw = f" + {row.screw}" if pd.notna(row.screw) else ""
-        current = summary[f"i_rms_{joint}" if several else "i_rms"]
-        cells.append(f"{joint + ': ' if several else ''}{row.motor}{ratio}{screw} "
-                     f"({number(current, 2)} / {plain(row.I_nom)} A)")
-    return "; ".join(cells)
-
-
-def headline_section(results: Results) -> str:
-    """The README's headline: the one-line answer and, per scenario and variant, E_drawn and
-    eps with ideal and with real parts, and the drive the sizing rule gave it (its RMS
-    current in the realistic set against its nominal current)."""
-    rows = []
-    for name in results.scenarios():
-        ideal = results.summary(name)
-        real = results.summary(realistic(name)) if results.has_realistic(name) else None
-        for variant, row in ideal.iterrows():
-            other = real.loc[variant] if real is not None else None
-            rows.append([name, f"`{variant}`", number(row.E_drawn, 4),
-                         number(other.E_drawn, 4) if other is not None else "-",
-                         number(row.eps, 3), number(other.eps, 3) if other is not None else "-",
-                         drive_cell(results, realistic(name) if real is not None else name,
-                                    variant)])
-    return "\n".join(wrapped([
-        "## Results at a glance", "", GENERATED_START, "", *study_lead(results),
-        "### On the papers' tasks", "", one_line_answer(results), "",
-        *markdown_table(["scenario", "variant", "E_drawn ideal [J]", "E_drawn realistic [J]",
-                         "eps ideal", "eps realistic", "drive (I_rms / I_nom, realistic)"],
-                        rows), "", fair_drive_sentence(results), "", GENERATED_END, ""]))
-
-
 def study_section(results: Results) -> list[str]:
     """docs/findings.md's study: each scenario's answer, its firm and its open comparisons
     (neighbours in the ranking), and the median ratios by quartile of the task figures."""
@@ -771,192 +599,10 @@ def study_section(results: Results) -> list[str]:
              ""]
     for name in names:
         lines += [f"### {name}", "",
-                  study_report.scenario_sentence(name, results.csv, number, percent), ""]
-        lines += study_report.firmness(name, results.csv, number)
-        header, rows = study_report.dependence_table(name, results.csv, number)
+                  study.scenario_sentence(name, results.csv), ""]
+        lines += study.firmness(name, results.csv)
+        header, rows = study.dependence_table(name, results.csv)
         if rows:
             lines += ["Median E_drawn over the reference variant's, by quartile of the tasks "
                       "(realistic set):", "", *markdown_table(header, rows), ""]
     return lines
-
-
-def study_lead(results: Results) -> list[str]:
-    """The headline's lead: each study's answer, then its table (none without a study)."""
-    names = results.studies()
-    if not names:
-        return []
-    header, rows = study_report.table(names, results.csv, number, percent)
-    return ["### Over random tasks", "",
-            "Which balancer draws the least over the tasks a machine does: every variant ran "
-            "the same random tasks (moves, holds and payload changes drawn from each "
-            "scenario's task model) with its own drives, sized by one rule from catalogue "
-            "parts, with ideal and with real parts; intervals are 95 % bootstrap intervals "
-            f"over the tasks. {study_step_error(results, names)}", "",
-            *[line for name in names for line in (
-                study_report.scenario_sentence(name, results.csv, number, percent), "")],
-            *markdown_table(header, rows), ""]
-
-
-def study_step_error(results: Results, names: list[str]) -> str:
-    """The studies' steps and the largest error each study's own step leaves in a run's
-    E_drawn per loss set, against the finest step (`bench/study_step.csv`, where `make
-    bench` wrote it)."""
-    steps = {name: json.loads((results.folder / "study" / name / "settings.json").read_text())
-             ["step"] for name in names}
-    took = ("The runs take steps of "
-            + ", ".join(f"{plain(1e3 * step)} ms ({name})" for name, step in steps.items()))
-    link = "([docs/study.md](docs/study.md#the-step-and-its-error))"
-    if not (results.folder / "bench" / "study_step.csv").is_file():
-        return f"{took}; `make bench` measures the error they leave {link}."
-    table = results.csv("bench/study_step")
-    own = table[[steps.get(name) == step for name, step in zip(table.scenario,
-                                                                    table.step_size)]]
-    worst = own.groupby("losses").rel_error.max()
-    return (f"{took}, which leave a run's E_drawn within "
-            + " and ".join(f"{number(error, 2)} ({loss_set} set)"
-                           for loss_set, error in worst.items())
-            + f" of its value at {plain(1e3 * table.step_size.min())} ms {link}.")
-
-
-# franchetti2021's E_drawn [J] with ideal parts in the tables before the fair drive protocol
-# (one lossless RE 30 at 111:1 on every joint, always on), which `cosim --drives legacy`
-# reproduces (tests/test_fair_drive.py checks self_regulating's and active_relocation's)
-LEGACY_E_DRAWN = {"unregulated": 10.34687441, "unbalanced": 57.93951013,
-                  "active_relocation": 125.9938121}
-
-
-def fair_drive_sentence(results: Results) -> str:
-    """What the fair drives changed on franchetti2021 against the legacy set-up."""
-    ideal = results.summary("franchetti2021")
-    legacy_eps = 1.0 - LEGACY_E_DRAWN["unregulated"] / LEGACY_E_DRAWN["unbalanced"]
-    return (
-        "Against the earlier set-up (one lossless RE 30 at 111:1 on every joint, always on; "
-        "`cosim --drives legacy` reproduces it), the unbalanced link's drive draws "
-        f"{number(ideal.E_drawn.unbalanced, 3)} J instead of "
-        f"{number(LEGACY_E_DRAWN['unbalanced'], 3)} J with ideal parts, so every saving is "
-        f"smaller (the unregulated balancer's eps {number(ideal.eps.unregulated, 2)} instead "
-        f"of {number(legacy_eps, 2)}); active relocation draws "
-        f"{number(ideal.E_drawn.active_relocation, 3)} J instead of "
-        f"{number(LEGACY_E_DRAWN['active_relocation'], 3)} J, and its eps is "
-        f"{number(ideal.eps.active_relocation, 2)}.")
-
-
-def performance_section(results: Results) -> str:
-    """docs/performance.md's section of the current figures, from results/bench/."""
-    step = results.csv("bench/fmu_step").set_index("model")
-    native = results.csv("bench/native_step").set_index("model")
-    cosim = results.csv("bench/cosim")
-    share = results.csv("bench/master_share")
-    sweep = results.csv("bench/sweep")
-    cli_help = results.csv("bench/cli_help")
-    mechanisms = sorted(m for m in step.index if m in registry.mechanisms())
-    floor = next(m for m in step.index if m not in mechanisms and step.ratio_to_floor[m] == 1)
-    runtime = next(m for m in step.index if m not in (*mechanisms, floor))
-    one_run = cosim[cosim.scenario != "all"]
-    franchetti = one_run[one_run.scenario == "franchetti2021"].set_index("variant")
-    total = cosim[cosim.scenario == "all"].iloc[0]
-    shares = (share.us_per_step - share.fmu_calls_us_per_step) / share.us_per_step
-    targets = [
-        ("our runtime's floor / stock floor, FMPy (`fmu_step.csv`)", "<= 0.6",
-         number(step.ratio_to_floor[runtime], 2)),
-        ("our runtime's floor / stock floor, C host (`native_step.csv`)", "<= 0.4",
-         number(native.ratio_c_host_to_floor[runtime], 2)),
-        ("franchetti2021 self_regulating's FMU step / stock floor step (`fmu_step.csv`)",
-         "<= 1.4", number(step.ratio_to_floor[franchetti.model.self_regulating], 3)),
-        ("closed-loop step / stock floor step, franchetti2021 (`cosim.csv`)", "<= 2.5",
-         span(franchetti.ratio_to_floor, 3)),
-    ]
-    lines = [
-        "## The figures now", "", GENERATED_START, "",
-        f"From the committed `results/bench/` (`make bench`): the stock floor's step costs "
-        f"{number(step.us_per_step[floor])} us in FMPy and "
-        f"{number(native.us_per_step_c_host[floor])} us in the C host; the ratios, measured "
-        "within one run, are the figures to compare between runs.", "",
-        *markdown_table(["ratio", "target", "now"], targets), "",
-        "One FMU step (setReal of the first joint's effort, doStep of 1 ms, getReal of every "
-        "joint's position and speed):", "",
-        *markdown_table(["model", "FMPy [us]", "/ stock floor", "C host [us]", "C host / FMPy"],
-                        [[f"`{m}`", number(step.us_per_step[m]),
-                          number(step.ratio_to_floor[m], 3),
-                          number(native.us_per_step_c_host[m]),
-                          number(native.ratio_c_host_to_fmpy[m], 2)]
-                         for m in [floor, runtime, *mechanisms]]), "",
-        "Closed loop (`cosim.csv`: every variant at 1 ms in one process; CPU time of one step "
-        "with the controller, motor, FMU calls, recording and the run's set-up spread over "
-        "its steps):", "",
-        *markdown_table(["scenario", "variant", "real-time factor", "us per step",
-                         "/ stock floor"],
-                        [[r.scenario, f"`{r.variant}`", number(r.real_time_factor),
-                          number(r.us_per_step), number(r.ratio_to_floor, 3)]
-                         for r in one_run.itertuples()]), "",
-        f"All {len(one_run)} variants: {number(total.simulated_s)} s simulated in "
-        f"{number(total.wall_s)} s of wall time on one core (real-time factor "
-        f"{number(total.real_time_factor)}).", "",
-        "The master's share of a closed-loop step (`master_share.csv`, franchetti2021; a "
-        "reported figure, not a check: the run and its FMU calls are timed seconds apart):",
-        "",
-        *markdown_table(["variant", "step [us]", "FMU calls [us]", "master [us]", "share [%]"],
-                        [[f"`{r.variant}`", number(r.us_per_step),
-                          number(r.fmu_calls_us_per_step), number(r.master_us_per_step, 2),
-                          percent(s, 2)] for r, s in zip(share.itertuples(), shares)]), "",
-        "Sweep throughput (`sweep.csv`): "
-        + ", ".join(f"{number(r.runs_per_s)} runs/s with {r.workers} worker"
-                    + ("s" if r.workers > 1 else "") for r in sweep.itertuples())
-        + f" (speed-up {number(sweep.speed_up.iloc[-1])}). The top-level help "
-        f"(`cli_help.csv`) takes {number(cli_help.best_s.iloc[0], 2)} s.", "",
-        *study_performance(results), GENERATED_END, ""]
-    return "\n".join(wrapped(lines))
-
-
-def study_performance(results: Results) -> list[str]:
-    """The study's throughput (`study.csv`) and its step's error (`study_step.csv`), where
-    `make bench` wrote them."""
-    folder = results.folder / "bench"
-    if not (folder / "study.csv").is_file() or not (folder / "study_step.csv").is_file():
-        return []
-    table, steps = results.csv("bench/study"), results.csv("bench/study_step")
-    one = table[table.setting == "one process"].iloc[0]
-    dask = table[table.setting != "one process"]
-    worst = steps.groupby(["step_size", "losses"]).rel_error.max().unstack()
-    return [
-        f"A study (`study.csv`: the {int(one.runs)} runs of franchetti2021's first study tasks, "
-        "every variant in both loss sets): in one process "
-        f"{number(one.runs_per_cpu_s)} runs per CPU-second, "
-        f"{number(one.simulated_s_per_cpu_s)} simulated seconds per CPU-second, "
-        f"{number(one.us_per_step)} us of CPU per step of 2 ms; a fresh FMU instance would add "
-        f"{number(one.start_up_s, 2)} s, {percent(one.start_up_share, 2)} % of a run, which the "
-        "study saves by reusing one instance per model in each worker. On local Dask "
-        "clusters reached through their scheduler's address (as `--scheduler` reaches one): "
-        + ", ".join(f"{number(r.runs_per_s)} runs/s with {int(r.workers)} worker"
-                    + ("s" if r.workers > 1 else "")
-                    + f" ({number(r.runs_per_s_per_worker)} per worker)"
-                    for r in dask.itertuples()) + " on 2 cores.", "",
-        "The error the study's step leaves in E_drawn (`study_step.csv`: the first "
-        f"{steps.task.nunique()} tasks of each study, every variant, relative to 0.5 ms; the "
-        "largest):", "",
-        *markdown_table(["step [ms]", *[f"{s} set" for s in worst.columns]],
-                        [[plain(1e3 * step), *[number(v, 2) for v in row]]
-                         for step, row in worst.iterrows() if step > steps.step_size.min()]),
-        ""]
-
-
-# ---- writing -------------------------------------------------------------------------------
-def pages(results: Results) -> dict[Path, str]:
-    """Every page this module writes, with its text: docs/findings.md whole, the README and
-    docs/performance.md with their generated sections replaced."""
-    return {
-        FINDINGS: findings_markdown(results),
-        README: with_generated_section(README.read_text(), headline_section(results),
-                                       GENERATED_START),
-        PERFORMANCE: with_generated_section(PERFORMANCE.read_text(),
-                                            performance_section(results), GENERATED_START),
-    }
-
-
-def write_pages(results: Results | None = None) -> list[Path]:
-    """Write the pages whose text changed; the paths written."""
-    written = []
-    for path, text in pages(results or Results()).items():
-        if not path.is_file() or path.read_text() != text:
-            written.append(write_atomic(path, lambda tmp, text=text: tmp.write_text(text)))
-    return written
