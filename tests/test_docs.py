@@ -145,7 +145,8 @@ def test_the_pages_made_from_the_results_are_fresh() -> None:
 def test_the_generated_pages_follow_the_csv_files(tmp_path: Path) -> None:
     """From a copy of the committed CSV files in which franchetti2021's self-regulation draws
     0.0123456 J, the findings' table and one-line answer and the README's table print that
-    value and what follows from it, not the committed one."""
+    value and what follows from it, not the committed one; and the table1 sweep's finding
+    its payload_max of 5 kg (the payloads beyond it listed)."""
     copy = tmp_path / "results"
     shutil.copytree(RESULTS_DIR, copy, ignore=shutil.ignore_patterns("*.parquet",
                                                                               "*.png"))
@@ -154,7 +155,13 @@ def test_the_generated_pages_follow_the_csv_files(tmp_path: Path) -> None:
     summary.loc[summary.variant == "self_regulating", "E_drawn"] = 0.0123456
     summary.to_csv(path, index=False)
     unregulated = summary.set_index("variant").E_drawn.unregulated
+    sweep = copy / "sweeps" / "table1.csv"
+    pd.read_csv(sweep).assign(payload_max=5.0).to_csv(sweep, index=False)
     pages = docs.pages(Results(copy))
+    findings = " ".join(pages[docs.FINDINGS].split())
+    assert "for payloads up to payload_max = 5.00 kg, and " in findings
+    assert "% at 6 kg" in findings and "% at 6 kg" not in " ".join(
+        docs.FINDINGS.read_text().split())
     answer = f"cuts the drive's energy to {text.percent(0.0123456 / unregulated, 2)} % of"
     for page in (docs.FINDINGS, docs.README):
         assert answer in pages[page], page

@@ -9,9 +9,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from harness import scenarios
 from harness.errors import UserError
-from harness.report.prose import FUNCTIONS, Folder, read
+from harness.report.prose import FUNCTIONS, SCENARIO_FINDINGS, SWEEP_FINDINGS, Folder, read
 from harness.report.template import Names, TemplateError, evaluate, fill, placeholders
+from harness.sweeps.definition import SWEEP_DIR
 
 SUMMARY = pd.DataFrame({"variant": ["a", "b"], "E_drawn": [0.5, 4.0], "eps": [0.875, 0.0]}
                        ).set_index("variant")
@@ -143,3 +145,10 @@ def test_findings_files_order_their_subjects(tmp_path: Path) -> None:
         "early", "late", "alpha", "unordered", "zeta"]
     assert [f.path.stem for f in folder.files()] == ["early", "late", "unordered"]
 
+
+def test_every_shipped_findings_file_describes_a_shipped_scenario_or_sweep() -> None:
+    """A renamed scenario or sweep leaves no findings file behind (it would be silently
+    left out of the pages)."""
+    assert {f.path.stem for f in SCENARIO_FINDINGS.files()} == set(scenarios.available())
+    assert {f.path.stem for f in SWEEP_FINDINGS.files()} == {
+        p.stem for p in SWEEP_DIR.glob("*.toml")}

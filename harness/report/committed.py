@@ -9,11 +9,9 @@ import numpy as np
 import pandas as pd
 
 from harness.errors import UserError
+from harness.report.prose import SCENARIO_FINDINGS
 from harness.run.results import RESULTS_DIR
 from harness.scenarios.losses import REALISTIC_FOLDER
-
-# the shipped scenarios in the order the findings discuss them (others follow by name)
-SHIPPED = ("franchetti2021", "ciupitu2018", "demian2022")
 
 
 def realistic(scenario: str) -> str:
@@ -48,15 +46,15 @@ class Results:
         return series.iloc[int(np.abs(series.time - time).argmin())]
 
     def scenarios(self) -> list[str]:
-        """The scenarios with a result set: the shipped ones first, then others by name."""
-        found = sorted(p.parent.name for p in self.folder.glob("*/summary.csv"))
-        return [n for n in SHIPPED if n in found] + [n for n in found if n not in SHIPPED]
+        """The scenarios with a result set, in the order of their findings files (others
+        follow by name)."""
+        return SCENARIO_FINDINGS.in_order(p.parent.name for p in self.folder.glob("*/summary.csv"))
 
     def studies(self) -> list[str]:
-        """The scenarios with a committed study (results/study/<scenario>/summary.csv), the
-        shipped ones first."""
-        found = sorted(p.parent.name for p in self.folder.glob("study/*/summary.csv"))
-        return [n for n in SHIPPED if n in found] + [n for n in found if n not in SHIPPED]
+        """The scenarios with a committed study (results/study/<scenario>/summary.csv), in
+        the order of their findings files."""
+        return SCENARIO_FINDINGS.in_order(
+            p.parent.name for p in self.folder.glob("study/*/summary.csv"))
 
     def has_realistic(self, scenario: str) -> bool:
         return (self.folder / scenario / REALISTIC_FOLDER / "summary.csv").is_file()

@@ -11,7 +11,7 @@ import pandas as pd
 from harness.fmu.variable_pages import GENERATED_END
 from harness.report import study
 from harness.report.committed import Results, realistic
-from harness.report.findings import one_line_answer
+from harness.report.findings import headlines, scenario_lines
 from harness.report.text import GENERATED_START, markdown_table, number, plain, wrapped
 
 
@@ -33,9 +33,10 @@ def drive_cell(results: Results, scenario: str, variant: str) -> str:
 
 
 def headline_section(results: Results) -> str:
-    """The README's headline: the one-line answer and, per scenario and variant, E_drawn and
-    eps with ideal and with real parts, and the drive the sizing rule gave it (its RMS
-    current in the realistic set against its nominal current)."""
+    """The README's headline: the one-line answers and, per scenario and variant, E_drawn
+    and eps with ideal and with real parts, and the drive the sizing rule gave it (its RMS
+    current in the realistic set against its nominal current), then the scenarios' findings
+    for the README."""
     rows = []
     for name in results.scenarios():
         ideal = results.summary(name)
@@ -49,10 +50,12 @@ def headline_section(results: Results) -> str:
                                     variant)])
     return "\n".join(wrapped([
         "## Results at a glance", "", GENERATED_START, "", *study_lead(results),
-        "### On the papers' tasks", "", one_line_answer(results), "",
+        "### On the papers' tasks", "", *headlines(results),
         *markdown_table(["scenario", "variant", "E_drawn ideal [J]", "E_drawn realistic [J]",
                          "eps ideal", "eps realistic", "drive (I_rms / I_nom, realistic)"],
-                        rows), "", fair_drive_sentence(results), "", GENERATED_END, ""]))
+                        rows), "",
+        *(line for name in results.scenarios() for line in scenario_lines(results, name, "readme")),
+        GENERATED_END, ""]))
 
 
 def study_lead(results: Results) -> list[str]:
@@ -91,26 +94,3 @@ def study_step_error(results: Results, names: list[str]) -> str:
             + " and ".join(f"{number(error, 2)} ({loss_set} set)"
                            for loss_set, error in worst.items())
             + f" of its value at {plain(1e3 * table.step_size.min())} ms {link}.")
-
-
-# franchetti2021's E_drawn [J] with ideal parts in the tables before the fair drive protocol
-# (one lossless RE 30 at 111:1 on every joint, always on), which `cosim --drives legacy`
-# reproduces (tests/test_fair_drive.py checks self_regulating's and active_relocation's)
-LEGACY_E_DRAWN = {"unregulated": 10.34687441, "unbalanced": 57.93951013,
-                  "active_relocation": 125.9938121}
-
-
-def fair_drive_sentence(results: Results) -> str:
-    """What the fair drives changed on franchetti2021 against the legacy set-up."""
-    ideal = results.summary("franchetti2021")
-    legacy_eps = 1.0 - LEGACY_E_DRAWN["unregulated"] / LEGACY_E_DRAWN["unbalanced"]
-    return (
-        "Against the earlier set-up (one lossless RE 30 at 111:1 on every joint, always on; "
-        "`cosim --drives legacy` reproduces it), the unbalanced link's drive draws "
-        f"{number(ideal.E_drawn.unbalanced, 3)} J instead of "
-        f"{number(LEGACY_E_DRAWN['unbalanced'], 3)} J with ideal parts, so every saving is "
-        f"smaller (the unregulated balancer's eps {number(ideal.eps.unregulated, 2)} instead "
-        f"of {number(legacy_eps, 2)}); active relocation draws "
-        f"{number(ideal.E_drawn.active_relocation, 3)} J instead of "
-        f"{number(LEGACY_E_DRAWN['active_relocation'], 3)} J, and its eps is "
-        f"{number(ideal.eps.active_relocation, 2)}.")
