@@ -26,9 +26,10 @@ def test_placeholders_are_filled_from_the_tables() -> None:
     text = ("a draws {percent(ideal.E_drawn.a / ideal.E_drawn['b'], 2)} % of b's energy; "
             "{'less' if ideal.E_drawn.a < ideal.E_drawn.b else 'more'}; eps "
             "{join(' / ', [number(e, 2) for e in ideal.eps])}; "
-            "{join(', ', [f'{law}: {len(law)}' for law in laws])}; {len(laws)} laws")
+            "{join(', ', [f'{law}: {len(law)}' for law in laws])}; {len(laws)} laws; "
+            "{number(min(ideal.E_drawn), 1)} to {number(max(ideal.E_drawn), 1)} J")
     assert fill(text, NAMES) == ("a draws 12 % of b's energy; less; eps 0.88 / 0; "
-                                 "x: 1, y: 1; 2 laws")
+                                 "x: 1, y: 1; 2 laws; 0.5 to 4 J")
 
 
 def test_a_placeholder_closes_at_the_brace_that_ends_its_expression() -> None:
@@ -103,7 +104,7 @@ scale = 2.5
 """)
     findings = read(path, ("findings", "headline"))
     assert findings.lines("findings", NAMES) == [
-        "a: 8.00", "", "| v | E |", "| --- | --- |", "| a | 0.50 |", "| b | 4.0 |"]
+        "a: 8.00", "", "| v | E |", "| --- | --- |", "| a | 0.50 |", "| b | 4.0 |", ""]
     with pytest.raises(UserError) as failed:
         findings.lines("headline", NAMES)
     message = str(failed.value)
@@ -119,11 +120,19 @@ def test_a_placeholder_that_fails_is_named_with_its_file_and_text(tmp_path: Path
         read(path, ("findings",)).lines("findings", NAMES)
 
 
+@pytest.mark.parametrize("name", ["number", "ideal"])
+def test_a_value_may_not_hide_a_function_or_table_of_the_page(tmp_path: Path,
+                                                              name: str) -> None:
+    path = write(tmp_path, "task", f"findings = 'x'\n[values]\n{name} = \"1\"\n")
+    with pytest.raises(UserError, match=f"task.toml: value {name}: the name is the page's"):
+        read(path, ("findings",)).lines("findings", NAMES)
+
+
 @pytest.mark.parametrize(("text", "says"), [
     ("finding = 'x'\n", "unknown key 'finding' (known: order, values, findings)"),
     ("order = 'first'\n", "order = 'first' is not a number"),
     ("values = 3\n", "values is not a table"),
-    ("[values]\nnumber = '1'\n", "value 'number': a name is letters"),
+    ("[values]\n_scale = '1'\n", "value '_scale': a name is letters"),
     ("findings = 3\n", "findings is not text"),
 ])
 def test_a_malformed_findings_file_is_refused_in_one_line(tmp_path: Path, text: str,

@@ -115,11 +115,12 @@ def ranking_sentence(results: Results) -> str:
 
 
 def scenario_lines(results: Results, name: str, key: str) -> list[str]:
-    """Text `key` of the scenario's findings file and a blank line, filled from its two
-    result sets; none without the text or the realistic set. Its expressions see `ideal` and
-    `real` (the summaries by variant), `phases` (name: (start, end) [s]), `parameters`
-    (variant: its own parameters), `ranking` (whether the variants' order holds with real
-    parts), `at(variant, time)` (the recorded row nearest to time [s]) and `csv(name)`."""
+    """Text `key` of the scenario's findings file, filled from its two result sets (a blank
+    line after each paragraph); none without the text or the realistic set. Its expressions
+    see `ideal` and `real` (the summaries by variant), `phases` (name: (start, end) [s]),
+    `parameters` (variant: its own parameters), `ranking` (whether the variants' order holds
+    with real parts), `at(variant, time)` (the recorded row nearest to time [s]) and
+    `csv(name)`."""
     findings = SCENARIO_FINDINGS.of(name)
     if findings is None or key not in findings.texts or not results.has_realistic(name):
         return []
@@ -131,24 +132,24 @@ def scenario_lines(results: Results, name: str, key: str) -> list[str]:
                              for v, variant in scenario.variants.items()}}
     functions = {**FUNCTIONS, "csv": results.csv,
                  "at": lambda variant, time: results.at(name, variant, time)}
-    return [*findings.lines(key, Names(functions, values)), ""]
+    return findings.lines(key, Names(functions, values))
 
 
 def sweep_lines(results: Results) -> list[str]:
-    """The sweeps' section after its heading: its lead and each sweep's findings, in order,
-    each followed by a blank line. A sweep's expressions see `runs` (its
+    """The sweeps' section after its heading: its lead and each sweep's findings, in order.
+    A sweep's expressions see `runs` (its
     results/sweeps/<sweep>.csv), `runs_note` (that file and its number of runs, and of
     failed ones) and `csv(name)`."""
     functions = {**FUNCTIONS, "csv": results.csv}
-    lines = [*SWEEP_FINDINGS.section(("lead",)).lines("lead", Names(functions, {})), ""]
+    lines = SWEEP_FINDINGS.section(("lead",)).lines("lead", Names(functions, {}))
     for findings in SWEEP_FINDINGS.files():
         name = findings.path.stem
         runs = results.csv(f"sweeps/{name}")
         failed = int((runs.status != "ok").sum())
         note = (f"`results/sweeps/{name}.csv`, {len(runs)} runs"
                 + (f", {failed} failed" if failed else ""))
-        lines += [*findings.lines("findings", Names(functions, {"runs": runs,
-                                                                 "runs_note": note})), ""]
+        names = Names(functions, {"runs": runs, "runs_note": note})
+        lines += findings.lines("findings", names)
     return lines
 
 

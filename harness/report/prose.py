@@ -4,9 +4,10 @@ the result tables by the template language (`harness.report.template`).
 
 `harness/scenarios/findings/<scenario>.toml` and `harness/sweeps/findings/<sweep>.toml`
 hold `order` (their place among the others; without it a file follows those that have one,
-by name), `[values]` (names, each an expression or a plain TOML value, evaluated in order)
-and texts: a scenario's `headline`, `findings`, `accuracy` and `readme`, a sweep's
-`findings`. `harness/sweeps/findings/_section.toml` holds the `lead` of the sweeps' section.
+by name), `[values]` (names, each an expression or a plain TOML value, evaluated in order as
+a text reads them) and texts: a scenario's `headline`, `findings`, `accuracy` and `readme`, a
+sweep's `findings`. `harness/sweeps/findings/_section.toml` holds the `lead` of the sweeps'
+section. FUNCTIONS is what every file's expressions may call.
 """
 
 from __future__ import annotations
@@ -72,13 +73,12 @@ def saving(runs: pd.DataFrame, keys: Sequence[str], variant: str, against: str) 
     return 1 - drawn(variant) / drawn(against)
 
 
-# what every findings file's expressions may call
-FUNCTIONS = {
+FUNCTIONS = {  # no function that calls its arguments (sorted, min and max take no key)
     "number": number, "plain": plain, "percent": percent, "span": span,
     "more_or_less": more_or_less, "falls_or_rises": falls_or_rises,
     "table": lambda header, rows: "\n".join(markdown_table(header, rows)),
     "join": lambda separator, pieces: separator.join(pieces),
-    "abs": abs, "len": len, "zip": zip, "all": all, "any": any,
+    "abs": abs, "len": len, "zip": zip, "all": all,
     "min": lambda *values: min(*values), "max": lambda *values: max(*values),
     "sorted": lambda values, reverse=False: sorted(values, reverse=reverse),
     "distinct": distinct, "where": where, "select": select, "saving": saving,
@@ -109,6 +109,9 @@ class Findings:
             if name in read and isinstance(value, str):
                 read = read | names_read(value)
         for name, value in self.values.items():
+            if name in names.functions or name in names.values:
+                raise UserError(f"{shown(self.path)}: value {name}: the name is the page's "
+                                "(a function or a table its expressions see)")
             if name in read:
                 try:
                     value = evaluate(value, names) if isinstance(value, str) else value
@@ -120,7 +123,7 @@ class Findings:
     def lines(self, key: str, names: Names) -> list[str]:
         """The lines of text `key` (none if the file has none): its blocks (split at blank
         lines), each joined into one line with its placeholders filled from names and the
-        file's values, a blank line between blocks."""
+        file's values, and a blank line after each."""
         if key not in self.texts:
             return []
         blocks = [" ".join(line.strip() for line in block.splitlines())
@@ -132,7 +135,7 @@ class Findings:
             filled = [fill(block, names) for block in blocks]
         except TemplateError as error:
             raise UserError(f"{shown(self.path)}: {key}: {error}") from None
-        return [line for text in filled for line in [*text.split("\n"), ""]][:-1]
+        return [line for text in filled for line in [*text.split("\n"), ""]]
 
 
 def read(path: Path, texts: Sequence[str]) -> Findings:
@@ -148,9 +151,8 @@ def read(path: Path, texts: Sequence[str]) -> Findings:
     if not isinstance(values, dict):
         problems.append("values is not a table")
     else:
-        problems += [f"value {name!r}: a name is letters, digits and _, starting with a letter,"
-                     " and no function's" for name in values
-                     if not NAME.fullmatch(name) or name in FUNCTIONS]
+        problems += [f"value {name!r}: a name is letters, digits and _, starting with a letter"
+                     for name in values if not NAME.fullmatch(name)]
     problems += [f"{key} is not text" for key in texts if not isinstance(data.get(key, ""), str)]
     if problems:
         raise UserError(f"{shown(path)}: {problems[0]}")

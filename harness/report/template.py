@@ -35,7 +35,7 @@ class TemplateError(ValueError):
     """An expression that cannot be filled in: the expression and why, on one line."""
 
     def __init__(self, expression: str, problem: str) -> None:
-        super().__init__(f"{{{' '.join(expression.split())}}}: {problem}")
+        super().__init__(" ".join(f"{{{expression}}}: {problem}".split()))
 
 
 @dataclass(frozen=True)
@@ -116,7 +116,7 @@ def evaluate(expression: str, names: Names) -> Any:
         raise TemplateError(expression, refused)
     code = compile(ast.fix_missing_locations(_CheckFormatted().visit(tree)), "<findings>",
                    "eval")
-    scope = {"__builtins__": {}, TEXT: as_text, **names.functions, **names.values}
+    scope = {**names.values, **names.functions, "__builtins__": {}, TEXT: as_text}
     try:
         value = eval(code, scope)  # checked above: it calls none but the functions given
     except Exception as error:  # a missing column, variant or row, a value of another type
