@@ -1,7 +1,7 @@
 """The study's answer in words and tables, for the README's headline and docs/findings.md,
-from the committed study under results/study/<scenario>/
-(docs/study.md): which variant draws the least over the random tasks, by how much, with what
-confidence, and where the ranking changes with the task."""
+from the committed study under results/study/<scenario>/ (docs/study.md): which variant
+draws the least over the random tasks, by how much, with what confidence, and where the
+ranking changes with the task."""
 
 from __future__ import annotations
 
