@@ -34,8 +34,10 @@ CONSTANTS = (str, int, float, bool, type(None))
 class TemplateError(ValueError):
     """An expression that cannot be filled in: the expression and why, on one line."""
 
-    def __init__(self, expression: str, problem: str) -> None:
-        super().__init__(" ".join(f"{{{expression}}}: {problem}".split()))
+
+def refusal(expression: str, problem: str) -> TemplateError:
+    """The TemplateError of an expression: `{expression}: problem`, on one line."""
+    return TemplateError(" ".join(f"{{{expression}}}: {problem}".split()))
 
 
 @dataclass(frozen=True)
@@ -110,19 +112,19 @@ def evaluate(expression: str, names: Names) -> Any:
     try:
         tree = parsed(expression)
     except SyntaxError as error:
-        raise TemplateError(expression, f"not an expression ({error.msg})") from None
+        raise refusal(expression, f"not an expression ({error.msg})") from None
     refused = problem(tree, names)
     if refused:
-        raise TemplateError(expression, refused)
+        raise refusal(expression, refused)
     code = compile(ast.fix_missing_locations(_CheckFormatted().visit(tree)), "<findings>",
                    "eval")
     scope = {**names.values, **names.functions, "__builtins__": {}, TEXT: as_text}
     try:
         value = eval(code, scope)  # checked above: it calls none but the functions given
     except Exception as error:  # a missing column, variant or row, a value of another type
-        raise TemplateError(expression, f"{type(error).__name__}: {error}") from None
+        raise refusal(expression, f"{type(error).__name__}: {error}") from None
     if callable(value):
-        raise TemplateError(expression, "gives a function: call it")
+        raise refusal(expression, "gives a function: call it")
     return value
 
 
@@ -137,7 +139,7 @@ def closing(text: str, start: int) -> int:
             return end
         except SyntaxError:
             end = text.find("}", end + 1)
-    raise TemplateError(text[start + 1:start + 40] + "...", "no } closes it as an expression")
+    raise refusal(text[start + 1:start + 40] + "...", "no } closes it as an expression")
 
 
 def placeholders(text: str) -> list[tuple[int, int]]:
@@ -168,6 +170,6 @@ def fill(text: str, names: Names) -> str:
         try:
             pieces += [text[position:start], as_text(value)]
         except TypeError as error:
-            raise TemplateError(expression, str(error)) from None
+            raise refusal(expression, str(error)) from None
         position = end + 1
     return "".join(pieces) + text[position:]
