@@ -58,7 +58,7 @@ COMMANDS = {
                      "benchmarks: FMU step cost against a trivial FMU and in a C host, "
                      "co-simulation real-time factor, step convergence, sweep scaling "
                      "(results/bench)"),
-    "docs": Command("harness.run.docs",
+    "docs": Command("harness.report.docs",
                     "write the generated pages: the FMUs' variable tables and list from the "
                     "built FMUs, docs/findings.md and the README's and docs/performance.md's "
                     "figures from the committed results"),

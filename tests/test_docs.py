@@ -16,8 +16,9 @@ from harness import registry
 from harness.drive.metrics import METRICS
 from harness.fmu import build as fmu_build
 from harness.fmu import variable_pages
-from harness.run import report
-from harness.run.results import SUMMARY_COLUMNS
+from harness.report import docs, text
+from harness.report.committed import Results
+from harness.run.results import RESULTS_DIR, SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -133,61 +134,68 @@ def test_the_pages_made_from_the_results_are_fresh() -> None:
     """docs/findings.md, the README's headline section and docs/performance.md's figures are
     what `make docs` writes from the committed CSV files: every table and every number of
     every sentence. The README and performance.md hold their section once."""
-    for path, text in report.pages(report.Results()).items():
-        assert path.read_text() == text, (
+    for path, page_text in docs.pages(Results()).items():
+        assert path.read_text() == page_text, (
             f"{path.relative_to(ROOT)} is out of date: run `make docs`")
-    for page in (report.README, report.PERFORMANCE):
-        assert page.read_text().count(report.GENERATED_START) == 1, page
-    assert "<!--=" not in report.README.read_text()
+    for page in (docs.README, docs.PERFORMANCE):
+        assert page.read_text().count(text.GENERATED_START) == 1, page
+    assert "<!--=" not in docs.README.read_text()
 
 
 def test_the_generated_pages_follow_the_csv_files(tmp_path: Path) -> None:
     """From a copy of the committed CSV files in which franchetti2021's self-regulation draws
     0.0123456 J, the findings' table and one-line answer and the README's table print that
-    value and what follows from it, not the committed one."""
+    value and what follows from it, not the committed one; and the table1 sweep's finding
+    its payload_max of 5 kg (the payloads beyond it listed)."""
     copy = tmp_path / "results"
-    shutil.copytree(report.RESULTS_DIR, copy, ignore=shutil.ignore_patterns("*.parquet",
+    shutil.copytree(RESULTS_DIR, copy, ignore=shutil.ignore_patterns("*.parquet",
                                                                               "*.png"))
     path = copy / "franchetti2021" / "summary.csv"
     summary = pd.read_csv(path)
     summary.loc[summary.variant == "self_regulating", "E_drawn"] = 0.0123456
     summary.to_csv(path, index=False)
     unregulated = summary.set_index("variant").E_drawn.unregulated
-    pages = report.pages(report.Results(copy))
-    answer = f"cuts the drive's energy to {report.percent(0.0123456 / unregulated, 2)} % of"
-    for page in (report.FINDINGS, report.README):
+    sweep = copy / "sweeps" / "table1.csv"
+    pd.read_csv(sweep).assign(payload_max=5.0).to_csv(sweep, index=False)
+    pages = docs.pages(Results(copy))
+    findings = " ".join(pages[docs.FINDINGS].split())
+    assert "for payloads up to payload_max = 5.00 kg, and " in findings
+    assert "% at 6 kg" in findings and "% at 6 kg" not in " ".join(
+        docs.FINDINGS.read_text().split())
+    answer = f"cuts the drive's energy to {text.percent(0.0123456 / unregulated, 2)} % of"
+    for page in (docs.FINDINGS, docs.README):
         assert answer in pages[page], page
-    realistic = report.number(pd.read_csv(copy / "franchetti2021" / "realistic" / "summary.csv")
+    realistic = text.number(pd.read_csv(copy / "franchetti2021" / "realistic" / "summary.csv")
                               .set_index("variant").E_drawn.self_regulating, 4)
-    assert f"| `self_regulating` | 0.01235 | {realistic} |" in pages[report.FINDINGS]
+    assert f"| `self_regulating` | 0.01235 | {realistic} |" in pages[docs.FINDINGS]
     assert (f"| franchetti2021 | `self_regulating` | 0.01235 | {realistic} |"
-            in pages[report.README])
-    committed = report.pages(report.Results())
-    assert pages[report.PERFORMANCE] == committed[report.PERFORMANCE]
-    drawn = pd.read_csv(report.RESULTS_DIR / "franchetti2021" / "summary.csv").set_index(
+            in pages[docs.README])
+    committed = docs.pages(Results())
+    assert pages[docs.PERFORMANCE] == committed[docs.PERFORMANCE]
+    drawn = pd.read_csv(RESULTS_DIR / "franchetti2021" / "summary.csv").set_index(
         "variant").E_drawn.self_regulating
-    assert f"| `self_regulating` | {report.number(drawn, 4)} |" in committed[report.FINDINGS]
-    assert "0.01235" not in committed[report.FINDINGS]
+    assert f"| `self_regulating` | {text.number(drawn, 4)} |" in committed[docs.FINDINGS]
+    assert "0.01235" not in committed[docs.FINDINGS]
 
 
 def test_numbers_are_printed_to_their_significant_digits() -> None:
-    assert report.number(0.069907, 3) == "0.0699"
-    assert report.number(125.92, 5) == "125.92"
-    assert report.number(10.0, 4) == "10.00"
-    assert report.number(0.00099999, 2) == "0.0010"   # rounded across a decade
-    assert report.number(4.2e-4, 2) == "4.2e-4"
-    assert report.number(-1.1749, 3) == "-1.17"
-    assert report.number(float("nan")) == "-"
-    assert report.span([0.9931, 0.9987], 3, 100) == "99.3-99.9"
-    assert report.falls_or_rises(0.86, 0.823) == "falls from 0.860 to 0.823"
-    assert report.more_or_less(-0.0846, "J") == "0.0846 J less"
+    assert text.number(0.069907, 3) == "0.0699"
+    assert text.number(125.92, 5) == "125.92"
+    assert text.number(10.0, 4) == "10.00"
+    assert text.number(0.00099999, 2) == "0.0010"   # rounded across a decade
+    assert text.number(4.2e-4, 2) == "4.2e-4"
+    assert text.number(-1.1749, 3) == "-1.17"
+    assert text.number(float("nan")) == "-"
+    assert text.span([0.9931, 0.9987], 3, 100) == "99.3-99.9"
+    assert text.falls_or_rises(0.86, 0.823) == "falls from 0.860 to 0.823"
+    assert text.more_or_less(-0.0846, "J") == "0.0846 J less"
 
 
 def test_generated_prose_is_wrapped_without_starting_a_markdown_block() -> None:
     """Paragraphs wrap to WIDTH; a piece that would open a list, heading or table on a new
     line stays on the line before; tables and headings are kept whole."""
-    text = ("word " * 60).strip()
-    assert all(len(line) <= report.WIDTH for line in report.wrapped([text]))
-    assert " ".join(report.wrapped([text])) == text
-    assert report.wrapped(["w" * 90 + " - b", "| a | b |", "# " + "h " * 60]) == [
+    prose = ("word " * 60).strip()
+    assert all(len(line) <= text.WIDTH for line in text.wrapped([prose]))
+    assert " ".join(text.wrapped([prose])) == prose
+    assert text.wrapped(["w" * 90 + " - b", "| a | b |", "# " + "h " * 60]) == [
         "w" * 90 + " - b", "| a | b |", "# " + "h " * 60]

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import committed_drives
 from scipy.integrate import solve_ivp
 
-from conftest import committed_drives
 from harness import cli, engines, scenarios
 from harness.drive.controller import design_pid
 from harness.engines import ENGINES, stiff

@@ -22,6 +22,7 @@ from fmu_src.integration import SubstepBoundError
 from fmu_src.parameters import DomainError
 from harness.errors import UserError
 from harness.fmu.loader import CoSimFMU, FMICallException, FMUCallError, LogMessage
+from harness.report.template import TemplateError
 from harness.sweeps.paths import PathError, RefusedValueError
 from tests.conftest import FMI_ERROR, SRB, bundled, open_fmu
 
@@ -40,6 +41,7 @@ EXAMPLES = {  # one instance of every error type defined in harness/ and fmu_src
     SubstepBoundError: SubstepBoundError("more than 20,000 sub-steps"),
     DomainError: DomainError("the linkage cannot be assembled"),
     FMUCallError: fmu_call_error(),
+    TemplateError: TemplateError("{number(ideal.E_drawn.c)}: AttributeError: c"),
 }
 
 

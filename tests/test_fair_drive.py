@@ -33,10 +33,12 @@ from harness.drive.sizing import MARGIN, JointLoad, choose, evaluate
 from harness.drive.trace import SampledDrive
 from harness.engines import fmpy_master
 from harness.engines.plan import prepare
-from harness.run.report import LEGACY_E_DRAWN
+from harness.report.prose import SCENARIO_FINDINGS
 from harness.run.results import RESULTS_DIR
 
 LOSSY = MotorParameters(N=111.0, eta=0.7, eta_back=0.57)
+# franchetti2021's E_drawn [J] with the legacy drives, as its findings file quotes them
+LEGACY_E_DRAWN = SCENARIO_FINDINGS.of("franchetti2021").values["legacy_E_drawn"]
 
 
 def ledger_residual(p: MotorParameters, dt: float, voltages: list[float],

@@ -7,8 +7,8 @@ run by `harness.cli`.
 The rooms stand in layers (docs/code_structure.md), each importing only rooms below it:
 the base modules (errors, io, interrupts, registry), then scenarios, fmu (building, loading
 and calling FMUs), drive (motor, controller, metrics), engines, run (the cosim command,
-result files, plots, compare), and the commands built on those (design, sweeps, bench),
-then the command line."""
+result files, plots, compare), and the commands built on those (design, sweeps, study,
+bench), the pages made from what they all write (report), then the command line."""
 
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ GRAPH = {name: imported(name, path) for name, path in MODULES.items()}
 LAYERS = (("harness.errors", "harness.io", "harness.interrupts", "harness.registry"),
           ("harness.scenarios",), ("harness.fmu",), ("harness.drive",), ("harness.engines",),
           ("harness.run",), ("harness.design", "harness.sweeps"), ("harness.study",),
-          ("harness.bench",),
+          ("harness.bench",), ("harness.report",),
           ("harness.cli", "harness.__main__"))
 LAYER = {room: level for level, rooms in enumerate(LAYERS) for room in rooms}
 

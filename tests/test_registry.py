@@ -133,44 +133,80 @@ def test_every_registration_is_complete(model: str) -> None:
     assert bool(found.joints()) == (found.physics is not None)
 
 
-def _string_constants(path: Path) -> set[str]:
-    return {node.value for node in ast.walk(ast.parse(path.read_text()))
-            if isinstance(node, ast.Constant) and isinstance(node.value, str)}
+def names_used(source: str) -> set[str]:
+    """The names a module's source gives that could be a mechanism's or one of its outputs':
+    its string constants (`row["W_adjust"]` included), the attributes it reads
+    (`settled.delta_b`, `ideal.E_drawn.self_regulating`) and the keyword arguments it passes
+    (`Parameters(l_s=...)`). The names it binds itself (variables, arguments) are its own."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            found.add(node.value)
+        elif isinstance(node, ast.Attribute):
+            found.add(node.attr)
+        elif isinstance(node, ast.keyword) and node.arg is not None:
+            found.add(node.arg)
+    return found
 
 
-# String constants outside the mechanisms' folders that are a mechanism's name by the rule
-# below but mean something else or are not derived yet, each with its reason:
+# Names outside the mechanisms' folders that are a mechanism's name by the rule below but
+# mean something else or are not derived yet, each with its reason:
 NOT_A_MECHANISM_NAME = {
     # a sweep file's plot role (its x axis), not SelfRegulatingBalancer's spring length x
     "sweeps/definition.py": {"x"}, "sweeps/plots.py": {"x"},
+    # matplotlib's Axes.margins(x=...), the plot's horizontal margin
+    "study/plots.py": {"x"},
     # the scenario format's default joint: the one-link mechanisms' common names
     "units/sequencer/scenario.py": {"tau_gravity"},
 }
 
 
-def test_no_harness_or_shared_module_names_a_mechanism() -> None:
-    """The harness and the FMUs' shared modules reach the mechanisms through their
-    registrations alone: no string constant of a harness module (its design tools aside) or
-    of an fmu_src module outside fmu_src/mechanisms is a mechanism's model name, or the name
-    of an output that not every mechanism has (and that is no variable of the drive, the
-    controller or the sequencer, as their FMUs declare them), but those of
-    NOT_A_MECHANISM_NAME."""
-    assert len(MECHANISMS) >= 5
+@pytest.fixture(scope="module")
+def mechanism_names() -> set[str]:
+    """The mechanisms' model names and the outputs that not every mechanism has (and that
+    are no variable of the drive, the controller or the sequencer, as their FMUs declare
+    them)."""
     outputs = [set(r.physics.Outputs._fields) for r in MECHANISMS.values()]
     units = {var.name for model in set(fmu_build.MODELS) - set(MECHANISMS)
              for var in read_model_description(fmu_build.fmu_path(model)).modelVariables}
-    names = {*MECHANISMS, *(set().union(*outputs) - set.intersection(*outputs) - units)}
-    assert {"W_adjust", "delta_b", "OB", "Y_cw", "l_s", "q"} <= names
+    return {*MECHANISMS, *(set().union(*outputs) - set.intersection(*outputs) - units)}
+
+
+def test_no_harness_or_shared_module_names_a_mechanism(mechanism_names: set[str]) -> None:
+    """The harness and the FMUs' shared modules reach the mechanisms through their
+    registrations alone: no harness module (its design tools aside) and no fmu_src module
+    outside fmu_src/mechanisms gives a mechanism's name (names_used) but those of
+    NOT_A_MECHANISM_NAME."""
+    assert len(MECHANISMS) >= 5
+    assert {"W_adjust", "delta_b", "OB", "Y_cw", "l_s", "q"} <= mechanism_names
     source = registry.SOURCE_DIR
     shared = [p for p in sorted(source.rglob("*.py"))
               if p.relative_to(source).parts[0] != "mechanisms"]
     assert {"fmi/slave.py", "units/sequencer/ScenarioSequencer.py", "integration.py"} <= {
         p.relative_to(source).as_posix() for p in shared}
+    named = {}
     for root, paths in ((HARNESS, sorted(HARNESS.rglob("*.py"))), (source, shared)):
         for path in paths:
             if DESIGN_TOOLS not in path.parents:
-                allowed = NOT_A_MECHANISM_NAME.get(path.relative_to(root).as_posix(), set())
-                assert not (_string_constants(path) & names) - allowed, path
+                where = path.relative_to(root).as_posix()
+                allowed = NOT_A_MECHANISM_NAME.get(where, set())
+                if found := (names_used(path.read_text()) & mechanism_names) - allowed:
+                    named[where] = sorted(found)
+    assert not named
+
+
+def test_the_name_check_sees_attribute_reads_keywords_and_subscripts(
+        mechanism_names: set[str]) -> None:
+    """A sentence built the way the report's code once built them (a recorded row's output
+    read as an attribute, a summary's variant column, a parameter passed by keyword, an
+    output looked up by its string) is caught, with its own variables left alone."""
+    source = """
+def sentence(results, ideal, physics):
+    q = results.at("active_relocation", 17.0)
+    settled = physics.Parameters(l_s=0.1)
+    return f"{q.delta_b - settled.W_adjust} {ideal.E_drawn.self_regulating} {q['Y_cw']}"
+"""
+    assert names_used(source) & mechanism_names == {"delta_b", "W_adjust", "l_s", "Y_cw"}
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""The pages made from the built FMUs and their registrations (`make docs`, `harness.run.docs`):
+"""The pages made from the built FMUs and their registrations (`make docs`, `harness.report.docs`):
 docs/fmus.md, the list of the FMUs with their slave scripts; docs/variables/<Model>.md, the
 variable table of each built FMU's model description; and in each mechanism's README.md the
 section on its reference run and energy ledger, from its registration. tests/test_docs.py

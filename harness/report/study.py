@@ -1,13 +1,15 @@
-"""The study's answer in words and tables, for the README's headline and docs/findings.md
-(`harness.run.report`), from the committed study under results/study/<scenario>/
-(docs/study.md): which variant draws the least over the random tasks, by how much, with what
-confidence, and where the ranking changes with the task."""
+"""The study's answer in words and tables, for the README's headline and docs/findings.md,
+from the committed study under results/study/<scenario>/ (docs/study.md): which variant
+draws the least over the random tasks, by how much, with what confidence, and where the
+ranking changes with the task."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
 import pandas as pd
+
+from harness.report.text import number, percent
 
 SETS = ("realistic", "ideal")      # the realistic set leads: it is what a machine draws
 AXIS_WORDS = {"changes_per_min": ("payload changes per minute", "/min"),
@@ -27,21 +29,20 @@ def pair(paired: pd.DataFrame, loss_set: str, variant: str, other: str) -> pd.Se
     return rows.iloc[0]
 
 
-def interval(row: pd.Series, number: Callable[[float, int], str]) -> str:
+def interval(row: pd.Series) -> str:
     """ "a J (95 % CI b to c J)" of a paired row."""
     return (f"{number(row.mean_difference, 3)} J (95 % CI {number(row.ci_low, 3)} to "
             f"{number(row.ci_high, 3)} J)")
 
 
-def less_per_task(row: pd.Series, number: Callable[[float, int], str]) -> str:
+def less_per_task(row: pd.Series) -> str:
     """A paired row of a variant that draws less than the other, in words: "d J less per
     task (95 % CI a to b J)"."""
     return (f"{number(-row.mean_difference, 3)} J less per task (95 % CI "
             f"{number(-row.ci_high, 3)} to {number(-row.ci_low, 3)} J)")
 
 
-def ranking_change(dependence: pd.DataFrame, loss_set: str,
-                   number: Callable[[float, int], str]) -> str:
+def ranking_change(dependence: pd.DataFrame, loss_set: str) -> str:
     """Where the variant with the least median E_drawn ratio changes along each task figure,
     or that it does not."""
     parts = []
@@ -68,8 +69,7 @@ def ranking_change(dependence: pd.DataFrame, loss_set: str,
     return "; ".join(parts)
 
 
-def scenario_sentence(name: str, csv: Csv, number: Callable[[float, int], str],
-                      percent: Callable[[float, int], str]) -> str:
+def scenario_sentence(name: str, csv: Csv) -> str:
     """One scenario's answer: the leader with real parts, how often it leads, by how much
     against the runner-up, and where the ranking changes."""
     summary, paired = csv(f"study/{name}/summary"), csv(f"study/{name}/paired")
@@ -86,18 +86,17 @@ def scenario_sentence(name: str, csv: Csv, number: Callable[[float, int], str],
     if tasks.changes.max() > 0:
         figures += (f", {number(tasks.changes_per_min.min(), 2)} to "
                     f"{number(tasks.changes_per_min.max(), 2)} payload changes per minute")
-    change = ranking_change(dependence, loss_set, number)
+    change = ranking_change(dependence, loss_set)
     return (
         f"**{name}** ({figures}): with real parts `{best}` draws the least in "
         f"{percent(rows.least_fraction[best], 2)} % of the tasks, a median "
         f"{number(rows.E_drawn_median[best], 3)} J against {number(rows.E_drawn_median[second], 3)}"
-        f" J for `{second}`, the runner-up, and {less_per_task(gap, number)} than it "
+        f" J for `{second}`, the runner-up, and {less_per_task(gap)} than it "
         f"({'firm: the interval excludes 0' if gap.firm else 'not firm: the interval holds 0'})"
         "." + (f" By task: {change}." if change else ""))
 
 
-def table(names: list[str], csv: Csv, number: Callable[[float, int], str],
-          percent: Callable[[float, int], str]) -> tuple[list[str], list[list[str]]]:
+def table(names: list[str], csv: Csv) -> tuple[list[str], list[list[str]]]:
     """Per scenario and variant: median E_drawn with its 5-95 % span in each set, the share
     of tasks it draws the least in, and its mean paired difference to the task model's
     reference variant with real parts."""
@@ -129,7 +128,7 @@ def table(names: list[str], csv: Csv, number: Callable[[float, int], str],
     return header, rows
 
 
-def firmness(name: str, csv: Csv, number: Callable[[float, int], str]) -> list[str]:
+def firmness(name: str, csv: Csv) -> list[str]:
     """Each loss set's ranking by median E_drawn, each neighbour's mean paired difference
     to the next, and whether it is firm."""
     summary, paired = csv(f"study/{name}/summary"), csv(f"study/{name}/paired")
@@ -140,14 +139,13 @@ def firmness(name: str, csv: Csv, number: Callable[[float, int], str]) -> list[s
         for better, worse in zip(order, order[1:]):
             row = pair(paired, loss_set, better, worse)
             verdict = "firm" if row.firm else "not firm"
-            steps.append(f"`{better}` - `{worse}`: {interval(row, number)}, {verdict}")
+            steps.append(f"`{better}` - `{worse}`: {interval(row)}, {verdict}")
         lines += [f"- {loss_set}, by median E_drawn, least first; the mean paired difference "
                   "of each to the next: " + "; ".join(steps) + "."]
     return [*lines, ""]
 
 
-def dependence_table(name: str, csv: Csv, number: Callable[[float, int], str]
-                     ) -> tuple[list[str], list[list[str]]]:
+def dependence_table(name: str, csv: Csv) -> tuple[list[str], list[list[str]]]:
     """Per task figure and quartile of the realistic set (the ideal one if there is none):
     each variant's median ratio to the reference."""
     dependence = csv(f"study/{name}/dependence")
