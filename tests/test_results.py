@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import json
 import multiprocessing
 import multiprocessing.synchronize
 import os
@@ -22,6 +23,7 @@ import pytest
 
 from harness import cli, scenarios
 from harness.engines.result import RunResult
+from harness.errors import UserError
 from harness.run import cosim, results
 from harness.run.results import RESULTS_DIR, STAGING_PREFIX
 
@@ -221,3 +223,58 @@ def test_a_full_disk_is_one_line_and_leaves_the_set_as_it_was(
     assert "\n" not in message and "v1.csv: No space left on device" in message
     assert f"the result set in {out} is as it was" in message
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+# ---- no run mixes its rows into a set made otherwise
+
+FMPY_SIZED = {"engine": "fmpy", "drives": "sized", "step": 1e-3}
+
+
+@pytest.mark.parametrize(("option", "value", "named"), [
+    ("--step", "0.002", "step 0.001, not 0.002"),
+    ("--drives", "legacy", "drives 'sized', not 'legacy'"),
+    ("--engine", "reference", "engine 'fmpy', not 'reference'")])
+def test_cosim_refuses_a_committed_set_made_with_other_settings(
+        option: str, value: str, named: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Into results/ (the default folder of the FMPy master, given by --out for the others),
+    a run at another step, with other drives or another engine is refused before anything
+    runs, in one line that names the setting and the options that write anyway; nothing is
+    written."""
+    before = {p: p.stat().st_mtime_ns for p in (RESULTS_DIR / "franchetti2021").rglob("*")}
+    assert cli.main(["cosim", "--scenario", "franchetti2021", "--variants", "unbalanced",
+                     option, value, "--out", str(RESULTS_DIR), "--quiet"]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and named in error and "--out" in error \
+        and "--replace" in error
+    assert {p: p.stat().st_mtime_ns for p in (RESULTS_DIR / "franchetti2021").rglob("*")} \
+        == before
+
+
+def test_every_committed_set_records_how_it_was_made() -> None:
+    """The committed sets are the FMPy master's with the sized drives at 1 ms, as
+    `make cosim` makes them (and records them)."""
+    files = sorted(RESULTS_DIR.glob(f"*/**/{results.SETTINGS}"))
+    folders = {p.parent for p in RESULTS_DIR.glob("*/**/summary.csv")
+               if "study" not in p.parts and "sweeps" not in p.parts}
+    assert {p.parent for p in files if "study" not in p.parts} == folders and len(folders) == 6
+    for path in files:
+        if "study" not in path.parts:
+            assert json.loads(path.read_text()) == FMPY_SIZED, path
+
+
+def test_replace_starts_the_set_anew(tmp_path: Path, scenario: scenarios.Scenario) -> None:
+    """A set refused for its settings is written with replace: its summary holds the new
+    rows alone, the other variants' CSVs are gone, the settings file is the new one."""
+    out = tmp_path / "set"
+    results.write_run([made_up_run(scenario, "v0", 1.0), made_up_run(scenario, "v1", 2.0)],
+                      scenario, out, settings=FMPY_SIZED)
+    other = FMPY_SIZED | {"step": 2e-3}
+    with pytest.raises(UserError, match="step 0.001, not 0.002"):
+        results.check_result_set(out, other)
+    results.check_result_set(out, other, replace=True)
+    results.write_run([made_up_run(scenario, "v0", 3.0)], scenario, out, settings=other,
+                      replace=True)
+    assert list(pd.read_csv(out / "summary.csv").variant) == ["v0"]
+    assert not (out / "v1.csv").exists()
+    assert json.loads((out / results.SETTINGS).read_text()) == other
+    results.check_result_set(out, other)

@@ -28,7 +28,7 @@ import multiprocessing
 import os
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +106,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                         help="worker processes running the variants in parallel (1 runs them "
                              "one after another in this process)")
+    parser.add_argument("--replace", action="store_true",
+                        help="start each result set anew, even where its folder holds one made "
+                             "with another engine, drive configuration or step (without it "
+                             "such a folder is refused)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     options = parser.add_argument_group("engine options")
     options.add_argument("--source", choices=SOURCES,
@@ -151,6 +155,8 @@ class Plan:
     loss_set: str
     folder: Path
     loaded: scenarios.Scenario | None = None
+    settings: dict[str, object] = field(default_factory=dict)  # what the set is made with
+    replace: bool = False  # the set starts anew
 
 
     @property
@@ -207,8 +213,10 @@ def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
             for name in variants:
                 run_plan.check(scenario, scenario.variant(name))
             folder = losses.result_folder(out, scenario, loss_set)
-            results.check_result_set(folder)
-            plans.append(Plan(scenario, variants, loss_set, folder, loaded if sized else None))
+            settings = {"engine": args.engine, "drives": args.drives, "step": args.step}
+            results.check_result_set(folder, settings, args.replace)
+            plans.append(Plan(scenario, variants, loss_set, folder, loaded if sized else None,
+                              settings, args.replace))
     return plans
 
 
@@ -347,7 +355,8 @@ def write_result_set(plan: Plan, runs: list[RunResult], drives: pd.DataFrame | N
     then redraw the scenario's headline figure from every loss set's summary there is
     (results.write_energy_figure: the set written last, whichever it is, leaves it showing
     both); their paths and the set's summary, to print."""
-    paths = results.write_run(runs, plan.scenario, plan.folder, plan.loss_set, drives)
+    paths = results.write_run(runs, plan.scenario, plan.folder, plan.loss_set, drives,
+                              plan.settings, plan.replace)
     paths.append(results.write_energy_figure(plan.scenario,
                                              losses.set_folders(plan.scenario_folder)))
     return "\n".join([*map(str, paths), results.summary_text(

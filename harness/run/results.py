@@ -19,6 +19,7 @@ writer was killed) is removed by the next write.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import shutil
 import tempfile
@@ -42,6 +43,7 @@ except ImportError:  # not POSIX: no locks, so no serialisation and no stale-sta
     fcntl = None
 
 RESULTS_DIR = Path(__file__).resolve().parents[2] / "results"
+SETTINGS = "settings.json"  # what a result set was made with: engine, drives, step
 STAGING_PREFIX = ".staging."  # write_run's staging folders inside a result set
 SUMMARY_COLUMNS = ("variant", *METRICS, "W_phases", "eps_W", "model", "step_size")
 
@@ -160,11 +162,27 @@ def read_summary(path: Path) -> pd.DataFrame | None:
     return table
 
 
-def check_result_set(out_dir: Path) -> None:
-    """UserError unless out_dir is writable and a summary.csv there is readable
-    (read_summary): checked before a simulation."""
+def check_result_set(out_dir: Path, settings: Mapping[str, object],
+                     replace: bool = False) -> None:
+    """UserError unless out_dir is writable, a summary.csv there is readable (read_summary)
+    and its result set was made with these settings (its SETTINGS file), unless replace:
+    checked before a simulation, so that no run mixes its rows into a set made otherwise."""
     check_writable(out_dir)
-    read_summary(out_dir / "summary.csv")
+    if read_summary(out_dir / "summary.csv") is None or replace:
+        return
+    path = out_dir / SETTINGS
+    try:
+        stored = json.loads(path.read_text())
+    except FileNotFoundError:
+        stored = {}
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise UserError(f"{path} cannot be read ({error}): move it away, or add --replace "
+                        "to start the result set anew") from None
+    changed = [f"{key} {stored.get(key)!r}, not {value!r}" for key, value in settings.items()
+               if stored.get(key) != value]
+    if changed:
+        raise UserError(f"{out_dir} holds a result set made with {'; '.join(changed)}: "
+                        "write to another --out, or add --replace to start it anew")
 
 
 @contextlib.contextmanager
@@ -224,28 +242,38 @@ def remove_stale_staging(out_dir: Path) -> list[Path]:
 
 
 def write_run(results: list[RunResult], scenario: Scenario, out_dir: Path,
-              loss_set: str = "ideal", drives: pd.DataFrame | None = None) -> list[Path]:
+              loss_set: str = "ideal", drives: pd.DataFrame | None = None,
+              settings: Mapping[str, object] | None = None, replace: bool = False
+              ) -> list[Path]:
     """Write <variant>.csv for each run, then the plot and summary.csv of the whole result set
     in out_dir (of the loss set, which the plot's title names): every row of an earlier
     summary is kept (with the union of the columns) but the variants run now, eps is
-    recomputed over all rows. A failure before the renames (a full disk) is a UserError
-    naming the file and leaves the old set untouched; the summary is renamed last: it lists
-    what the set holds. drives: the sizing rows of the variants run
-    (harness.run.sizing.table_row), merged into the set's drives.csv. A stop asked for
-    before the renames (`harness.interrupts`) renames nothing and raises KeyboardInterrupt."""
+    recomputed over all rows; replace: the set starts anew, the earlier one's files of other
+    variants removed. A failure before the renames (a full disk) is a UserError naming the
+    file and leaves the old set untouched; the summary is renamed last: it lists what the set
+    holds. drives: the sizing rows of the variants run (harness.run.sizing.table_row), merged
+    into the set's drives.csv. settings: what the set was made with, written to its SETTINGS
+    file (`check_result_set`). A stop asked for before the renames (`harness.interrupts`)
+    renames nothing and raises KeyboardInterrupt."""
     with locked(out_dir):
         remove_stale_staging(out_dir)
-        old = read_summary(out_dir / "summary.csv")
+        old = None if replace else read_summary(out_dir / "summary.csv")
         try:
             with staging(out_dir) as folder:  # every file made here, then renamed in a burst
                 staged = _stage(results, scenario, out_dir, old, folder, loss_set)
                 if drives is not None:
-                    staged.insert(-1, _stage_drives(drives, scenario, out_dir, folder))
+                    staged.insert(-1, _stage_drives(drives, scenario, out_dir, folder,
+                                                    replace))
+                if settings is not None:
+                    staged.insert(-1, _stage_settings(settings, folder))
                 for path in staged:
                     check_target(out_dir / path.name)
                 # a stop asked for meanwhile (SIGINT, SIGTERM) leaves the set as it was
                 interrupts.stop_if_requested()
-                return [path.replace(out_dir / path.name) for path in staged]
+                written = [path.replace(out_dir / path.name) for path in staged]
+                if replace:
+                    _remove_others(out_dir, {path.name for path in written})
+                return written
         except OSError as error:
             raise UserError(f"cannot write the result set in {out_dir}: "
                             f"{error.strerror or error}") from None
@@ -275,12 +303,28 @@ def _stage(results: list[RunResult], scenario: Scenario, out_dir: Path,
     return staged
 
 
+def _stage_settings(settings: Mapping[str, object], folder: Path) -> Path:
+    """The set's SETTINGS file into folder."""
+    path = folder / SETTINGS
+    path.write_text(json.dumps(dict(settings), indent=1) + "\n")
+    return path
+
+
+def _remove_others(out_dir: Path, staged: set[str]) -> None:
+    """Remove the files of an earlier result set in out_dir that the new set does not
+    replace (its variants' CSVs, settings, drives): the set starts anew."""
+    for path in out_dir.iterdir():
+        if path.is_file() and path.name not in staged and (
+                path.suffix == ".csv" or path.name == SETTINGS):
+            path.unlink()
+
+
 def _stage_drives(drives: pd.DataFrame, scenario: Scenario, out_dir: Path,
-                  folder: Path) -> Path:
-    """drives.csv of the set into folder: the rows of the variants run, and every other row
-    of the set's drives.csv, in the scenario's variant order."""
+                  folder: Path, replace: bool = False) -> Path:
+    """drives.csv of the set into folder: the rows of the variants run, and (unless
+    replace) every other row of the set's drives.csv, in the scenario's variant order."""
     old = out_dir / "drives.csv"
-    kept = _read_csv(old) if old.exists() else drives.iloc[:0]
+    kept = _read_csv(old) if old.exists() and not replace else drives.iloc[:0]
     table = pd.concat([drives, kept[~kept.variant.isin(drives.variant)]], ignore_index=True)
     rank = {name: index for index, name in enumerate(scenario.variants)}
     table = table.sort_values("variant", key=lambda v: v.map(lambda n: rank.get(n, len(rank))),
