@@ -415,15 +415,16 @@ def test_a_study_folder_holds_one_seed(tmp_path: Path,
     in its place is refused naming it."""
     folder = tmp_path / "franchetti2021"
     task = tasks.draw(MODEL, 1, 0)
-    study.check_settings(folder, study.settings(MODEL, 1))
+    study.check_settings(folder, study.settings(MODEL, 1, MODEL.tasks))
     tasks.write(task, folder / "tasks")
     write_csv(study.task_rows([task], folder, MODEL.step), folder / "tasks.csv")
     before = sorted(folder.rglob("*"))
     assert cli.main(["study", "--scenario", "franchetti2021", "--seed", "2", "--out",
                      str(tmp_path), "--quiet"]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert err == [f"error: {folder} holds a study made with other settings (seed 1 -> 2); "
-                   "resume it with those, or choose another --out"]
+    assert err == [f"error: {folder} holds a study made with other settings (seed 1 -> 2): "
+                   "write to another --out (runs the committed study holds are reused), or "
+                   "add --replace"]
     assert sorted(folder.rglob("*")) == before
     with pytest.raises(UserError, match=f"{task.name}.toml holds another task"):
         tasks.write(tasks.draw(MODEL, 2, 0), folder / "tasks")
@@ -435,8 +436,10 @@ def two_tasks(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`python -m harness study --scenario franchetti2021 --tasks 2 --workers 1` into a fresh
     folder (about 40 s on one core: 24 sizing runs, then 24 runs of 40-100 s tasks)."""
     out = tmp_path_factory.mktemp("study")
-    assert cli.main(["study", "--scenario", "franchetti2021", "--tasks", "2", "--out",
-                     str(out), "--workers", "1", "--quiet"]) == 0
+    with pytest.MonkeyPatch.context() as patch:  # runs every run: no committed one reused
+        patch.setattr(study, "STUDY_DIR", out / "no-committed-study")
+        assert cli.main(["study", "--scenario", "franchetti2021", "--tasks", "2", "--out",
+                         str(out), "--workers", "1", "--quiet"]) == 0
     return out / "franchetti2021"
 
 
@@ -525,7 +528,8 @@ def test_a_task_reruns_alone_in_cosim(two_tasks: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.slow  # about 10 s: one task's 12 runs again
-def test_a_study_runs_again_only_what_is_missing(two_tasks: Path, tmp_path: Path) -> None:
+def test_a_study_runs_again_only_what_is_missing(two_tasks: Path, tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     """The study copied, task 1's part deleted, the same command again: the other part is
     left as it was, one new part holds task 1's 12 rows, with the same E_drawn as before (the
     same runs), drives.csv is not sized again, and runs.csv has each key once."""
@@ -538,6 +542,7 @@ def test_a_study_runs_again_only_what_is_missing(two_tasks: Path, tmp_path: Path
     (kept,) = set(parts) - {gone}
     gone.unlink()
     drives = (folder / "drives.csv").read_bytes()
+    monkeypatch.setattr(study, "STUDY_DIR", tmp_path / "no-committed-study")
     assert cli.main(["study", "--scenario", "franchetti2021", "--tasks", "2", "--out",
                      str(tmp_path), "--workers", "1", "--quiet"]) == 0
     now = sorted(execution.parts_dir(folder).iterdir())
@@ -641,6 +646,32 @@ def test_the_rerun_command_runs_the_task_file_at_the_study_step(tmp_path: Path,
 
 # ---- the committed study ------------------------------------------------------------------
 COMMITTED = study.STUDY_DIR
+
+
+def test_a_smaller_study_reuses_the_committed_one_and_leaves_it_alone(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`study --tasks 3` into the committed folder is refused in one line naming --out and
+    --replace, the folder untouched; into another folder it runs nothing: the committed drives
+    and the 36 runs of its first 3 tasks are reused, and its runs.csv holds their rows as
+    committed (eps recomputed from the stored 10-digit E_drawn)."""
+    folder = COMMITTED / "franchetti2021"
+    before = {p: p.stat().st_mtime_ns for p in folder.rglob("*")}
+    assert cli.main(["study", "--scenario", "franchetti2021", "--tasks", "3", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tasks 200 -> 3" in err and "--out" in err \
+        and "--replace" in err
+    assert {p: p.stat().st_mtime_ns for p in folder.rglob("*")} == before
+    assert cli.main(["study", "--scenario", "franchetti2021", "--tasks", "3", "--out",
+                     str(tmp_path)]) == 0
+    assert "36 runs, 36 stored (36 from results/study/franchetti2021), 0 to do" in \
+        capsys.readouterr().out
+    assert (tmp_path / "franchetti2021" / "drives.csv").read_bytes() == (
+        folder / "drives.csv").read_bytes()
+    fresh = pd.read_csv(tmp_path / "franchetti2021" / "runs.csv")
+    committed = pd.read_csv(folder / "runs.csv")
+    committed = committed[committed.task < 3].reset_index(drop=True)
+    pd.testing.assert_frame_equal(fresh.drop(columns="eps"), committed.drop(columns="eps"))
+    np.testing.assert_allclose(fresh.eps, committed.eps, rtol=1e-9)
 KEPT = ["E_drawn", "E_in", "E_copper", "E_gear", "E_mech", "W_link"]
 
 

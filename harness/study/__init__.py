@@ -21,13 +21,15 @@ import argparse
 import hashlib
 import json
 import shlex
+import shutil
 import signal
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
-from distributed import Client
+from distributed import Client, as_completed
+from tqdm import tqdm
 
 from harness import interrupts, scenarios
 from harness.errors import UserError
@@ -75,69 +77,131 @@ def drive_pins(task_model: model.TaskModel, seed: int, folder: Path,
     if not path.exists():
         sample = [tasks.draw(task_model, seed, i) for i in range(task_model.drive_sample)]
         variants = list(task_model.template.variants)
-        if not quiet:
-            print(f"{task_model.name}: sizing the drives of {len(variants)} variants on "
-                  f"{len(sample)} tasks")
-        futures = [client().submit(execution.size_variant, sample, v, task_model.step,
-                                   pure=False) for v in variants]
-        sized = dict(zip(variants, client().gather(futures)))
+        futures = {client().submit(execution.size_variant, sample, v, task_model.step,
+                                   pure=False): v for v in variants}
+        sized = {}
+        with tqdm(total=len(futures), unit="variant", disable=quiet,
+                  desc=f"{task_model.name}: sizing on {len(sample)} tasks") as bar:
+            for future in as_completed(futures):
+                sized[futures[future]] = future.result()
+                bar.update()
+        sized = {v: sized[v] for v in variants}
         rows = pd.DataFrame([joint["row"] for v in variants for joint in sized[v].values()])
         folder.mkdir(parents=True, exist_ok=True)
         write_csv(rows, path)
     return stored_pins(path)
 
 
-def settings(task_model: model.TaskModel, seed: int) -> dict[str, object]:
-    """What a study's stored runs depend on besides the number of tasks: the seed, and the
+def settings(task_model: model.TaskModel, seed: int, n_tasks: int) -> dict[str, object]:
+    """What a study's stored runs and tables depend on: the seed, the number of tasks, and the
     text of the task model, of its scenario and of the scenario's loss file."""
     files = [model.STUDY_DIR / f"{task_model.name}.toml",
              scenarios.scenario_file(task_model.template.name)]
     if losses.has_realistic(task_model.template):
         files.append(losses.loss_file(task_model.template))
     digest = hashlib.sha256(b"".join(path.read_bytes() for path in files)).hexdigest()
-    return {"seed": seed, "step": task_model.step, "drive_sample": task_model.drive_sample,
+    return {"seed": seed, "tasks": n_tasks, "step": task_model.step,
+            "drive_sample": task_model.drive_sample,
             "files": [str(path.relative_to(results.RESULTS_DIR.parent)) for path in files],
             "sha256": digest}
 
 
-def check_settings(folder: Path, wanted: dict[str, object]) -> None:
-    """Refuse to resume a study made with other settings (`settings`); record them."""
+def stored_settings(folder: Path) -> dict[str, object] | None:
+    """The settings a study folder records (`settings`), None where it records none;
+    UserError naming the file when it cannot be read."""
     path = folder / SETTINGS
-    if path.exists():
+    if not path.exists():
+        return None
+    try:
         stored = json.loads(path.read_text())
-        changed = [key for key in wanted if stored.get(key) != wanted[key]]
-        if changed:
-            what = ", ".join(f"{key} {stored.get(key)!r} -> {wanted[key]!r}" for key in changed)
-            raise UserError(f"{folder} holds a study made with other settings ({what}); "
-                            "resume it with those, or choose another --out")
-        return
-    folder.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(wanted, indent=1) + "\n"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise UserError(f"{path} cannot be read ({error}): move it away, or add --replace to "
+                        "start the study anew") from None
+    if not isinstance(stored, dict):
+        raise UserError(f"{path} is not a table of settings: move it away, or add --replace "
+                        "to start the study anew")
+    return stored
+
+
+def check_settings(folder: Path, wanted: dict[str, object], replace: bool = False) -> None:
+    """Refuse a folder whose study was made with other settings (`settings`), in one line
+    naming them, --out and --replace; then record them. replace: where only the number of
+    tasks differs, the stored runs are kept and the tables rewritten for the new number;
+    otherwise the folder's study is removed first."""
+    stored = stored_settings(folder)
+    changed = [key for key in wanted if stored is not None and stored.get(key) != wanted[key]]
+    if changed and not replace:
+        what = ", ".join(f"{key} {stored.get(key)!r} -> {wanted[key]!r}" for key in changed)
+        raise UserError(f"{folder} holds a study made with other settings ({what}): write to "
+                        "another --out (runs the committed study holds are reused), or add "
+                        "--replace")
+    if changed and changed != ["tasks"]:
+        for path in (folder / "parts", folder / "tasks"):
+            shutil.rmtree(path, ignore_errors=True)
+        (folder / "drives.csv").unlink(missing_ok=True)
+    if stored != wanted:
+        folder.mkdir(parents=True, exist_ok=True)
+        write_atomic(folder / SETTINGS,
+                     lambda tmp: tmp.write_text(json.dumps(wanted, indent=1) + "\n"))
+
+
+def reusable_study(folder: Path, wanted: dict[str, object]) -> Path | None:
+    """The committed study (STUDY_DIR/<scenario>) whose drives and runs a study in another
+    folder reuses: one made with the same settings but for the number of tasks."""
+    source = STUDY_DIR / folder.name
+    if source.resolve() == folder.resolve() or not (source / "runs.csv").is_file():
+        return None
+    stored = stored_settings(source) or {}
+    same = all(stored.get(key) == value for key, value in wanted.items() if key != "tasks")
+    return source if same else None
+
+
+def reuse(source: Path, folder: Path, drawn: list[Task], variants: list[str],
+          loss_sets: list[str]) -> int:
+    """Copy the committed study's drives.csv into folder where it has none, and store the
+    rows of its runs.csv that folder's tasks need and folder lacks (runs.csv's 10 digits);
+    the number of runs reused."""
+    if not (folder / "drives.csv").exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(source / "drives.csv", folder / "drives.csv")
+    wanted = execution.pending(folder, drawn, variants, loss_sets)
+    rows = pd.read_csv(source / "runs.csv", dtype={"error": str}).drop(columns="eps")
+    rows = rows.fillna({"error": ""})
+    keys = {(task, v, ls) for task, jobs in wanted.items() for v, ls in jobs}
+    found = rows[[key in keys for key in zip(rows.task, rows.variant, rows.losses)]]
+    if len(found):
+        execution.write_part(folder, found.to_dict("records"))
+    return len(found)
 
 
 def run_study(name: str, n_tasks: int | None, seed: int, out: Path,
               client: Callable[[], Client], quiet: bool = False,
-              retry_failed: bool = False) -> pd.DataFrame:
+              retry_failed: bool = False, replace: bool = False) -> pd.DataFrame:
     """Run what is missing of a scenario's study in out/<name>/ (with retry_failed, also the
-    runs stored as failed), then write its tables and figures; returns the runs."""
+    runs stored as failed; reusing what the committed study holds, `reusable_study`), then
+    write its tables and figures; returns the runs."""
     task_model = model.load(name)
     n = n_tasks or task_model.tasks
     folder = out / name
     results.check_writable(out)
-    check_settings(folder, settings(task_model, seed))
+    wanted = settings(task_model, seed, n)
+    check_settings(folder, wanted, replace)
     drawn = [tasks.draw(task_model, seed, i) for i in range(n)]
+    variants = list(task_model.template.variants)
+    loss_sets = [ls for ls, _ in losses.loss_sets(task_model.template, "all")]
+    source = reusable_study(folder, wanted)
+    reused = 0 if source is None else reuse(source, folder, drawn, variants, loss_sets)
     pins = drive_pins(task_model, seed, folder, client, quiet)
     drawn = [tasks.pinned(task, pins) for task in drawn]
     for task in drawn:
         tasks.write(task, folder / "tasks")
     write_csv(task_rows(drawn, folder, task_model.step), folder / "tasks.csv")
-    variants = list(task_model.template.variants)
-    loss_sets = [ls for ls, _ in losses.loss_sets(task_model.template, "all")]
     todo = execution.pending(folder, drawn, variants, loss_sets, retry_failed)
     if not quiet:
         total = n * len(variants) * len(loss_sets)
         left = sum(len(jobs) for jobs in todo.values())
-        print(f"{name}: {n} tasks, {total} runs, {total - left} stored, {left} to do")
+        print(f"{name}: {n} tasks, {total} runs, {total - left} stored"
+              + (f" ({reused} from {_shown(source)})" if reused else "") + f", {left} to do")
     if todo:
         execution.execute(folder, drawn, todo, task_model.step, client(), quiet)
     return write_tables(task_model, drawn, folder, variants, loss_sets, quiet)
@@ -185,6 +249,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="results folder: the study goes to OUT/<scenario>/")
     parser.add_argument("--retry-failed", action="store_true",
                         help="run again the runs stored as failed")
+    parser.add_argument("--replace", action="store_true",
+                        help="write into a folder whose study was made with other settings "
+                             "(without it such a folder is refused): its runs are kept when "
+                             "only --tasks differs, else the study starts anew")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -211,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         for name in names:
             runs = run_study(name, args.tasks, args.seed, args.out, client, args.quiet,
-                             args.retry_failed)
+                             args.retry_failed, args.replace)
             if not (runs.status == "ok").any():
                 print(f"error: all {len(runs)} runs of {name} failed; the first: "
                       f"{runs.error.iloc[0]}", file=sys.stderr)
