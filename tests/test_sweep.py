@@ -338,3 +338,21 @@ def test_plot_writes_one_png_per_plot_of_the_file(
     assert written == [tmp_path / f"plotted_{kind}.png" for kind in ("saving", "map", "lines")]
     assert all(p.read_bytes().startswith(b"\x89PNG\r\n\x1a\n") for p in written)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in written)
+
+
+def test_a_sweep_is_refused_over_a_table_of_runs_it_does_not_plan(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The committed sweeps' tables are their files' plans; the table1 file with its first
+    axis's values changed, into results/sweeps, is refused in one line naming --out and
+    --replace before anything runs (and accepted with replace)."""
+    for name in ("table1", "regulation", "design_rule", "real_spring", "slider_friction"):
+        sweep.check_table(definition.load(name), sweep.SWEEP_RESULTS_DIR)
+    table1 = definition.load("table1")
+    first = table1.axes[0]
+    edited = replace(table1, axes=(replace(first, values=tuple(v * 1.5 for v in first.values)),
+                                   *table1.axes[1:]))
+    with pytest.raises(UserError, match=r"table1.parquet holds a sweep made with other "
+                       r"settings \(\d+ of its 264 rows are not in table1's plan\): write to "
+                       "another --out, or add --replace"):
+        sweep.check_table(edited, sweep.SWEEP_RESULTS_DIR)
+    sweep.check_table(edited, sweep.SWEEP_RESULTS_DIR, replace=True)

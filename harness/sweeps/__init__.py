@@ -51,12 +51,36 @@ def connect(scheduler: str) -> Client:
                         f"{' '.join(str(error).split())[:200]})") from None
 
 
+def check_table(sweep: definition.Sweep, out: Path, replace: bool = False) -> None:
+    """UserError, unless replace, where out already holds the sweep's table with rows the
+    sweep does not plan (a variant at axis values it does not run: a sweep file edited, or
+    another of the same name), which its table would lose."""
+    path = out / f"{sweep.name}.parquet"
+    if replace or not path.is_file():
+        return
+    axes = [axis.name for axis in sweep.axes]
+    try:
+        table = pd.read_parquet(path, columns=["variant", *axes])
+    except (OSError, ValueError, KeyError) as error:
+        raise UserError(f"{path} cannot be read as this sweep's table ({error}): write to "
+                        "another --out, or add --replace") from None
+    planned = {(run.variant, *(run.values[a] for a in axes)) for run in definition.plan(sweep)}
+    dropped = {row for row in table.itertuples(index=False, name=None)} - planned
+    if dropped:
+        raise UserError(f"{path} holds a sweep made with other settings ({len(dropped)} of its "
+                        f"{len(table)} rows are not in {sweep.name}'s plan): write to another "
+                        "--out, or add --replace")
+
+
 def run_sweep(path: str | Path, out: Path = SWEEP_RESULTS_DIR, workers: int = 2,
               scheduler: str | None = None, chunk_size: int | None = None,
-              retry_failed: bool = False, quiet: bool = False) -> pd.DataFrame:
-    """Run the missing runs of a sweep file, then write its tables and plots into out."""
+              retry_failed: bool = False, quiet: bool = False,
+              replace: bool = False) -> pd.DataFrame:
+    """Run the missing runs of a sweep file, then write its tables and plots into out
+    (`check_table`: unless replace, not over a table of runs it does not plan)."""
     sweep = definition.load(path)
     results.check_writable(out)  # before the runs, not when their rows are stored
+    check_table(sweep, out, replace)
     todo = execution.pending(sweep, out, retry_failed)
     if not quiet:
         total = len(definition.plan(sweep))
@@ -95,6 +119,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run again the runs stored as failed")
     parser.add_argument("--out", type=Path, default=SWEEP_RESULTS_DIR,
                         help="results folder (default results/sweeps)")
+    parser.add_argument("--replace", action="store_true",
+                        help="write the sweep's table even where OUT holds one of runs it does "
+                             "not plan (without it that is refused)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -103,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--workers and --chunk-size must be at least 1")
     try:
         table = run_sweep(args.file, args.out, args.workers, args.scheduler, args.chunk_size,
-                          args.retry_failed, args.quiet)
+                          args.retry_failed, args.quiet, args.replace)
     except KeyboardInterrupt:
         print("interrupted: finished chunks are stored; run the same command to resume",
               file=sys.stderr)
