@@ -19,9 +19,11 @@ import numpy as np
 
 from fmu_src.units.controller.pid import PIDGains
 from fmu_src.units.drive.dc_motor import MotorParameters, armature_voltage
+from harness.drive import stability
 from harness.drive.controller import ControllerDesign, design_pid, discrete_pid
 from harness.drive.motor import JointDrive, sampled_motor
 from harness.drive.trace import SampledDrive
+from harness.errors import UserError
 from harness.scenarios import Joint
 
 
@@ -40,7 +42,8 @@ class JointStart:
 class DrivePlan:
     """One joint's drive over a run of len(enabled) steps of step_size [s]: the drive
     (its parts and model), the PID gains, the armature current at t = 0 [A], the joint's
-    inertia with the drive's reflected rotor [kg m^2 or kg], its position at t = 0 and the
+    inertia with the drive's reflected rotor [kg m^2 or kg] and viscous friction [N m s/rad
+    or N s/m], its position at t = 0 and the
     position reference at every communication point [rad or m], whether the drive is on over
     each step, and over each phase of the scenario."""
 
@@ -49,6 +52,7 @@ class DrivePlan:
     gains: PIDGains
     hold_current: float
     inertia: float
+    friction: float
     position0: float
     reference: np.ndarray
     enabled: np.ndarray
@@ -81,16 +85,32 @@ class DrivePlan:
         return controller, {**asdict(self.motor), "i0": self.hold_current}
 
 
-def plan_drive(joint: Joint, drive: JointDrive, start: JointStart, design: ControllerDesign,
-               position0: float, reference: np.ndarray, enabled: np.ndarray,
-               phase_enabled: tuple[bool, ...], step_size: float) -> DrivePlan:
-    """A joint's DrivePlan: its PID designed for the joint's inertia (with the drive's) and
-    friction, and the current that holds the static output at standstill (none when the
-    drive is off from the start)."""
+def design_drive(joint: Joint, drive: JointDrive, start: JointStart,
+                 design: ControllerDesign, step_size: float) -> tuple[PIDGains, float]:
+    """The joint's PID, designed for its inertia (with the drive's) and friction, and that
+    inertia [kg m^2 or kg]; UserError when the sampled loop does not hold at step_size [s]
+    (`harness.drive.stability`), naming the largest step it holds."""
     motor = drive.parameters
     inertia = start.inertia + motor.J_drive
     gains = design_pid(motor, inertia, start.friction, design)
+    radius = stability.spectral_radius(motor, gains, inertia, start.friction, step_size)
+    if not radius < 1.0:
+        largest = stability.largest_stable_step(motor, gains, inertia, start.friction,
+                                                step_size)
+        raise UserError(f"step = {step_size:g} s is too long for joint {joint.name}'s drive "
+                        f"({drive.label}): its sampled loop diverges (spectral radius "
+                        f"{radius:.3g}); it holds up to {largest:.3g} s")
+    return gains, inertia
+
+
+def plan_drive(joint: Joint, drive: JointDrive, start: JointStart, design: ControllerDesign,
+               position0: float, reference: np.ndarray, enabled: np.ndarray,
+               phase_enabled: tuple[bool, ...], step_size: float) -> DrivePlan:
+    """A joint's DrivePlan: its PID (`design_drive`) and the current that holds the static
+    output at standstill (none when the drive is off from the start)."""
+    motor = drive.parameters
+    gains, inertia = design_drive(joint, drive, start, design, step_size)
     hold = (joint.hold_effort(start.static_output) / motor.standstill_torque_per_amp
             if enabled[0] else 0.0)
-    return DrivePlan(joint, drive, gains, hold, inertia, position0, reference, enabled,
-                     phase_enabled, step_size)
+    return DrivePlan(joint, drive, gains, hold, inertia, start.friction, position0, reference,
+                     enabled, phase_enabled, step_size)

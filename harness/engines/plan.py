@@ -18,10 +18,11 @@ from typing import Any
 
 import numpy as np
 
+from fmu_src import integration
 from harness import registry
 from harness.drive.controller import ControllerDesign, PIDGains
 from harness.drive.motor import LEGACY, JointDrive, MotorParameters, motors
-from harness.drive.plan import DrivePlan, JointStart, plan_drive
+from harness.drive.plan import DrivePlan, JointStart, design_drive, plan_drive
 from harness.errors import UserError
 from harness.scenarios import Scenario, Variant
 
@@ -82,7 +83,7 @@ def prepare(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STE
     model = variant.model or resolved.model
     parameters = run_parameters(resolved, variant, [d.parameters for d in chosen])
     segments = resolved.input_segments(variant)
-    starts = joint_starts(resolved, variant, model, parameters, segments)
+    starts = joint_starts(resolved, variant, model, parameters, segments, step_size)
     times = np.arange(round(resolved.duration / step_size) + 1) * step_size
     plans = tuple(
         plan_drive(joint, drive, start, design, initial, resolved.reference(times, j),
@@ -93,18 +94,23 @@ def prepare(scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STE
                    resolved.inputs(times, variant), segments, plans)
 
 
-def check(scenario: Scenario, variant: Variant, values: bool = True) -> None:
-    """The checks of `prepare` alone, before anything runs: UserError naming a name the
-    model lacks or (values) a parameter outside its range."""
+def check(scenario: Scenario, variant: Variant, step_size: float | None = None,
+          values: bool = True) -> None:
+    """The checks of `prepare` alone, before anything runs, with the legacy drives: UserError
+    naming a name the model lacks or (values) a parameter outside its range or (step_size
+    [s]) a step the FMU or a joint's sampled loop does not hold."""
     resolved = scenario.for_variant(variant)
     model = variant.model or resolved.model
-    parameters = run_parameters(resolved, variant,
-                                [d.parameters for d in joint_drives(resolved)])
+    chosen = joint_drives(resolved)
+    parameters = run_parameters(resolved, variant, [d.parameters for d in chosen])
     segments = resolved.input_segments(variant)
-    if values:
-        joint_starts(resolved, variant, model, parameters, segments)
-    else:
+    if not values:
         check_names(resolved, variant, model, parameters, segments)
+        return
+    starts = joint_starts(resolved, variant, model, parameters, segments, step_size)
+    if step_size is not None:
+        for joint, drive, start in zip(resolved.joints, chosen, starts, strict=True):
+            design_drive(joint, drive, start, ControllerDesign(), step_size)
 
 
 def joint_drives(scenario: Scenario, motor: Motors = None, drives: Drives = None
@@ -198,15 +204,24 @@ def check_names(scenario: Scenario, variant: Variant, model: str,
 
 def joint_starts(scenario: Scenario, variant: Variant, model: str,
                  parameters: Mapping[str, float | bool],
-                 segments: list[dict[str, tuple[Any, Any, str]]]) -> list[JointStart]:
+                 segments: list[dict[str, tuple[Any, Any, str]]],
+                 step_size: float | None = None) -> list[JointStart]:
     """Each joint's inertia, friction and static output at t = 0, from the model's physics
     with the run's parameters and the inputs at t = 0, its names checked first
-    (`check_names`); UserError naming a parameter outside its range."""
+    (`check_names`); UserError naming a parameter outside its range, or (step_size [s]) a
+    first step the FMU refuses by its bound on RK4 sub-steps (`fmu_src.integration`)."""
     check_names(scenario, variant, model, parameters, segments)
     physics = physics_module(model)
     p = physics_parameters(physics, parameters)
     at_start = physics.Inputs(**scenario.inputs_at(0.0, segments))
-    outputs = physics.outputs(p, at_start, physics.initial_state(p))._asdict()
+    state = physics.initial_state(p)
+    if step_size is not None:
+        try:
+            integration.substeps(step_size, physics.characteristic_rate(p, at_start, state))
+        except integration.SubstepBoundError as error:
+            raise UserError(f"step = {step_size:g} s: the {model} FMU refuses it ({error})"
+                            ) from None
+    outputs = physics.outputs(p, at_start, state)._asdict()
     return [JointStart(*(outputs[name] if name in outputs else getattr(p, name)
                          for name in (joint.inertia, joint.friction, joint.static_output)))
             for joint in scenario.joints]

@@ -211,7 +211,7 @@ def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
                             f"choose --variants among the others")
         for loss_set, scenario in losses.loss_sets(base, args.losses):
             for name in variants:
-                run_plan.check(scenario, scenario.variant(name))
+                run_plan.check(scenario, scenario.variant(name), args.step)
             folder = losses.result_folder(out, scenario, loss_set)
             settings = {"engine": args.engine, "drives": args.drives, "step": args.step}
             results.check_result_set(folder, settings, args.replace)
