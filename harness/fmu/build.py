@@ -131,14 +131,21 @@ def script(model: str, source_dir: Path = SOURCE_DIR) -> Path:
     raise UserError(f"unknown model {model!r}; choose from {', '.join(found)}")
 
 
+def package_root(source_dir: Path) -> Path:
+    """The fmu_src tree whose modules the slave scripts under source_dir import: SOURCE_DIR
+    for a folder of it (the bench's floor), else source_dir itself (a copy of fmu_src, or a
+    folder of slaves that import none of it)."""
+    return SOURCE_DIR if source_dir.is_relative_to(SOURCE_DIR) else source_dir
+
+
 def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
     """fmu_src modules the model's slave script needs, followed transitively (the
     sequencer's scenario module, generated at build time by `embedded_module`, is not among
     them)."""
-    pending, found = [script(model, source_dir)], set()
+    pending, found, root = [script(model, source_dir)], set(), package_root(source_dir)
     while pending:
         for name in _fmu_src_imports(pending.pop()):
-            path = source_dir.joinpath(*name.split(".")).with_suffix(".py")
+            path = root.joinpath(*name.split(".")).with_suffix(".py")
             if path not in found and path.is_file():
                 found.add(path)
                 pending.append(path)
@@ -344,7 +351,8 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
             stage = Path(tmp)
             package = stage / "fmu_src"
             package.mkdir()
-            staged = [package / module.relative_to(source_dir) for module in modules]
+            root = package_root(source_dir)
+            staged = [package / module.relative_to(root) for module in modules]
             for module, copy in zip(modules, staged):
                 copy.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy2(module, copy)
