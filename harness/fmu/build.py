@@ -7,7 +7,7 @@ embedded files.
 
 In a process, every FMU of our runtime imports the modules of its own bundle: the runtime
 imports them as a package named after the digest of the bundle's Python files, with an
-import hook bound to its resources folder (fmu_src/runtime/fmi2_runtime.c, HELPER_SOURCE;
+import hook bound to its resources folder (fmu_src/runtime/runtime_core.c, HELPER_SOURCE;
 docs/build.md says why). `fmu_src` stays a namespace package (no __init__.py): under
 pythonfmu's own binary (win64), which puts each FMU's resources folder on sys.path, its
 search path follows sys.path.
@@ -18,10 +18,11 @@ onto `<model>.fmu` only when the FMU and its documentation are complete, so an i
 failed build never leaves a broken FMU behind (and a concurrent reader sees the old or the
 new FMU, never a partial one).
 
-Every FMU's linux64 binary is our FMI 2.0 runtime (`fmu_src/runtime/fmi2_runtime.c`, C only,
-compiled here with `python -m ziglang cc` for glibc 2.17 and later): it implements every FMI
-function over pythonfmu's Python API, loading the libpython the FMU was built with (recorded in
-`resources/python.txt`, with the FMU's GUID) when the host is not a Python process.
+Every FMU's linux64 binary is our FMI 2.0 runtime (`fmu_src/runtime/fmi2_functions.c` on the
+version-neutral `runtime_core.c`, C only, compiled here with `python -m ziglang cc` for glibc
+2.17 and later): it implements every FMI function over pythonfmu's Python API, loading the
+libpython the FMU was built with (recorded in `resources/python.txt`, with the FMU's GUID)
+when the host is not a Python process.
 pythonfmu's own linux64 binary is not shipped; its win64 binary is. `build(..., runtime=False)`
 keeps pythonfmu's binaries as they are: the benchmark's stock floor.
 
@@ -80,15 +81,17 @@ SEQUENCER = "ScenarioSequencer"
 DEFAULT_SCENARIO = "franchetti2021"  # the scenario the sequencer of `make fmu` plays
 # where the sequencer FMU's scenario module goes in the staged package fmu_src
 EMBEDDED_SCENARIO = Path(*EMBEDDED_MODULE[1:])
-RUNTIME_SOURCE = SOURCE_DIR / "runtime" / "fmi2_runtime.c"
-# the FMI 2.0 state machine, compiled into the runtime (its header beside it, see compile_inputs)
+RUNTIME_SOURCE = SOURCE_DIR / "runtime" / "fmi2_functions.c"
+# the runtime's version-neutral core and the FMI 2.0 state machine, compiled into it (their
+# headers beside them, see compile_inputs)
+RUNTIME_CORE_SOURCE = RUNTIME_SOURCE.with_name("runtime_core.c")
 STATE_MACHINE_SOURCE = RUNTIME_SOURCE.with_name("fmi2_states.c")
 # the minimal C FMI host that runs an FMU outside any Python process (bench, tests)
 HOST_SOURCE = Path(__file__).resolve().parent / "host" / "fmi2_host.c"
 RUNTIME_BUILD = DEFAULT_DEST.parent / "runtime" / "fmi2_runtime.so"
 # the oldest glibc the runtime runs on (pythonfmu's own binary needs 2.32)
 RUNTIME_TARGET = "x86_64-linux-gnu.2.17"
-RUNTIME_OPTIONS = ("-shared", "-fPIC", "-s", STATE_MACHINE_SOURCE)
+RUNTIME_OPTIONS = ("-shared", "-fPIC", "-s", RUNTIME_CORE_SOURCE, STATE_MACHINE_SOURCE)
 PYTHON_RECORD = "resources/python.txt"  # read by the runtime: keep the keys in step
 INPUTS_RECORD = "resources/build_inputs.sha256"  # fmu_inputs of the FMU's build
 # the code that writes an FMU besides its fmu_src modules, and the tools whose output it holds
