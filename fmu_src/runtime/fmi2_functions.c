@@ -271,10 +271,14 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     return fmi2OK;
 }
 
-/* Call a method without arguments but self (the life-cycle calls). */
-static fmi2Status life_cycle(fmi2Component c, Fmi2Call call, enum Method method) {
+/* Call a method without arguments but self: a life-cycle call (an enum Method) or, with
+ * model_exchange, a change of Model Exchange's mode (an enum ModelExchangeMethod); the state
+ * machine moves the instance on. */
+static fmi2Status without_arguments(fmi2Component c, Fmi2Call call, int model_exchange,
+                                    int method) {
     BEGIN(call);
-    PyObject *result = py.PyObject_CallFunctionObjArgs(in->methods[method], NULL);
+    PyObject *const *methods = model_exchange ? in->me_methods : in->methods;
+    PyObject *result = py.PyObject_CallFunctionObjArgs(methods[method], NULL);
     if (!result) status = python_failure(in, function_name);
     release(&result);
     END();
@@ -300,15 +304,15 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    return life_cycle(c, FMI2_ENTER_INITIALIZATION_MODE, ENTER_INITIALIZATION_MODE);
+    return without_arguments(c, FMI2_ENTER_INITIALIZATION_MODE, 0, ENTER_INITIALIZATION_MODE);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    return life_cycle(c, FMI2_EXIT_INITIALIZATION_MODE, EXIT_INITIALIZATION_MODE);
+    return without_arguments(c, FMI2_EXIT_INITIALIZATION_MODE, 0, EXIT_INITIALIZATION_MODE);
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    return life_cycle(c, FMI2_TERMINATE, TERMINATE);
+    return without_arguments(c, FMI2_TERMINATE, 0, TERMINATE);
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
@@ -828,23 +832,14 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
     END();
 }
 
-/* A Model Exchange call that takes no argument (the state machine moves the instance on). */
-static fmi2Status change_mode(fmi2Component c, Fmi2Call call, enum ModelExchangeMethod method) {
-    BEGIN(call);
-    PyObject *result = CALL_ME(method, NULL);
-    if (!result) status = python_failure(in, function_name);
-    release(&result);
-    END();
-}
-
 fmi2Status fmi2EnterEventMode(fmi2Component c) {
-    return change_mode(c, FMI2_ENTER_EVENT_MODE, ME_ENTER_EVENT_MODE);
+    return without_arguments(c, FMI2_ENTER_EVENT_MODE, 1, ME_ENTER_EVENT_MODE);
 }
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
-    return change_mode(c, FMI2_ENTER_CONTINUOUS_TIME_MODE, ME_ENTER_CONTINUOUS_TIME_MODE);
+    return without_arguments(c, FMI2_ENTER_CONTINUOUS_TIME_MODE, 1,
+                             ME_ENTER_CONTINUOUS_TIME_MODE);
 }
-
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
     BEGIN(FMI2_NEW_DISCRETE_STATES);
