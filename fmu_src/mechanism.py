@@ -53,7 +53,7 @@ class Physics(Protocol):
     def advance(self, p: Any, u: Any, s: Any, dt: float) -> Any:
         """The State after one communication step dt [s] with the inputs held; a
         `fmu_src.parameters.DomainError` (or an ArithmeticError) when the physics cannot
-        integrate it, which the FMU turns into a refused step (fmi2Discard)."""
+        integrate it, which the FMU turns into a refused step (status Discard)."""
 
     def switch_inputs(self, p: Any, before: Any, after: Any, s: Any) -> Any:
         """The State just after the event inputs change from before to after."""

@@ -21,7 +21,7 @@ MAGNITUDE_LIMIT = 1e50
 class DomainError(ValueError):
     """The physics refuses a state or input it cannot integrate (a released slider with
     neither mass nor damping, a step beyond the sub-step bound): the FMU refuses the step
-    with fmi2Discard and keeps its state. Any other exception of a step is a defect."""
+    with the status Discard and keeps its state. Any other exception of a step is a defect."""
 
 
 def magnitude_problem(value: float) -> str | None:

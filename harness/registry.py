@@ -14,8 +14,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from pythonfmu import Fmi2Causality
-
+from fmu_src.fmi.vocabulary import Causality
 from fmu_src.mechanism import Registration
 
 # the slave scripts' tree, read at each call (a test points it at a copy)
@@ -70,8 +69,7 @@ def input_units(model: str) -> dict[str, str | None]:
     """The unit of each input of the model's slave (None for a Boolean), as its FMU declares
     it: read from an instance of the slave class."""
     slave = _instance(model)
-    return {var.name: slave.info[var.name].unit for var in slave.vars.values()
-            if var.causality == Fmi2Causality.input}
+    return {name: slave.info[name].unit for name in slave.variable_names(Causality.input)}
 
 
 def mechanisms(source_dir: Path | None = None) -> dict[str, Registration]:

@@ -123,7 +123,7 @@ def refusal(message: str, function: str) -> str:
 def serialized_state(fmu: CoSimFMU) -> tuple[bytes, bytes, bytes]:
     """A serialised FMU state of the instance now, in its three parts: the runtime's line
     naming the FMU ("pythonfmu state of FMU <GUID>"), its line of the state machine state and
-    time, and the slave's bytes (fmu_src/runtime/fmi2_runtime.c)."""
+    time, and the slave's bytes (fmu_src/runtime/fmi2_functions.c)."""
     state = fmu.slave.getFMUstate()
     try:
         serialized = bytes(fmu.slave.serializeFMUstate(state))

@@ -1,4 +1,4 @@
-"""Each FMU runs the Python code of its own bundle (fmu_src/runtime/fmi2_runtime.c, its helper).
+"""Each FMU runs the Python code of its own bundle (fmu_src/runtime/runtime_core.c, its helper).
 
 The runtime imports an FMU's modules as a package named after the digest of the bundle's
 Python files, so nothing the process imported before decides what an FMU runs: not another

@@ -1,8 +1,8 @@
 """The FMUs in a host that is not a Python process (docs/using_the_fmus.md).
 
-harness/fmu/host/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
+harness/fmu/fmi2/fmi2_host.c is a minimal FMI 2.0 master in C, as a tool like libcosim's
 CLI, fmuCheck or OMSimulator is. It runs here with an empty environment (no LD_PRELOAD,
-PYTHONHOME or PYTHONPATH): the FMU's own runtime (fmu_src/runtime/fmi2_runtime.c) must find
+PYTHONHOME or PYTHONPATH): the FMU's own runtime (fmu_src/runtime/runtime_core.c) must find
 Python by itself, with the interpreter the FMU was built with or any CPython 3.8 or later
 named by BALANCER_FMU_LIBPYTHON, and give the numbers FMPy gives.
 """

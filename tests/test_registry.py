@@ -249,7 +249,8 @@ def test_a_mechanism_added_as_its_own_files_is_wired_by_the_harness(
             for p in fmu_build.dependencies(SCRATCH_MODEL, scratch_source)} == {
         "mechanisms/pendulum/physics.py", "fmi/mechanism_slave.py", "fmi/slave.py",
         "fmi/state.py", "fmi/variables.py", "fmi/failures.py", "fmi/model_description.py",
-        "fmi/model_exchange.py",
+        "fmi/model_exchange.py", "fmi/vocabulary.py", "fmi/binding.py", "fmi/fmi2/slave.py",
+        "fmi/fmi2/model_description.py",
         "integration.py", "mechanism.py", "parameters.py"}
 
 

@@ -1,4 +1,5 @@
-"""The FMUs' own FMI 2.0 runtime (fmu_src/runtime/fmi2_runtime.c) under stress, in a C host.
+"""The FMUs' own FMI 2.0 runtime (fmu_src/runtime, fmi2_functions.c on runtime_core.c) under
+stress, in a C host.
 
 tests/native_host/fmi2_stress.c loads unzipped FMUs as a long-running importing tool does,
 with an empty environment unless stated: load and unload cycles with state round trips
@@ -617,7 +618,7 @@ def test_the_runtime_knows_where_every_cpython_keeps_its_home(tmp_path: Path) ->
     CPython version: its table (config_home_offset) against offsetof in the headers of every
     CPython 3.8 or later installed here."""
     table = dict(re.findall(r"\[(\d+)\] = (\d+)", re.search(
-        r"config_home_offset\(void\) \{(.*?)\};", fmu_build.RUNTIME_SOURCE.read_text(),
+        r"config_home_offset\(void\) \{(.*?)\};", fmu_build.RUNTIME_CORE_SOURCE.read_text(),
         re.DOTALL)[1]))
     source = tmp_path / "home.c"
     source.write_text(CONFIG_HOME_PROBE)

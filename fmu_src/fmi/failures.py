@@ -2,10 +2,10 @@
 library only).
 
 A refusal that ends the call is a ValueError whose message names the variable and its range;
-the FMU's runtime (fmu_src/runtime/fmi2_runtime.c on Linux) returns fmi2Error and logs
-"<fmi2 function>: ValueError: <message>" (pythonfmu's win64 binary returns fmi2Fatal with the
+the FMU's runtime (fmu_src/runtime on Linux) returns the status Error and logs
+"<FMI function>: ValueError: <message>" (pythonfmu's win64 binary returns Fatal with the
 same message). A refusal of the physics (`fmu_src.parameters.DomainError`) or a failed
-computation refuses a step (fmi2Discard); any other exception of a step is a defect.
+computation refuses a step (Discard); any other exception of a step is a defect.
 """
 
 from __future__ import annotations
@@ -19,12 +19,13 @@ from fmu_src.parameters import DomainError
 MATH_ERRORS = ("math domain error", "math range error")
 
 
-def refused_setter(name: str, causality: str) -> Callable[[Any], None]:
-    """Setter of a variable FMI 2.0 does not let a host set (an output): refuses."""
+def refused_setter(name: str, causality: str, standard: str) -> Callable[[Any], None]:
+    """Setter of a variable the standard (its name: "FMI 2.0") does not let a host set (an
+    output): refuses."""
     def refuse(value: Any) -> None:
         raise ValueError(f"{name} = {value!r} refused: {name} is of causality {causality}, "
                          "and only inputs, and parameters before initialisation, can be set "
-                         "(FMI 2.0)")
+                         f"({standard})")
     return refuse
 
 

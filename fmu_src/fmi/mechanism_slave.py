@@ -12,7 +12,7 @@ from fmu_src.fmi.variables import tuple_getter
 
 
 class MechanismSlave(ModelExchange, ModelSlave):
-    """Base of the mechanism slaves: a thin layer over a pure physics module, for FMI 2.0
+    """Base of the mechanism slaves: a thin layer over a pure physics module, for
     Co-Simulation and Model Exchange (`fmu_src.fmi.model_exchange`).
 
     `physics` is the module, a `fmu_src.mechanism.Physics`: validate, initial_state, advance

@@ -1,4 +1,4 @@
-"""FMI 2.0 Model Exchange of a mechanism's slave (standard library only; docs/model_exchange.md).
+"""Model Exchange of a mechanism's slave (standard library only; docs/model_exchange.md).
 
 A host's solver integrates the physics' own State, its cumulative energies included, so that
 the energy ledger can be checked after a Model Exchange run as after a co-simulation. The
@@ -16,30 +16,17 @@ slave gives the solver what the physics module gives the co-simulation step
   forbids it; FMPy's CVode sets every input again in its root function, also past an input
   event it has not reached) waits for the next event.
 
-The FMU's runtime (fmu_src/runtime/fmi2_runtime.c) calls the `me_` methods and enforces the
-FMI state machine; these methods check what only the model knows (the number of states and
-indicators, finite states, time after the last event) and raise a ValueError naming it,
-which the runtime returns as
-fmi2Error with its message.
+The FMU's runtime (fmu_src/runtime: the FMI 2.0 calls of fmi2_functions.c on
+runtime_core.c) calls the `me_` methods and enforces the FMI state machine; these methods
+check what only the model knows (the number of states and indicators, finite states, time
+after the last event) and raise a ValueError naming it, which the runtime returns as Error
+with its message. The FMI 2.0 ModelExchange element is `fmu_src.fmi.fmi2.model_description`'s.
 """
 
 from __future__ import annotations
 
 import math
 from typing import Any
-
-# FMI 2.0 ModelExchange attributes (besides modelIdentifier): the FMU needs
-# fmi2CompletedIntegratorStep (a regime may change between events, see
-# `me_completed_integrator_step`) and saves and restores its state as in co-simulation
-MODEL_EXCHANGE_OPTIONS = {
-    "needsExecutionTool": "false",
-    "completedIntegratorStepNotNeeded": "false",
-    "canBeInstantiatedOnlyOncePerProcess": "false",
-    "canNotUseMemoryManagementFunctions": "true",
-    "canGetAndSetFMUstate": "true",
-    "canSerializeFMUstate": "true",
-    "providesDirectionalDerivative": "false",
-}
 
 # the unit of a state's time derivative, by the state's unit
 DERIVATIVE_UNITS = {"rad": "rad/s", "rad/s": "rad/s2", "m": "m/s", "m/s": "m/s2", "J": "W"}
@@ -52,7 +39,8 @@ def derivative_name(state: str) -> str:
 
 
 class ModelExchange:
-    """The Model Exchange methods of a `MechanismSlave` (module docstring).
+    """The Model Exchange methods of a `MechanismSlave` (module docstring), each named in its
+    docstring after the FMI 2.0 call the runtime makes it for.
 
     The slave keeps, besides its state and the inputs of the last event (`previous_inputs`),
     the regime held since the last event (`mode`) and the time of the last event

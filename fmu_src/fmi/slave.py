@@ -2,16 +2,17 @@
 
 `ModelSlave` is a thin FMI layer over a pure model module: the mechanisms, the DC motor
 drive and the position controller all use it. Its variables are `fmu_src.fmi.variables`, its
-FMU state `fmu_src.fmi.state`, its model description `fmu_src.fmi.model_description`;
-`fmu_src.fmi.mechanism_slave` adds the step, event and state plumbing every mechanism shares.
+FMU state `fmu_src.fmi.state`, its model description that of the FMI version it is bound to
+(`fmu_src.fmi.binding`); `fmu_src.fmi.mechanism_slave` adds the step, event and state plumbing
+every mechanism shares.
 
-A bad parameter fails fmi2ExitInitializationMode; a bad step size fails fmi2DoStep with
-fmi2Discard (do_step returns False) after an Error-status log message (`fmu_src.fmi.failures`).
+A bad parameter fails the exit from initialisation mode; a bad step size fails the step with
+Discard (do_step returns False) after an Error-status log message (`fmu_src.fmi.failures`).
 A refused step leaves the instance as it was before the call: `do_step` refuses a step
 whose work would exceed the integrator's bound (`fmu_src.integration.MAX_SUBSTEPS`), that
 the physics refuses (`fmu_src.parameters.DomainError`), whose arithmetic fails, or whose
 outputs would not be finite, and restores the state. Any other exception of a step is a
-defect: it propagates (fmi2Error, naming its type).
+defect: it propagates (Error, naming its type).
 """
 
 from __future__ import annotations
@@ -22,11 +23,10 @@ from functools import cached_property
 from operator import attrgetter
 from typing import Any
 
-from pythonfmu.enums import Fmi2Status
-
 from fmu_src.fmi.failures import arithmetic_problem, domain_failure
 from fmu_src.fmi.state import StatefulSlave
 from fmu_src.fmi.variables import VariableInfo, tuple_getter
+from fmu_src.fmi.vocabulary import Status
 from fmu_src.parameters import check_ranges
 
 __all__ = ["ModelSlave", "VariableInfo"]
@@ -47,11 +47,12 @@ class ModelSlave(StatefulSlave):
 
     # ---- FMI life cycle -----------------------------------------------------------
     def fail(self, message: str) -> None:
-        """Log an Error-status message (the caller then returns False: fmi2Discard)."""
-        self.log(message, Fmi2Status.error)
+        """Log an Error-status message (the caller then returns False: Discard)."""
+        self.report(message, Status.error)
 
     def warn(self, message: str) -> None:
-        self.log(message, Fmi2Status.warning)
+        """Log a Warning-status message."""
+        self.report(message, Status.warning)
 
     def setup_experiment(self, start_time: float, stop_time: float | None,
                          tolerance: float | None) -> None:
@@ -87,7 +88,7 @@ class ModelSlave(StatefulSlave):
             else:
                 return True
         except Exception as error:
-            if not domain_failure(error):  # a defect: fmi2Error naming it, the state kept
+            if not domain_failure(error):  # a defect: Error naming it, the state kept
                 self.restore_hidden_state(dict(zip(self.hidden_state, hidden)))
                 self._restore_outputs(outputs)
                 raise
@@ -101,13 +102,14 @@ class ModelSlave(StatefulSlave):
         return False
 
     def _refuse_call(self, current_time: float, step_size: float) -> bool:
-        """Log why fmi2DoStep cannot be called so and return False (fmi2Discard)."""
+        """Log why the step cannot be taken so and return False (Discard)."""
+        calls = self.calls
         if self.params is None:
-            self.fail("fmi2DoStep called before initialisation (fmi2ExitInitializationMode) "
-                      "succeeded")
+            self.fail(f"{calls.do_step} called before initialisation "
+                      f"({calls.exit_initialization_mode}) succeeded")
         elif not self.start_time <= current_time < math.inf:
             self.fail(f"communication point = {current_time} s is outside "
-                      f"[{self.start_time}, inf) (start time of fmi2SetupExperiment)")
+                      f"[{self.start_time}, inf) (start time of {calls.setup_experiment})")
         else:
             self.fail(f"communication step size = {step_size} s is outside (0, inf)")
         return False

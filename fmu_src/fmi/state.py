@@ -12,17 +12,16 @@ import math
 from functools import cached_property
 from typing import Any
 
-from pythonfmu import Boolean, Fmi2Causality, Integer, Real, String
-from pythonfmu.variables import ScalarVariable
-
 from fmu_src.fmi.failures import arithmetic_problem, domain_failure
 from fmu_src.fmi.variables import VariableSlave
+from fmu_src.fmi.vocabulary import Causality, ValueType
 
 # keys of an FMU state besides its variables' names
 STATE_MODEL, STATE_LAYOUT, STATE_HIDDEN = "__model__", "__layout__", "__hidden__"
 REGIME_SIZE = 4  # the longest regime a hidden state may hold
-# the Python types a variable's value in an FMU state may have, by its FMI type
-STATE_TYPES = {Real: (float, int), Boolean: (bool,), Integer: (int,), String: (str,)}
+# the Python types a variable's value in an FMU state may have, by its type
+STATE_TYPES = {ValueType.real: (float, int), ValueType.boolean: (bool,),
+               ValueType.integer: (int,), ValueType.string: (str,)}
 
 
 class StatefulSlave(VariableSlave):
@@ -48,7 +47,7 @@ class StatefulSlave(VariableSlave):
     def state_layout(self) -> str:
         """Key of the layout of this slave's FMU states: a digest of its variables (name,
         type, causality) and of the names of its hidden state."""
-        text = "\n".join([f"{type(v).__name__} {v.causality.name} {v.name}"
+        text = "\n".join([f"{self.type_of(v).value} {self.causality_of(v).name} {v.name}"
                           for v in self.vars.values()]
                          + [f"hidden {name}" for name in self.hidden_state])
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -68,18 +67,17 @@ class StatefulSlave(VariableSlave):
             self.__dict__.update(saved)
             raise
 
-    def _saved_variables(self) -> dict[str, ScalarVariable]:
+    def _saved_variables(self) -> dict[str, Any]:
         """The variables an FMU state holds, by name: all but the local ones (computed from
         the hidden state)."""
         return {var.name: var for var in self.vars.values()
-                if var.causality != Fmi2Causality.local}
+                if self.causality_of(var) is not Causality.local}
 
-    def _checked_state(self, state: Any, variables: dict[str, ScalarVariable]
-                       ) -> dict[str, Any]:
+    def _checked_state(self, state: Any, variables: dict[str, Any]) -> dict[str, Any]:
         """The hidden part of a state that may be restored (ValueError naming what is not)."""
         if self.params is None:
             raise self._state_problem("the instance is not initialised (set a state after "
-                                      "fmi2ExitInitializationMode)")
+                                      f"{self.calls.exit_initialization_mode})")
         if not isinstance(state, dict):
             raise self._state_problem(f"a {type(state).__name__}, not an FMU state")
         model = type(self).__name__
@@ -96,10 +94,11 @@ class StatefulSlave(VariableSlave):
                 [f"{name} is missing" for name in missing]
                 + [f"{name} is not a variable of {model}" for name in extra]))
         for name, var in variables.items():
-            value, kinds = state[name], STATE_TYPES[type(var)]
+            value_type = self.type_of(var)
+            value, kinds = state[name], STATE_TYPES[value_type]
             if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
-                raise self._state_problem(f"{name} = {value!r} is not of type {type(var).__name__}")
-            if isinstance(var, Real) and not _finite(value):
+                raise self._state_problem(f"{name} = {value!r} is not of type {value_type.value}")
+            if value_type is ValueType.real and not _finite(value):
                 raise self._state_problem(f"{name} = {value} is not a finite number")
         for name, _, _ in self.real_input_bounds:
             problem = self._input_problem(name, state[name])
@@ -125,7 +124,7 @@ class StatefulSlave(VariableSlave):
         return hidden
 
     def _restore_state(self, state: dict[str, Any], hidden: dict[str, Any],
-                       variables: dict[str, ScalarVariable]) -> None:
+                       variables: dict[str, Any]) -> None:
         """Take a checked state into effect (a ValueError names what a fresh initialisation
         would refuse)."""
         # a refreshing slave's outputs are computed again from the restored state, below
@@ -133,7 +132,8 @@ class StatefulSlave(VariableSlave):
         for name, var in variables.items():  # direct: the parameter setters refuse after init
             if name not in skipped:
                 value = state[name]
-                setattr(self, var.local_name, float(value) if isinstance(var, Real) else value)
+                real = self.type_of(var) is ValueType.real
+                setattr(self, var.local_name, float(value) if real else value)
         try:
             params = self.read_parameters()
             self.validate(params)

@@ -6,30 +6,24 @@ its state and inputs (`refresh_outputs`), an output read after an input was set 
 first, so a host sees a changed payload in tau_gravity at once, not one step later. Outputs
 declared independent of the inputs then read the same, which the tests check input by input.
 A Real input set NaN, infinite or outside its range, a fixed parameter set after
-initialisation, or an output set at all fails fmi2SetReal (fmi2SetBoolean, fmi2SetString),
-and the value stays.
+initialisation, or an output set at all fails the set call (fmi2SetReal, fmi2SetBoolean,
+fmi2SetString in FMI 2.0), and the value stays. The variables are declared through the FMI
+version's adaptor (`fmu_src.fmi.binding`) in the layer's vocabulary (`fmu_src.fmi.vocabulary`).
 """
 
 from __future__ import annotations
 
 import builtins
-import contextlib
 import math
-import os
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from functools import cached_property
 from operator import itemgetter
 from typing import Any
-from xml.etree.ElementTree import Element
 
-from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
-from pythonfmu.enums import Fmi2Initial
-from pythonfmu.variables import ScalarVariable
-
-from fmu_src.fmi import model_description
+from fmu_src.fmi.binding import ModelAdaptor
 from fmu_src.fmi.failures import refused_setter
+from fmu_src.fmi.vocabulary import Causality, Initial, ValueType, Variability
 from fmu_src.parameters import MAGNITUDE_LIMIT, magnitude_problem
 
 SMALLEST = 1.0 / MAGNITUDE_LIMIT  # the smallest non-zero magnitude of an input
@@ -45,24 +39,16 @@ class VariableInfo:
     max: float | None = None
 
 
-class VariableSlave(Fmi2Slave):
+class VariableSlave(ModelAdaptor):
     """The variables of a slave: its parameters (one per field of `parameters_type`, a frozen
     dataclass of `fmu_src.parameters.parameter` fields: bool ones Boolean, the others Real),
     the inputs and outputs registered with `add_input`/`add_output`, and the cached
-    getters and setters of fmi2GetReal/fmi2SetReal."""
+    getters and setters of the Real get and set calls."""
 
     parameters_type: type
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        # pythonfmu's runtime puts the resources folder (where it reads slavemodule.txt)
-        # first on sys.path at every instantiation, to import the slave module, and never
-        # takes it out: one entry per instance, pointing at folders hosts delete. The module
-        # is imported by now. (pythonfmu's builder removes its own entry itself.)
-        if self.resources in sys.path and os.path.exists(
-                os.path.join(self.resources, "slavemodule.txt")):
-            with contextlib.suppress(ValueError):  # another thread's instance took it out
-                sys.path.remove(self.resources)
         self.author = "Gravity balancer co-simulation project"
         self.license = "MIT"
         self.info: dict[str, VariableInfo] = {}
@@ -85,48 +71,65 @@ class VariableSlave(Fmi2Slave):
             meta = f.metadata
             setattr(self, f.name, f.default)
             if isinstance(f.default, bool):
-                self._add(Boolean(f.name, causality=Fmi2Causality.parameter,
-                                  variability=Fmi2Variability.fixed,
-                                  description=meta["description"]),
-                          VariableInfo(None, meta["description"]))
+                self.add_parameter(f.name, ValueType.boolean,
+                                   VariableInfo(None, meta["description"]))
             else:
-                self._add(Real(f.name, causality=Fmi2Causality.parameter,
-                               variability=Fmi2Variability.fixed,
-                               description=meta["description"]),
-                          VariableInfo(meta["unit"], meta["description"], meta["min"],
-                                       meta["max"]))
+                self.add_parameter(f.name, ValueType.real,
+                                   VariableInfo(meta["unit"], meta["description"], meta["min"],
+                                                meta["max"]))
 
     # ---- registration -------------------------------------------------------------
-    def _add(self, var: Real | Boolean, info: VariableInfo) -> None:
-        self.info[var.name] = info
-        self.register_variable(var)
-        if var.causality in (Fmi2Causality.parameter, Fmi2Causality.calculatedParameter):
-            var.setter = self._parameter_setter(var.name, var.causality)
+    def _add(self, value_type: ValueType, name: str, causality: Causality,
+             variability: Variability, info: VariableInfo, initial: Initial | None = None,
+             getter: Callable[[], Any] | None = None) -> None:
+        """Declare a variable: inputs checked when set, which make the outputs stale; where
+        the slave refreshes its outputs, outputs recomputed when read stale; parameters
+        refused once initialised; and the others (outputs, locals) refusing to be set."""
+        self.info[name] = info
+        var = self.declare(value_type, name, causality, variability, info.description,
+                           initial, getter)
+        if causality is Causality.input:
+            var.setter = self._input_setter(name)
+        elif causality in (Causality.parameter, Causality.calculatedParameter):
+            var.setter = self._parameter_setter(name, causality)
+        else:
+            var.setter = refused_setter(name, causality.name, self.standard)
+            if causality is Causality.output and self.refreshes_outputs:
+                var.getter = self._output_getter(name)
         for table in ("_real_getters", "_real_setters", "_output_positions"):  # built again
             self.__dict__.pop(table, None)
 
-    def _parameter_setter(self, name: str, causality: Fmi2Causality) -> Any:
+    def variable_names(self, causality: Causality) -> list[str]:
+        """The names of the variables of one causality, in value-reference order."""
+        return [var.name for var in self.vars.values() if self.causality_of(var) is causality]
+
+    def _parameter_setter(self, name: str, causality: Causality) -> Any:
         """Setter of a fixed or calculated parameter: refused once initialised (the model
         would not use the new value) and always for a calculated one."""
         def set_parameter(value: Any) -> None:
-            if causality == Fmi2Causality.calculatedParameter:
+            if causality is Causality.calculatedParameter:
                 problem = f"{name} is a calculated parameter: it cannot be set"
             elif self.params is not None:
                 problem = (f"{name} is a fixed parameter: it cannot be set after "
-                           "initialisation (set it before fmi2ExitInitializationMode)")
+                           "initialisation (set it before "
+                           f"{self.calls.exit_initialization_mode})")
             else:
                 setattr(self, name, value)
                 return
             raise ValueError(problem)
         return set_parameter
 
+    def add_parameter(self, name: str, value_type: ValueType, info: VariableInfo) -> None:
+        """A fixed parameter, held in the attribute of its name (set it first), which can
+        be set only before initialisation."""
+        self._add(value_type, name, Causality.parameter, Variability.fixed, info)
+
     def add_calculated_parameter(self, name: str, unit: str, description: str) -> None:
         """A parameter derived from the others at initialisation."""
         setattr(self, name, 0.0)
         self.calculated.append(name)
-        self._add(Real(name, causality=Fmi2Causality.calculatedParameter,
-                       variability=Fmi2Variability.fixed, initial=Fmi2Initial.calculated,
-                       description=description), VariableInfo(unit, description))
+        self._add(ValueType.real, name, Causality.calculatedParameter, Variability.fixed,
+                  VariableInfo(unit, description), Initial.calculated)
 
     def add_input(self, name: str, start: float | bool, unit: str | None, description: str,
                   min: float | None = None, max: float | None = None,
@@ -135,16 +138,15 @@ class VariableSlave(Fmi2Slave):
         a Real one discrete (it changes only at events) or continuous."""
         setattr(self, name, start)
         if unit is None:
-            var = Boolean(name, causality=Fmi2Causality.input,
-                          variability=Fmi2Variability.discrete, description=description)
+            value_type, variability = ValueType.boolean, Variability.discrete
         else:
-            var = Real(name, causality=Fmi2Causality.input,
-                       variability=Fmi2Variability.discrete if discrete
-                       else Fmi2Variability.continuous, description=description)
+            value_type = ValueType.real
+            variability = Variability.discrete if discrete else Variability.continuous
             self.real_input_bounds.append((
                 name, -MAGNITUDE_LIMIT if min is None else builtins.max(min, -MAGNITUDE_LIMIT),
                 MAGNITUDE_LIMIT if max is None else builtins.min(max, MAGNITUDE_LIMIT)))
-        self._add(var, VariableInfo(unit, description, min, max))
+        self._add(value_type, name, Causality.input, variability,
+                  VariableInfo(unit, description, min, max))
 
     def add_output(self, name: str, unit: str | None, description: str,
                    depends_on: tuple[str, ...] = (),
@@ -156,8 +158,7 @@ class VariableSlave(Fmi2Slave):
         initial_depends_on: the inputs it depends on at initialisation, where they differ (an
         output of the last step, computed at the start from the inputs then).
         """
-        inputs = {var.name: var for var in self.vars.values()
-                  if var.causality == Fmi2Causality.input}
+        inputs = set(self.variable_names(Causality.input))
         unknown = [n for n in (*depends_on, *(initial_depends_on or ())) if n not in inputs]
         if unknown:
             raise ValueError(f"output {name} depends on {', '.join(unknown)}, which are not "
@@ -175,15 +176,12 @@ class VariableSlave(Fmi2Slave):
             setattr(self, name, start)
         self.output_names.append(name)
         if unit is None:
-            var = Boolean(name, causality=Fmi2Causality.output,
-                          variability=Fmi2Variability.discrete, initial=Fmi2Initial.calculated,
-                          description=description)
+            value_type, variability = ValueType.boolean, Variability.discrete
         else:
-            var = Real(name, causality=Fmi2Causality.output,
-                       variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
-                       description=description)
+            value_type, variability = ValueType.real, Variability.continuous
             self.real_outputs.append(name)
-        self._add(var, VariableInfo(unit, description))
+        self._add(value_type, name, Causality.output, variability,
+                  VariableInfo(unit, description), Initial.calculated)
 
     def add_local(self, name: str, unit: str, description: str, getter: Callable[[], float],
                   initial_depends_on: tuple[str, ...] = ()) -> None:
@@ -191,29 +189,15 @@ class VariableSlave(Fmi2Slave):
         read through getter; initial_depends_on: the inputs it depends on at
         initialisation."""
         self.initial_dependencies[name] = tuple(initial_depends_on)
-        self._add(Real(name, causality=Fmi2Causality.local,
-                       variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
-                       description=description, getter=getter),
-                  VariableInfo(unit, description))
+        self._add(ValueType.real, name, Causality.local, Variability.continuous,
+                  VariableInfo(unit, description), Initial.calculated, getter)
 
     @property
     def refreshes_outputs(self) -> bool:
         """The slave recomputes its outputs when read after an input was set."""
         return type(self).refresh_outputs is not VariableSlave.refresh_outputs
 
-    def register_variable(self, var: ScalarVariable, nested: bool = True) -> None:
-        """pythonfmu's registration, with inputs checked when set, which make the outputs
-        stale; where the slave refreshes its outputs, outputs recomputed when read stale;
-        and outputs (any variable but an input or a parameter) that refuse to be set."""
-        super().register_variable(var, nested)
-        if var.causality == Fmi2Causality.input:
-            var.setter = self._input_setter(var.name)
-        elif var.causality not in (Fmi2Causality.parameter, Fmi2Causality.calculatedParameter):
-            var.setter = refused_setter(var.name, var.causality.name)
-            if var.causality == Fmi2Causality.output and self.refreshes_outputs:
-                var.getter = self._output_getter(var.name)
-
-    # Closures over the instance's __dict__: they run at every fmi2Get/fmi2Set call.
+    # Closures over the instance's __dict__: they run at every get and set call.
     def _input_setter(self, name: str) -> Callable[[Any], None]:
         """Setter of an input: the outputs become stale; a Real input NaN, infinite, outside
         its range or its magnitudes is refused (a ValueError naming it and its range) and
@@ -250,16 +234,18 @@ class VariableSlave(Fmi2Slave):
             return attributes["output_values"][index]
         return current_output
 
-    # fmi2GetReal/fmi2SetReal: pythonfmu's look each variable up and check its type per call
+    # the Real get and set calls: the adaptor's look each variable up and check its type per call
     @cached_property
     def _real_getters(self) -> dict[int, Callable[[], Any]]:
         """Getter of each Real variable by value reference (complete once registered)."""
-        return {vr: var.getter for vr, var in self.vars.items() if isinstance(var, Real)}
+        return {vr: var.getter for vr, var in self.vars.items()
+                if self.type_of(var) is ValueType.real}
 
     @cached_property
     def _real_setters(self) -> dict[int, Callable[[Any], None]]:
         """Setter of each Real variable by value reference."""
-        return {vr: var.setter for vr, var in self.vars.items() if isinstance(var, Real)}
+        return {vr: var.setter for vr, var in self.vars.items()
+                if self.type_of(var) is ValueType.real}
 
     @cached_property
     def _output_positions(self) -> dict[int, int]:
@@ -277,7 +263,7 @@ class VariableSlave(Fmi2Slave):
         getters = self._real_getters
         try:
             return [float(getters[vr]()) for vr in vrs]
-        except KeyError:  # not a Real: pythonfmu's TypeError names the value reference
+        except KeyError:  # not a Real: the adaptor's TypeError names the value reference
             return super().get_real(vrs)
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
@@ -311,7 +297,6 @@ class VariableSlave(Fmi2Slave):
         return self.parameters_type(**{
             f.name: (bool if isinstance(f.default, bool) else float)(getattr(self, f.name))
             for f in fields(self.parameters_type)})
-
 
     @cached_property
     def _outputs_of(self) -> Callable[[dict[str, Any]], tuple]:
@@ -348,9 +333,6 @@ class VariableSlave(Fmi2Slave):
         if not low <= value <= high:
             return f"input {name} = {value} {info.unit} is outside [{low}, {high}]"
         return None
-
-    def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006
-        return model_description.complete(super().to_xml(model_options), self)
 
 
 def tuple_getter(getter: Callable[..., Callable], names: Sequence[str]) -> Callable:

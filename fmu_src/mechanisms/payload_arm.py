@@ -6,9 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from pythonfmu.default_experiment import DefaultExperiment
-
 from fmu_src.fmi.mechanism_slave import MechanismSlave
+from fmu_src.fmi.vocabulary import DefaultExperiment
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, one_link_panels, rest_to_rest_move
 
 

@@ -1,4 +1,4 @@
-"""Build the FMUs of `fmu_src/` with pythonfmu.
+"""Build the FMUs of `fmu_src/` with pythonfmu (its FMI 2.0 exporter, `harness.fmu.fmi2.build`).
 
 Each FMU gets its slave script and exactly the `fmu_src` modules it imports (found by
 reading the imports), staged as the package `fmu_src` in the FMU's resources, so the slave
@@ -7,7 +7,7 @@ embedded files.
 
 In a process, every FMU of our runtime imports the modules of its own bundle: the runtime
 imports them as a package named after the digest of the bundle's Python files, with an
-import hook bound to its resources folder (fmu_src/runtime/fmi2_runtime.c, HELPER_SOURCE;
+import hook bound to its resources folder (fmu_src/runtime/runtime_core.c, HELPER_SOURCE;
 docs/build.md says why). `fmu_src` stays a namespace package (no __init__.py): under
 pythonfmu's own binary (win64), which puts each FMU's resources folder on sys.path, its
 search path follows sys.path.
@@ -18,10 +18,11 @@ onto `<model>.fmu` only when the FMU and its documentation are complete, so an i
 failed build never leaves a broken FMU behind (and a concurrent reader sees the old or the
 new FMU, never a partial one).
 
-Every FMU's linux64 binary is our FMI 2.0 runtime (`fmu_src/runtime/fmi2_runtime.c`, C only,
-compiled here with `python -m ziglang cc` for glibc 2.17 and later): it implements every FMI
-function over pythonfmu's Python API, loading the libpython the FMU was built with (recorded in
-`resources/python.txt`, with the FMU's GUID) when the host is not a Python process.
+Every FMU's linux64 binary is our FMI 2.0 runtime (`fmu_src/runtime/fmi2_functions.c` on the
+version-neutral `runtime_core.c`, C only, compiled here with `python -m ziglang cc` for glibc
+2.17 and later): it implements every FMI function over pythonfmu's Python API, loading the
+libpython the FMU was built with (recorded in `resources/python.txt`, with the FMU's GUID)
+when the host is not a Python process.
 pythonfmu's own linux64 binary is not shipped; its win64 binary is. `build(..., runtime=False)`
 keeps pythonfmu's binaries as they are: the benchmark's stock floor.
 
@@ -63,13 +64,13 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 import fmpy
-from pythonfmu.builder import FmuBuilder
 
 from fmu_src.units.sequencer.ScenarioSequencer import EMBEDDED_MODULE
 from harness import registry, scenarios
 from harness.errors import UserError
 from harness.fmu import docs as fmu_docs
 from harness.fmu import osp
+from harness.fmu.fmi2 import build as fmi2_build
 from harness.io import write_atomic
 
 SOURCE_DIR = registry.SOURCE_DIR
@@ -80,20 +81,22 @@ SEQUENCER = "ScenarioSequencer"
 DEFAULT_SCENARIO = "franchetti2021"  # the scenario the sequencer of `make fmu` plays
 # where the sequencer FMU's scenario module goes in the staged package fmu_src
 EMBEDDED_SCENARIO = Path(*EMBEDDED_MODULE[1:])
-RUNTIME_SOURCE = SOURCE_DIR / "runtime" / "fmi2_runtime.c"
-# the FMI 2.0 state machine, compiled into the runtime (its header beside it, see compile_inputs)
-STATE_MACHINE_SOURCE = RUNTIME_SOURCE.with_name("fmi2_states.c")
+# the runtime: its FMI 2.0 entry points, compiled with its version-neutral core and the FMI
+# 2.0 state machine (their headers beside them, see compile_inputs)
+RUNTIME_SOURCE = fmi2_build.RUNTIME_SOURCE
+RUNTIME_CORE_SOURCE = SOURCE_DIR / "runtime" / "runtime_core.c"
+STATE_MACHINE_SOURCE = fmi2_build.STATE_MACHINE_SOURCE
 # the minimal C FMI host that runs an FMU outside any Python process (bench, tests)
-HOST_SOURCE = Path(__file__).resolve().parent / "host" / "fmi2_host.c"
+HOST_SOURCE = fmi2_build.HOST_SOURCE
 RUNTIME_BUILD = DEFAULT_DEST.parent / "runtime" / "fmi2_runtime.so"
 # the oldest glibc the runtime runs on (pythonfmu's own binary needs 2.32)
 RUNTIME_TARGET = "x86_64-linux-gnu.2.17"
-RUNTIME_OPTIONS = ("-shared", "-fPIC", "-s", STATE_MACHINE_SOURCE)
+RUNTIME_OPTIONS = ("-shared", "-fPIC", "-s", RUNTIME_CORE_SOURCE, STATE_MACHINE_SOURCE)
 PYTHON_RECORD = "resources/python.txt"  # read by the runtime: keep the keys in step
 INPUTS_RECORD = "resources/build_inputs.sha256"  # fmu_inputs of the FMU's build
 # the code that writes an FMU besides its fmu_src modules, and the tools whose output it holds
-BUILD_CODE = (Path(__file__), Path(fmu_docs.__file__), Path(osp.__file__),
-              Path(registry.__file__))
+BUILD_CODE = (Path(__file__), Path(fmi2_build.__file__), Path(fmu_docs.__file__),
+              Path(osp.__file__), Path(registry.__file__))
 TOOLS = ("pythonfmu", "fmpy", "ziglang", "matplotlib")
 
 
@@ -131,14 +134,21 @@ def script(model: str, source_dir: Path = SOURCE_DIR) -> Path:
     raise UserError(f"unknown model {model!r}; choose from {', '.join(found)}")
 
 
+def package_root(source_dir: Path) -> Path:
+    """The fmu_src tree whose modules the slave scripts under source_dir import: SOURCE_DIR
+    for a folder of it (the bench's floor), else source_dir itself (a copy of fmu_src, or a
+    folder of slaves that import none of it)."""
+    return SOURCE_DIR if source_dir.is_relative_to(SOURCE_DIR) else source_dir
+
+
 def dependencies(model: str, source_dir: Path = SOURCE_DIR) -> list[Path]:
     """fmu_src modules the model's slave script needs, followed transitively (the
     sequencer's scenario module, generated at build time by `embedded_module`, is not among
     them)."""
-    pending, found = [script(model, source_dir)], set()
+    pending, found, root = [script(model, source_dir)], set(), package_root(source_dir)
     while pending:
         for name in _fmu_src_imports(pending.pop()):
-            path = source_dir.joinpath(*name.split(".")).with_suffix(".py")
+            path = root.joinpath(*name.split(".")).with_suffix(".py")
             if path not in found and path.is_file():
                 found.add(path)
                 pending.append(path)
@@ -164,7 +174,7 @@ def embedded_module(model: str, sequencer_scenario: str | Path | None = None) ->
 
 def zig_cc(source: Path, output: Path, *options: str | Path) -> Path:
     """Compile a C file with `python -m ziglang cc` (a registry package, no system compiler)
-    for RUNTIME_TARGET, FMPy's FMI 2.0 headers on the include path; written atomically."""
+    for RUNTIME_TARGET, FMPy's FMI headers on the include path; written atomically."""
     return write_atomic(output, lambda partial: subprocess.run(
         [sys.executable, "-m", "ziglang", "cc", "-target", RUNTIME_TARGET, "-O2", "-Wall",
          f"-I{Path(fmpy.__file__).parent / 'c-code'}", *options, str(source), "-o",
@@ -260,13 +270,15 @@ def content_guid(inputs: str) -> str:
 def model_guid(fmu: Path) -> str:
     """The GUID in the FMU's modelDescription.xml."""
     with zipfile.ZipFile(fmu) as archive:
-        return ElementTree.fromstring(archive.read(MODEL_DESCRIPTION)).get("guid")
+        return ElementTree.fromstring(archive.read(MODEL_DESCRIPTION)).get(
+            fmi2_build.GUID_ATTRIBUTE)
 
 
 def reproducible_description(text: str, guid: str) -> str:
     """pythonfmu's model description with the content GUID and without the generation time
     (an optional attribute), as it is otherwise."""
-    text, guids = re.subn(r'\bguid="[^"]*"', f'guid="{guid}"', text, count=1)
+    attribute = fmi2_build.GUID_ATTRIBUTE
+    text, guids = re.subn(rf'\b{attribute}="[^"]*"', f'{attribute}="{guid}"', text, count=1)
     if guids != 1:
         raise ValueError("the model description has no guid attribute")
     return re.sub(r'\s+generationDateAndTime="[^"]*"', "", text, count=1)
@@ -299,7 +311,7 @@ def install_runtime(fmu: Path, model: str, inputs: str, runtime: bool = True) ->
     entries[MODEL_DESCRIPTION] = reproducible_description(
         entries[MODEL_DESCRIPTION].decode(), guid).encode()
     if runtime:
-        entries[f"binaries/linux64/{model}.so"] = runtime_binary().read_bytes()
+        entries[fmi2_build.BINARY.format(model=model)] = runtime_binary().read_bytes()
     entries[PYTHON_RECORD] = f"{python_record()}guid={guid}\n".encode()
     entries[INPUTS_RECORD] = inputs.encode()
     write_archive(fmu, entries)
@@ -344,18 +356,16 @@ def build(model: str, dest: Path = DEFAULT_DEST, source_dir: Path = SOURCE_DIR,
             stage = Path(tmp)
             package = stage / "fmu_src"
             package.mkdir()
-            staged = [package / module.relative_to(source_dir) for module in modules]
+            root = package_root(source_dir)
+            staged = [package / module.relative_to(root) for module in modules]
             for module, copy in zip(modules, staged):
                 copy.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy2(module, copy)
             if embedded is not None:
                 staged = sorted([*staged, package / EMBEDDED_SCENARIO])
                 (package / EMBEDDED_SCENARIO).write_text(embedded)
-            FmuBuilder.build_FMU(
-                shutil.copy2(slave_script, stage), dest=partial,
-                project_files=[package] if modules else [],
-                canGetAndSetFMUstate=True, canSerializeFMUstate=True,
-                canHandleVariableCommunicationStepSize=True)
+            fmi2_build.export(shutil.copy2(slave_script, stage), partial,
+                              [package] if modules else [])
             install_runtime(partial, model, inputs, runtime)
             # the documentation reads the staged modules: those the FMU carries
             fmu_docs.add_documentation(partial, slave_script, staged, stage)

@@ -3,18 +3,17 @@ efforts set, the scenario's input changes applied, doStep, the joints' states re
 recorded variables read every recording interval, each on C arrays made once per run (FMPy's
 wrappers build the arrays anew at each call), so that the master's loop makes one Python call
 per step into this module and never touches the FMU's library itself. A refused call is an
-`FMUCallError` with the FMU's own messages."""
+`FMUCallError` with the FMU's own messages. The C functions are those of the FMU's FMI version
+(`CoSimFMU.fmi`, `harness.fmu.fmi2.instances` for FMI 2.0)."""
 
 from __future__ import annotations
 
 import ctypes
-import functools
 
 import numpy as np
 import pandas as pd
-from fmpy.fmi2 import fmi2Boolean, fmi2False, fmi2True, fmi2ValueReference, fmi2Warning
 
-from harness.fmu.loader import FATAL, CoSimFMU, FMICallException, FMUCallError
+from harness.fmu.loader import FATAL, WARNING, CoSimFMU, FMICallException, FMUCallError
 
 
 class MasterCalls:
@@ -33,16 +32,14 @@ class MasterCalls:
                  record_names: list[str], inputs: dict[str, np.ndarray],
                  first_message: int) -> None:
         self.fmu, self.first_message = fmu, first_message
-        dll, component = fmu.slave.dll, fmu.slave.component
+        fmi, slave = fmu.fmi, fmu.slave
         self.efforts = (ctypes.c_double * len(effort_names))()
         self.states = (ctypes.c_double * len(state_names))()
-        self._set_efforts = functools.partial(dll.fmi2SetReal, component,
-                                              self._references(effort_names),
-                                              len(effort_names), self.efforts)
-        self._get_states = functools.partial(dll.fmi2GetReal, component,
-                                             self._references(state_names), len(state_names),
-                                             self.states)
-        self._do_step = functools.partial(dll.fmi2DoStep, component)
+        self._set_efforts = fmi.array_call(slave, fmi.SET_REAL, self._references(effort_names),
+                                           self.efforts)
+        self._get_states = fmi.array_call(slave, fmi.GET_REAL, self._references(state_names),
+                                          self.states)
+        self._do_step = fmi.step_call(slave)
         self._changes = self._input_changes(inputs)
         kinds = {name: fmu.variables[name].type for name in record_names}
         self._record_names = record_names
@@ -50,13 +47,12 @@ class MasterCalls:
         self._booleans = [name for name in record_names if kinds[name] == "Boolean"]
         self._others = [name for name in record_names if name not in self._reals + self._booleans]
         self._real_values = (ctypes.c_double * len(self._reals))()
-        self._boolean_values = (fmi2Boolean * len(self._booleans))()
-        self._get_reals = functools.partial(dll.fmi2GetReal, component,
-                                            self._references(self._reals), len(self._reals),
-                                            self._real_values)
-        self._get_booleans = functools.partial(
-            dll.fmi2GetBoolean, component, self._references(self._booleans),
-            len(self._booleans), self._boolean_values)
+        self._boolean_values = (fmi.C_BOOLEAN * len(self._booleans))()
+        self._get_reals = fmi.array_call(slave, fmi.GET_REAL, self._references(self._reals),
+                                         self._real_values)
+        self._get_booleans = fmi.array_call(slave, fmi.GET_BOOLEAN,
+                                            self._references(self._booleans),
+                                            self._boolean_values)
         # each record() as the bytes of its C arrays, and the other types' values
         self._real_rows: list[bytes] = []
         self._boolean_rows: list[bytes] = []
@@ -64,39 +60,41 @@ class MasterCalls:
 
     def read_states(self) -> list[float]:
         """The joints' states now (FMUCallError if the FMU refuses)."""
-        self._check(self._get_states(), "fmi2GetReal")
+        self._check(self._get_states(), self.fmu.fmi.GET_REAL)
         return self.states[:]
 
     def step(self, k: int, time: float, step_size: float) -> None:
         """Step k from time [s]: set the efforts, apply the inputs that change at k, doStep
         over step_size [s], read the joints' states (FMUCallError if the FMU refuses)."""
-        if (status := self._set_efforts()) > fmi2Warning:
-            self._check(status, "fmi2SetReal")
+        if (status := self._set_efforts()) > WARNING:
+            self._check(status, self.fmu.fmi.SET_REAL)
         if k in self._changes:
             for setter, value_array, value, function in self._changes[k]:
                 value_array[0] = value
                 self._check(setter(), function)
-        if (status := self._do_step(time, step_size, fmi2True)) > fmi2Warning:
-            self._check(status, "fmi2DoStep")
-        if (status := self._get_states()) > fmi2Warning:
-            self._check(status, "fmi2GetReal")
+        # True: no FMU state is set back before the communication point
+        if (status := self._do_step(time, step_size, True)) > WARNING:
+            self._check(status, self.fmu.fmi.DO_STEP)
+        if (status := self._get_states()) > WARNING:
+            self._check(status, self.fmu.fmi.GET_REAL)
 
     def record(self) -> None:
         """Read the recorded variables' current values (FMUCallError if the FMU refuses)."""
-        self._check(self._get_reals(), "fmi2GetReal")
+        fmi = self.fmu.fmi
+        self._check(self._get_reals(), fmi.GET_REAL)
         self._real_rows.append(bytes(self._real_values))
         if self._booleans:
-            self._check(self._get_booleans(), "fmi2GetBoolean")
+            self._check(self._get_booleans(), fmi.GET_BOOLEAN)
             self._boolean_rows.append(bytes(self._boolean_values))
         if self._others:
             self._other_rows.append(list(self.fmu.get(self._others).values()))
 
     def recorded(self) -> pd.DataFrame:
         """One row per `record()`, one column per recorded variable."""
-        rows = len(self._real_rows)
+        rows, fmi = len(self._real_rows), self.fmu.fmi
         reals = np.frombuffer(b"".join(self._real_rows)).reshape(rows, len(self._reals))
-        booleans = np.frombuffer(b"".join(self._boolean_rows), dtype=fmi2Boolean).reshape(
-            rows, len(self._booleans)) != fmi2False
+        booleans = np.frombuffer(b"".join(self._boolean_rows), dtype=fmi.C_BOOLEAN).reshape(
+            rows, len(self._booleans)) != fmi.C_FALSE
         table = pd.concat([pd.DataFrame(reals, columns=self._reals),
                            pd.DataFrame(booleans, columns=self._booleans),
                            pd.DataFrame(self._other_rows, columns=self._others)], axis=1)
@@ -109,7 +107,7 @@ class MasterCalls:
     def _check(self, status: int, function: str) -> None:
         """FMUCallError with the messages the FMU logged since the run's first when status is
         above Warning (noting a Fatal status, after which the FMU is not called again)."""
-        if status <= fmi2Warning:
+        if status <= WARNING:
             return
         self.fmu.fatal = self.fmu.fatal or status == FATAL
         raise FMUCallError(FMICallException(function, status), self.fmu.model_description.modelName,
@@ -117,21 +115,19 @@ class MasterCalls:
 
     def _references(self, names: list[str]) -> ctypes.Array:
         """The value references of the named variables as a C array."""
-        references = self.fmu.references(names)
-        return (fmi2ValueReference * len(references))(*references)
+        return self.fmu.fmi.references(self.fmu.references(names))
 
     def _input_changes(self, inputs: dict[str, np.ndarray]) -> dict[int, list]:
         """Input changes by step index: {k: [(setter, C array, value, FMI function), ...]}:
         put the value in the array (of one element), then `setter()` sets the input from it
-        through fmi2SetReal or fmi2SetBoolean and returns the status."""
+        through the FMI function that sets a Real or a Boolean and returns the status."""
         changes: dict[int, list] = {}
-        slave = self.fmu.slave
+        fmi, slave = self.fmu.fmi, self.fmu.slave
         for name, signal in inputs.items():
             boolean = signal.dtype == bool
-            function = "fmi2SetBoolean" if boolean else "fmi2SetReal"
-            values = ((fmi2Boolean if boolean else ctypes.c_double) * 1)()
-            setter = functools.partial(getattr(slave.dll, function), slave.component,
-                                       self._references([name]), 1, values)
+            function = fmi.SET_BOOLEAN if boolean else fmi.SET_REAL
+            values = ((fmi.C_BOOLEAN if boolean else ctypes.c_double) * 1)()
+            setter = fmi.array_call(slave, function, self._references([name]), values)
             steps = np.flatnonzero(signal[1:] != signal[:-1]) + 1
             for k, value in zip(steps.tolist(), signal[steps].tolist(), strict=True):
                 changes.setdefault(k, []).append((setter, values, value, function))

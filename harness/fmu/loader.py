@@ -1,8 +1,12 @@
-"""Thin access to an FMI 2.0 Co-Simulation FMU through FMPy, by variable name.
+"""Thin access to a Co-Simulation FMU through FMPy, by variable name.
 
 `CoSimFMU` extracts an FMU once, instantiates it with a logger that keeps every message
 (so tests and the harness can read warnings), and offers set/get by name, stepping,
 state get/set and reset. The FMPy master (`harness.engines.fmpy_master`) is built on it.
+
+What differs between FMI versions is FMPy's plumbing of the FMU's version (`VERSIONS`, by
+the model description's fmiVersion: `harness.fmu.fmi2.instances` for FMI 2.0), which
+`harness.fmu.calls` and `harness.fmu.model_exchange` use too.
 """
 
 from __future__ import annotations
@@ -11,26 +15,25 @@ import contextlib
 import copyreg
 import shutil
 import zipfile
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Slave,
-    defaultCallbacks,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
+from fmpy.model_description import ModelDescription
 
 from harness.errors import UserError
+from harness.fmu.fmi2 import instances as fmi2
 
 __all__ = ["CoSimFMU", "FMICallException", "FMUCallError", "LogMessage"]
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
-FATAL = STATUS_NAMES.index("Fatal")
+WARNING, FATAL = STATUS_NAMES.index("Warning"), STATUS_NAMES.index("Fatal")
+# FMPy's plumbing of each FMI version, by the fmiVersion of the model description
+VERSIONS: dict[str, ModuleType] = {fmi2.VERSION: fmi2}
 
 
 @dataclass(frozen=True)
@@ -40,6 +43,25 @@ class LogMessage:
     status: str
     category: str
     message: str
+
+
+def plumbing(md: ModelDescription) -> ModuleType:
+    """FMPy's plumbing of the FMI version of the model description (`VERSIONS`); UserError
+    for another version."""
+    try:
+        return VERSIONS[md.fmiVersion]
+    except KeyError:
+        raise UserError(f"{md.modelName}: FMI {md.fmiVersion} is not supported (only FMI "
+                        f"{', '.join(VERSIONS)})") from None
+
+
+def keeper(messages: list[LogMessage]) -> Callable[[int, Any, Any], None]:
+    """A logger (`harness.fmu.fmi2.instances.Logger`) that keeps every message in
+    messages."""
+    def keep(status: int, category: bytes | None, message: bytes | None) -> None:
+        messages.append(LogMessage(STATUS_NAMES[status], (category or b"").decode(),
+                                   (message or b"").decode()))
+    return keep
 
 
 class FMUCallError(FMICallException, UserError):
@@ -69,6 +91,7 @@ class CoSimFMU:
         self.path = Path(path)
         try:
             self.model_description = read_model_description(str(self.path))
+            self.fmi = plumbing(self.model_description)  # FMPy's plumbing of its version
             self._unzip_dir = extract(str(self.path))
         except (zipfile.BadZipFile, OSError) as error:  # truncated or missing FMU
             raise UserError(f"{self.path}: not a readable FMU ({error}); rebuild it "
@@ -76,22 +99,12 @@ class CoSimFMU:
         self.variables = {v.name: v for v in self.model_description.modelVariables}
         self._get_plans: dict[tuple[str, ...], tuple] = {}  # by the names `get` was given
         self.messages: list[LogMessage] = []
-        self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self._callbacks.allocateMemory = defaultCallbacks.allocateMemory
-        self._callbacks.freeMemory = defaultCallbacks.freeMemory
-        self.slave = FMU2Slave(guid=self.model_description.guid, unzipDirectory=self._unzip_dir,
-                               modelIdentifier=self.model_description.coSimulation.modelIdentifier,
-                               instanceName=instance_name)
-        self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
-        self.fatal = False  # after fmi2Fatal the standard allows no further call
+        self._callbacks = self.fmi.callbacks(keeper(self.messages))
+        self.slave = self.fmi.co_simulation(self.model_description, self._unzip_dir,
+                                            instance_name, self._callbacks)
+        self.fatal = False  # after a Fatal status the standard allows no further call
         # where the messages of the run since the last initialize() begin; None before it
         self._run_start: int | None = None
-
-    def _log(self, _env: Any, _instance: bytes, status: int, category: bytes,
-             message: bytes) -> None:
-        self.messages.append(LogMessage(STATUS_NAMES[status], (category or b"").decode(),
-                                        (message or b"").decode()))
 
     def references(self, names: Iterable[str]) -> list[int]:
         """Value references of the named variables (KeyError names an unknown variable)."""
@@ -106,20 +119,17 @@ class CoSimFMU:
             self._set(values)
 
     def _set(self, values: Mapping[str, float | bool | str]) -> None:
-        reals = {n: v for n, v in values.items() if self.variables[n].type == "Real"}
-        bools = {n: v for n, v in values.items() if self.variables[n].type == "Boolean"}
-        strings = {n: v for n, v in values.items() if self.variables[n].type == "String"}
-        unsupported = set(values) - set(reals) - set(bools) - set(strings)
+        fmi = self.fmi
+        by_type = {kind: {n: v for n, v in values.items() if self.variables[n].type == kind}
+                   for kind in (fmi.REAL, fmi.BOOLEAN, fmi.STRING)}
+        unsupported = set(values).difference(*by_type.values())
         if unsupported:
             raise ValueError(f"{self.path.name}: cannot set {', '.join(sorted(unsupported))} "
                              "(only Real, Boolean and String variables)")
-        if reals:
-            self.slave.setReal(self.references(reals), [float(v) for v in reals.values()])
-        if bools:
-            self.slave.setBoolean(self.references(bools), [bool(v) for v in bools.values()])
-        if strings:
-            self.slave.setString(self.references(strings),
-                                 [str(v) for v in strings.values()])
+        for (kind, chosen), convert in zip(by_type.items(), (float, bool, str)):
+            if chosen:
+                getattr(self.slave, fmi.SETTERS[kind])(self.references(chosen),
+                                                       [convert(v) for v in chosen.values()])
 
     def get(self, names: Iterable[str]) -> dict[str, float | bool | str]:
         """Current values of Real, Boolean and String variables by name."""
@@ -128,34 +138,32 @@ class CoSimFMU:
         if plan is None:
             plan = self._get_plans[names] = self._get_plan(names)
         reals, real_refs, bools, bool_refs, strings, string_refs = plan
-        out: dict[str, float | bool | str] = {}
+        fmi, out = self.fmi, {}
         if reals:
-            out.update(zip(reals, self.slave.getReal(real_refs)))
+            out.update(zip(reals, getattr(self.slave, fmi.GETTERS[fmi.REAL])(real_refs)))
         if bools:
-            out.update((n, bool(v)) for n, v in zip(bools, self.slave.getBoolean(bool_refs)))
+            out.update((n, bool(v)) for n, v in zip(
+                bools, getattr(self.slave, fmi.GETTERS[fmi.BOOLEAN])(bool_refs)))
         if strings:
-            out.update((n, v.decode() if isinstance(v, bytes) else v) for n, v in
-                       zip(strings, self.slave.getString(string_refs)))
+            out.update((n, v.decode() if isinstance(v, bytes) else v) for n, v in zip(
+                strings, getattr(self.slave, fmi.GETTERS[fmi.STRING])(string_refs)))
         return {n: out[n] for n in names}
 
     def _get_plan(self, names: tuple[str, ...]) -> tuple:
         """The names of each type among names and their value references, for `get` (made
         once per list of names: the master reads the same list at every recorded step)."""
         plan = []
-        for kind in ("Real", "Boolean", "String"):
+        for kind in (self.fmi.REAL, self.fmi.BOOLEAN, self.fmi.STRING):
             chosen = [n for n in names if self.variables[n].type == kind]
             plan += [chosen, self.references(chosen)]
         return tuple(plan)
 
     def initialize(self, parameters: Mapping[str, float | bool] | None = None,
                    start_time: float = 0.0, stop_time: float | None = None) -> None:
-        """setupExperiment, parameters, enter and exit initialisation mode."""
+        """Set up the experiment, enter initialisation mode, set the parameters, exit it."""
         with self._watch_fatal():
-            self.slave.setupExperiment(startTime=start_time, stopTime=stop_time)
-            self.slave.enterInitializationMode()
-            if parameters:
-                self._set(parameters)
-            self.slave.exitInitializationMode()
+            self.fmi.initialize(self.slave, start_time, stop_time,
+                                lambda: self._set(parameters) if parameters else None)
         self._run_start = len(self.messages)
 
     def step(self, time: float, step_size: float) -> None:
@@ -178,10 +186,10 @@ class CoSimFMU:
         self._run_start = None
 
     def _terminable(self) -> bool:
-        """Whether fmi2Terminate may end the run: the instance was initialised and no call
-        of the run failed since (FMI 2.0 allows fmi2Terminate only after a completed or
-        refused step; after fmi2Error only a stored state or fmi2Reset goes on). A failed
-        call, made here or straight through the FMU's functions, logs an Error message."""
+        """Whether terminate may end the run: the instance was initialised and no call of the
+        run failed since (FMI 2.0 allows fmi2Terminate only after a completed or refused
+        step; after fmi2Error only a stored state or fmi2Reset goes on). A failed call, made
+        here or straight through the FMU's functions, logs an Error message."""
         return (self._run_start is not None and not self.fatal and not any(
             m.status in ("Error", "Fatal") for m in self.messages[self._run_start:]))
 
@@ -192,12 +200,12 @@ class CoSimFMU:
 
     def close(self) -> None:
         """Terminate (when the run may be ended so, see `_terminable`), free the instance and
-        delete the extracted files. A refused fmi2Terminate (the FMU could not end its run
+        delete the extracted files. A refused terminate (the FMU could not end its run
         cleanly) raises FMUCallError with the FMU's messages once the instance is freed and
         the files deleted.
 
-        After fmi2Fatal the instance is left alone: FMI 2.0 allows no further call, and
-        pythonfmu 0.7.0 can crash the process if freeInstance follows a Fatal.
+        After a Fatal status the instance is left alone: the standard allows no further call,
+        and pythonfmu 0.7.0 can crash the process if freeInstance follows a Fatal.
         """
         try:
             if self._terminable():
@@ -212,7 +220,7 @@ class CoSimFMU:
         return self
 
     def __exit__(self, _type: type | None, error: BaseException | None, _trace: Any) -> None:
-        """close(); when the block raised, a refused fmi2Terminate is a note on that error,
+        """close(); when the block raised, a refused terminate is a note on that error,
         which stays the one raised (it says what went wrong first)."""
         try:
             self.close()

@@ -1,5 +1,5 @@
-"""A mechanism FMU run as FMI 2.0 Model Exchange in FMPy, and as Co-Simulation with the same
-inputs, through a scenario's input sequence (docs/model_exchange.md).
+"""A mechanism FMU run as Model Exchange in FMPy, and as Co-Simulation with the same inputs,
+through a scenario's input sequence (docs/model_exchange.md).
 
 The mechanism alone, open loop. Its inputs are a staircase: on each interval [t_j, t_j+1) of
 a co-simulation run's recorded points, every joint's effort as the run held it over the step
@@ -10,7 +10,8 @@ the steps with the inputs constant, as a Co-Simulation step holds them; `co_simu
 the FMU through the same staircase with a communication step that divides its intervals.
 Then the two differ only by their integrators' errors, which `simulate` at two tolerances or
 steps measures. `ledger` sums a result's energy ledger (`Registration.ledger`), constant in
-the exact solution.
+the exact solution. `ModelExchangeFMU` makes the calls of its FMU's FMI version through
+FMPy's plumbing of that version (`harness.fmu.loader.VERSIONS`).
 """
 
 from __future__ import annotations
@@ -25,16 +26,10 @@ from typing import Any
 import numpy as np
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Model,
-    defaultCallbacks,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
 
 from harness import registry
 from harness.fmu import build as fmu_build
-from harness.fmu.loader import STATUS_NAMES, CoSimFMU, FMUCallError, LogMessage
+from harness.fmu.loader import CoSimFMU, FMUCallError, LogMessage, keeper, plumbing
 from harness.scenarios import Scenario
 
 MODEL_EXCHANGE = "ModelExchange"
@@ -131,26 +126,16 @@ class ModelExchangeFMU:
     def __init__(self, path: str | Path, instance_name: str = "me") -> None:
         self.path = Path(path)
         self.model_description = read_model_description(str(self.path))
+        self.fmi = plumbing(self.model_description)  # FMPy's plumbing of its FMI version
         self._unzip_dir = extract(str(self.path))
         self.variables = {v.name: v for v in self.model_description.modelVariables}
         self.messages: list[LogMessage] = []
-        self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self._callbacks.allocateMemory = defaultCallbacks.allocateMemory
-        self._callbacks.freeMemory = defaultCallbacks.freeMemory
-        self.model = FMU2Model(guid=self.model_description.guid,
-                               unzipDirectory=self._unzip_dir, instanceName=instance_name,
-                               modelIdentifier=self.model_description.modelExchange
-                               .modelIdentifier)
-        self.model.instantiate(callbacks=self._callbacks, loggingOn=True)
+        self._callbacks = self.fmi.callbacks(keeper(self.messages))
+        self.model = self.fmi.model_exchange(self.model_description, self._unzip_dir,
+                                             instance_name, self._callbacks)
         self.nx = self.model_description.numberOfContinuousStates
         self.nz = self.model_description.numberOfEventIndicators
         self._x, self._dx, self._z = np.zeros(self.nx), np.zeros(self.nx), np.zeros(self.nz)
-
-    def _log(self, _env: Any, _instance: bytes, status: int, category: bytes,
-             message: bytes) -> None:
-        self.messages.append(LogMessage(STATUS_NAMES[status], (category or b"").decode(),
-                                        (message or b"").decode()))
 
     @contextlib.contextmanager
     def _calls(self) -> Iterator[None]:
@@ -162,32 +147,28 @@ class ModelExchangeFMU:
                                self.messages[logged:]) from None
 
     def _set(self, values: Mapping[str, float | bool]) -> None:
-        reals = {n: v for n, v in values.items() if self.variables[n].type == "Real"}
-        bools = {n: v for n, v in values.items() if self.variables[n].type == "Boolean"}
-        if reals:
-            self.model.setReal([self.variables[n].valueReference for n in reals],
-                               [float(v) for v in reals.values()])
-        if bools:
-            self.model.setBoolean([self.variables[n].valueReference for n in bools],
-                                  [bool(v) for v in bools.values()])
+        fmi = self.fmi
+        for kind, convert in ((fmi.REAL, float), (fmi.BOOLEAN, bool)):
+            chosen = {n: v for n, v in values.items() if self.variables[n].type == kind}
+            if chosen:
+                getattr(self.model, fmi.SETTERS[kind])(
+                    [self.variables[n].valueReference for n in chosen],
+                    [convert(v) for v in chosen.values()])
 
     def initialize(self, parameters: Mapping[str, float | bool],
                    inputs: Mapping[str, float | bool], stop_time: float) -> np.ndarray:
         """Set up, initialise with the parameters and inputs, settle the initial event and
         enter continuous-time mode; the continuous states."""
         with self._calls():
-            self.model.setupExperiment(startTime=0.0, stopTime=stop_time)
-            self._set(inputs)
-            self.model.enterInitializationMode()
-            self._set(parameters)
-            self.model.exitInitializationMode()
+            self.fmi.initialize(self.model, 0.0, stop_time, lambda: self._set(parameters),
+                                lambda: self._set(inputs))
             self._settle()
             self.model.enterContinuousTimeMode()
         return self.states()
 
     def _settle(self) -> None:
-        """fmi2NewDiscreteStates until the event needs no more iterations."""
-        while self.model.newDiscreteStates()[0]:
+        """Update the discrete states until the event needs no more iterations."""
+        while self.fmi.update_discrete_states(self.model):
             pass
 
     def event(self, time: float, x: np.ndarray, inputs: Mapping[str, float | bool]
@@ -223,7 +204,8 @@ class ModelExchangeFMU:
     def derivatives(self) -> np.ndarray:
         """The state derivatives at the current point (`evaluate`)."""
         with self._calls():
-            self.model.getDerivatives(self._dx.ctypes.data_as(POINTER(c_double)), self.nx)
+            self.fmi.get_derivatives(self.model, self._dx.ctypes.data_as(POINTER(c_double)),
+                                     self.nx)
         return self._dx.copy()
 
     def indicators(self) -> np.ndarray:
@@ -233,19 +215,21 @@ class ModelExchangeFMU:
         return self._z.copy()
 
     def completed_step(self) -> bool:
-        """fmi2CompletedIntegratorStep at the current point: True where the FMU asks for an
+        """The completed integrator step at the current point: True where the FMU asks for an
         event (its regime has changed without an indicator crossing)."""
         with self._calls():
             return self.model.completedIntegratorStep()[0]
 
     def get(self, names: list[str]) -> dict[str, float]:
         """Real and Boolean variables at the current point, by name."""
-        reals = [n for n in names if self.variables[n].type == "Real"]
-        bools = [n for n in names if self.variables[n].type == "Boolean"]
+        fmi = self.fmi
+        reals = [n for n in names if self.variables[n].type == fmi.REAL]
+        bools = [n for n in names if self.variables[n].type == fmi.BOOLEAN]
         with self._calls():
-            out = dict(zip(reals, self.model.getReal(
+            out = dict(zip(reals, getattr(self.model, fmi.GETTERS[fmi.REAL])(
                 [self.variables[n].valueReference for n in reals])))
-            out.update((n, float(v)) for n, v in zip(bools, self.model.getBoolean(
+            out.update((n, float(v)) for n, v in zip(bools, getattr(
+                self.model, fmi.GETTERS[fmi.BOOLEAN])(
                 [self.variables[n].valueReference for n in bools])))
         return {n: out[n] for n in names}
 

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from pythonfmu.default_experiment import DefaultExperiment
-
 from fmu_src.fmi.mechanism_slave import MechanismSlave
+from fmu_src.fmi.vocabulary import DefaultExperiment
 from fmu_src.mechanism import (
     ANGULAR,
     LINEAR,

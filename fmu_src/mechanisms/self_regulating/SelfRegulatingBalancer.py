@@ -8,9 +8,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from pythonfmu.default_experiment import DefaultExperiment
-
 from fmu_src.fmi.mechanism_slave import MechanismSlave
+from fmu_src.fmi.vocabulary import DefaultExperiment
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, one_link_panels, rest_to_rest_move
 from fmu_src.mechanisms.self_regulating import design, equilibrium, model, physics
 from fmu_src.parameters import DomainError

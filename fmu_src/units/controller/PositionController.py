@@ -23,9 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from pythonfmu.default_experiment import DefaultExperiment
-
 from fmu_src.fmi.slave import ModelSlave
+from fmu_src.fmi.vocabulary import DefaultExperiment
 from fmu_src.mechanism import DocumentedRun, Quantity, Registration, Run
 from fmu_src.parameters import parameter
 from fmu_src.units.controller.pid import DiscretePID, PIDGains, PIDState, tustin_coefficients

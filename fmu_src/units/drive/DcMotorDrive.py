@@ -31,9 +31,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from pythonfmu.default_experiment import DefaultExperiment
-
 from fmu_src.fmi.slave import ModelSlave
+from fmu_src.fmi.vocabulary import DefaultExperiment
 from fmu_src.mechanism import ANGULAR, ELECTROMAGNETIC, DocumentedRun, Port, Registration, Run
 from fmu_src.parameters import parameter
 from fmu_src.units.drive.dc_motor import (

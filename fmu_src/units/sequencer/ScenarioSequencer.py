@@ -37,10 +37,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pythonfmu import Fmi2Causality, Fmi2Variability, Integer, String
-from pythonfmu.default_experiment import DefaultExperiment
-
 from fmu_src.fmi.slave import ModelSlave, VariableInfo
+from fmu_src.fmi.vocabulary import DefaultExperiment, ValueType
 from fmu_src.mechanism import DocumentedRun, Registration, Run
 from fmu_src.units.sequencer import scenario as core
 from fmu_src.units.sequencer import scenario_format
@@ -101,16 +99,12 @@ class ScenarioSequencer(ModelSlave):
         choices = ", ".join(scenario.variants)
         self.variant = next(iter(scenario.variants))
         description = f"Variant of scenario {scenario.name} to play: one of {choices}"
-        self._add(String("variant", causality=Fmi2Causality.parameter,
-                         variability=Fmi2Variability.fixed, description=description),
-                  VariableInfo(None, description))
+        self.add_parameter("variant", ValueType.string, VariableInfo(None, description))
         self.variant_number = 0
         numbers = ", ".join(f"{n} = {name}" for n, name in enumerate(scenario.variants, 1))
         description = (f"Variant of scenario {scenario.name} by number: {numbers}; 0 plays "
                        "the variant named by `variant`")
-        self._add(Integer("variant_number", causality=Fmi2Causality.parameter,
-                          variability=Fmi2Variability.fixed, description=description),
-                  VariableInfo(None, description))
+        self.add_parameter("variant_number", ValueType.integer, VariableInfo(None, description))
         # the joints of every variant: the scenario's, then variants' own (0 where the
         # variant played does not drive them)
         joints = {j.name: j for v in scenario.variants.values()

@@ -5,9 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 from fmu_src.mechanisms.pendulum import physics
-from pythonfmu.default_experiment import DefaultExperiment
 
 from fmu_src.fmi.mechanism_slave import MechanismSlave
+from fmu_src.fmi.vocabulary import DefaultExperiment
 from fmu_src.mechanism import ANGULAR, Port, Registration, Run, rest_to_rest_move
 
 
