@@ -33,6 +33,8 @@ from harness.engines.plan import prepare
 from harness.engines.result import RunResult
 from harness.fmu import build as fmu_build
 from harness.fmu import model_exchange as me
+from harness.fmu.loader import FMUCallError
+from harness.fmu.model_exchange import ModelExchangeFMU
 
 MECHANISMS = registry.mechanisms()
 
@@ -233,3 +235,14 @@ def test_engine_draws_the_energy_of_the_master_within_its_coupling_error() -> No
               for rtol in (1e-7, 1e-8)}
     allowed = 2.0 * (abs(drawn[2e-3] - drawn[1e-3]) + abs(engine[1e-7] - engine[1e-8]))
     assert abs(engine[1e-8] - drawn[1e-3]) <= allowed, (engine, drawn)
+
+
+def test_an_fmu_error_in_a_block_is_the_one_raised_not_the_refused_terminate() -> None:
+    """A state refused (W_drive = inf) puts the instance in its error state, where
+    fmi2Terminate is refused too: leaving the block raises the FMU's first refusal, with its
+    own message, and the refused terminate only as a note."""
+    with pytest.raises(FMUCallError, match="fmi2SetContinuousStates.*not finite") as failure:
+        with ModelExchangeFMU(fmu_build.locate("SelfRegulatingBalancer")) as fmu:
+            x = fmu.initialize({}, {}, 1.0)
+            fmu.evaluate(0.0, np.full(len(x), np.inf), {})
+    assert any("fmi2Terminate" in note for note in failure.value.__notes__)

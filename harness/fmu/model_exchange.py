@@ -245,5 +245,12 @@ class ModelExchangeFMU:
     def __enter__(self) -> ModelExchangeFMU:
         return self
 
-    def __exit__(self, *_: Any) -> None:
-        self.close()
+    def __exit__(self, _type: type | None, error: BaseException | None, _trace: Any) -> None:
+        """close(); when the block raised, a refused terminate is a note on that error,
+        which stays the one raised (the FMU's first message says what went wrong)."""
+        try:
+            self.close()
+        except FMUCallError as refused:
+            if error is None:
+                raise
+            error.add_note(str(refused))
