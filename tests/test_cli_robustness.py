@@ -136,7 +136,8 @@ def test_out_that_is_a_file_is_found_before_simulating(tmp_path: Path,
 
 
 def test_fmu_message_reaches_the_user(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """k = -5 used to end in 'fmi2ExitInitializationMode failed with status 4' only."""
+    """k = -5 used to end in 'fmi2ExitInitializationMode failed with status 4' only; the
+    model's own check now refuses it before any run, naming the model."""
     path = scenario_file(tmp_path, "[parameters]", "[parameters]\nk = -5.0")
     refused(["cosim", "--scenario", str(path), "--out", str(tmp_path / "out"), "--quiet"],
             capsys, "k = -5.0 N/m is outside [0.0, inf)", "SelfRegulatingBalancer")
@@ -207,7 +208,8 @@ def test_interrupted_write_leaves_the_result_set_as_it_was(
 
     monkeypatch.setattr(plots, "plot", killed)
     assert cli.main(["cosim", "--scenario", str(path), "--variants", "unbalanced", "--step",
-                     "0.002", "--out", str(out), "--quiet", "--drives", "legacy"]) == 130
+                     "0.002", "--out", str(out), "--quiet", "--drives", "legacy",
+                     "--replace"]) == 130
     assert {p.name: p.read_bytes() for p in (out / "short").iterdir()} == before
 
 

@@ -90,20 +90,22 @@ def test_fmu_call_error_keeps_the_fmus_words_through_pickling() -> None:
 
 
 def test_an_fmu_error_in_a_cosim_worker_is_one_line(tmp_path: Path) -> None:
-    """k = -5 in the scenario's parameters, two variants in two worker processes: the FMU's
-    refusal, one line, exit 2 (it was BrokenProcessPool and a traceback)."""
+    """A payload of -1.4 kg from phase III on, two variants in two worker processes: the
+    FMU's refusal when the master sets it, one line, exit 2 (it was BrokenProcessPool and a
+    traceback)."""
     scenario = (ROOT / "harness/scenarios/franchetti2021.toml").read_text().replace(
-        '[parameters]', '[parameters]\nk = -5.0', 1)
-    (tmp_path / "bad_k.toml").write_text(scenario)
+        "payload = { ramp = 1.0 }", "payload = -1.4", 1)
+    (tmp_path / "bad_payload.toml").write_text(scenario)
     done = subprocess.run(
-        [sys.executable, "-m", "harness", "cosim", "--scenario", str(tmp_path / "bad_k.toml"),
+        [sys.executable, "-m", "harness", "cosim", "--scenario",
+         str(tmp_path / "bad_payload.toml"),
          "--variants", "self_regulating,unregulated", "--workers", "2", "--quiet",
          "--out", str(tmp_path / "out")],
         cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2, done.stderr
     (line,) = done.stderr.splitlines()
-    assert line.startswith("error: SelfRegulatingBalancer: fmi2ExitInitializationMode failed")
-    assert "k = -5.0 N/m is outside [0.0, inf)" in line
+    assert line.startswith("error: SelfRegulatingBalancer: fmi2SetReal failed")
+    assert "input payload = -1.4 kg is outside [0.0, inf]" in line
     assert not list((tmp_path / "out").rglob("*.csv"))
 
 

@@ -212,7 +212,11 @@ def joint_starts(scenario: Scenario, variant: Variant, model: str,
     first step the FMU refuses by its bound on RK4 sub-steps (`fmu_src.integration`)."""
     check_names(scenario, variant, model, parameters, segments)
     physics = physics_module(model)
-    p = physics_parameters(physics, parameters)
+    try:
+        p = physics_parameters(physics, parameters)
+    except UserError as error:
+        raise UserError(f"model {model} (scenario {scenario.name}, variant {variant.name}): "
+                        f"{error}") from None
     at_start = physics.Inputs(**scenario.inputs_at(0.0, segments))
     state = physics.initial_state(p)
     if step_size is not None:
