@@ -9,6 +9,7 @@ its findings file (docs/findings_files.md), filled from its tables: this module 
 
 from __future__ import annotations
 
+import json
 import math
 
 import pandas as pd
@@ -171,7 +172,8 @@ def scenario_section(results: Results, name: str) -> list[str]:
     lines += [f"{files}; the plot: [`{name}.png`](../results/{name}/{name}.png). At a "
               f"communication step of {steps} ms.", ""]
     lines += scenario_table(results, name) + [""]
-    return lines + scenario_lines(results, name, "findings")
+    return (lines + scenario_lines(results, name, "findings")
+            + scenario_lines(results, name, "readme"))
 
 
 def accuracy_section(results: Results) -> list[str]:
@@ -292,8 +294,10 @@ def study_section(results: Results) -> list[str]:
              "5 % and 95 % quantiles over the tasks, paired differences as means over the tasks "
              "with 95 % percentile-bootstrap intervals "
              f"({int(results.csv(f'study/{names[0]}/paired').resamples.iloc[0]):,} resamples "
-             "of the tasks, a fixed seed). A comparison is firm when its interval excludes 0.",
-             ""]
+             "of the tasks, a fixed seed). A comparison is firm when its interval excludes 0. "
+             f"{study_step_error(results, names)}", ""]
+    header, rows = study.table(names, results.csv)
+    lines += [*markdown_table(header, rows), ""]
     for name in names:
         lines += [f"### {name}", "",
                   study.scenario_sentence(name, results.csv), ""]
@@ -303,3 +307,25 @@ def study_section(results: Results) -> list[str]:
             lines += ["Median E_drawn over the reference variant's, by quartile of the tasks "
                       "(realistic set):", "", *markdown_table(header, rows), ""]
     return lines
+
+
+def study_step_error(results: Results, names: list[str]) -> str:
+    """The studies' steps and the largest error each study's own step leaves in a run's
+    E_drawn per loss set, against the finest step (`bench/study_step.csv`, where `make
+    bench` wrote it)."""
+    steps = {name: json.loads((results.folder / "study" / name / "settings.json").read_text())
+             ["step"] for name in names}
+    took = ("The runs take steps of "
+            + ", ".join(f"{plain(1e3 * step)} ms ({name})" for name, step in steps.items()))
+    link = "([study.md](study.md#the-step-and-its-error))"
+    if not (results.folder / "bench" / "study_step.csv").is_file():
+        return f"{took}; `make bench` measures the error they leave {link}."
+    table = results.csv("bench/study_step")
+    own = table[[steps.get(name) == step for name, step in zip(table.scenario,
+                                                                    table.step_size)]]
+    worst = own.groupby("losses").rel_error.max()
+    return (f"{took}, which leave a run's E_drawn within "
+            + " and ".join(f"{number(error, 2)} ({loss_set} set)"
+                           for loss_set, error in worst.items())
+            + f" of its value at {plain(1e3 * table.step_size.min())} ms {link}."
+)

@@ -1,96 +1,53 @@
-"""The README's headline section (`make docs`): each study's answer and table, the one-line
-answer on the papers' tasks and, per scenario and variant, E_drawn and eps with ideal and
-with real parts and the drive the sizing rule gave it."""
+"""The README's headline section (`make docs`): the one-line answers on the papers' tasks,
+then one table, a row per scenario: the variant that draws the least over the study's random
+tasks with real parts, its lead over the runner-up, and the variant that draws the least on
+the paper's task. Every variant's figures are in docs/findings.md."""
 
 from __future__ import annotations
-
-import json
-
-import pandas as pd
 
 from harness.fmu.variable_pages import GENERATED_END
 from harness.report import study
 from harness.report.committed import Results, realistic
-from harness.report.findings import headlines, scenario_lines
-from harness.report.text import GENERATED_START, markdown_table, number, plain, wrapped
+from harness.report.findings import headlines
+from harness.report.text import GENERATED_START, markdown_table, number, percent, wrapped
+
+HEADER = ["scenario", "least E_drawn over random tasks, real parts (median, share of tasks)",
+          "ahead of the runner-up, per task [J] (95 % CI)",
+          "least E_drawn on the paper's task, real parts [J] (eps)"]
 
 
-def drive_cell(results: Results, scenario: str, variant: str) -> str:
-    """A variant's drives, compact: per joint its motor, gearhead ratio and the RMS current
-    against the motor's nominal one, from the set's drives.csv and summary.csv."""
-    drives = results.csv(f"{scenario}/drives").set_index(["variant", "joint"])
-    summary = results.summary(scenario).loc[variant]
-    rows = drives.loc[variant]
-    several = len(rows) > 1
-    cells = []
-    for joint, row in rows.iterrows():
-        ratio = f" {plain(row.gear_ratio)}:1" if pd.notna(row.gearhead) else " direct"
-        screw = f" + {row.screw}" if pd.notna(row.screw) else ""
-        current = summary[f"i_rms_{joint}" if several else "i_rms"]
-        cells.append(f"{joint + ': ' if several else ''}{row.motor}{ratio}{screw} "
-                     f"({number(current, 2)} / {plain(row.I_nom)} A)")
-    return "; ".join(cells)
+def random_tasks_cells(results: Results, name: str) -> list[str]:
+    """A scenario's study answer in two cells: its leader with real parts (the ideal set
+    without a realistic one), and its mean paired lead over the runner-up."""
+    if name not in results.studies():
+        return ["no study", "-"]
+    summary, paired = results.csv(f"study/{name}/summary"), results.csv(f"study/{name}/paired")
+    loss_set = "realistic" if "realistic" in set(summary.losses) else "ideal"
+    best, second = study.ranked(summary, loss_set)[:2]
+    rows = summary[summary.losses == loss_set].set_index("variant")
+    gap = study.pair(paired, loss_set, best, second)
+    firm = "" if gap.firm else ", not firm"
+    tasks = len(results.csv(f"study/{name}/tasks"))
+    return [f"`{best}`: {number(rows.E_drawn_median[best], 3)} J, "
+            f"{percent(rows.least_fraction[best], 2)} % of {tasks}",
+            f"{number(-gap.mean_difference, 3)} ({number(-gap.ci_high, 3)} to "
+            f"{number(-gap.ci_low, 3)}) ahead of `{second}`{firm}"]
+
+
+def paper_cell(results: Results, name: str) -> str:
+    """The variant that draws the least on the scenario's own task with real parts (the
+    ideal set without a realistic one): its E_drawn and eps."""
+    table = results.summary(realistic(name) if results.has_realistic(name) else name)
+    best = table.E_drawn.idxmin()
+    return f"`{best}`: {number(table.E_drawn[best], 3)} ({number(table.eps[best], 3)})"
 
 
 def headline_section(results: Results) -> str:
-    """The README's headline: the one-line answers and, per scenario and variant, E_drawn
-    and eps with ideal and with real parts, and the drive the sizing rule gave it (its RMS
-    current in the realistic set against its nominal current), then the scenarios' findings
-    for the README."""
-    rows = []
-    for name in results.scenarios():
-        ideal = results.summary(name)
-        real = results.summary(realistic(name)) if results.has_realistic(name) else None
-        for variant, row in ideal.iterrows():
-            other = real.loc[variant] if real is not None else None
-            rows.append([name, f"`{variant}`", number(row.E_drawn, 4),
-                         number(other.E_drawn, 4) if other is not None else "-",
-                         number(row.eps, 3), number(other.eps, 3) if other is not None else "-",
-                         drive_cell(results, realistic(name) if real is not None else name,
-                                    variant)])
+    """The README's headline (module docstring)."""
+    rows = [[name, *random_tasks_cells(results, name), paper_cell(results, name)]
+            for name in results.scenarios()]
     return "\n".join(wrapped([
-        "## Results at a glance", "", GENERATED_START, "", *study_lead(results),
-        "### On the papers' tasks", "", *headlines(results),
-        *markdown_table(["scenario", "variant", "E_drawn ideal [J]", "E_drawn realistic [J]",
-                         "eps ideal", "eps realistic", "drive (I_rms / I_nom, realistic)"],
-                        rows), "",
-        *(line for name in results.scenarios() for line in scenario_lines(results, name, "readme")),
-        GENERATED_END, ""]))
-
-
-def study_lead(results: Results) -> list[str]:
-    """The headline's lead: each study's answer, then its table (none without a study)."""
-    names = results.studies()
-    if not names:
-        return []
-    header, rows = study.table(names, results.csv)
-    return ["### Over random tasks", "",
-            "Which balancer draws the least over the tasks a machine does: every variant ran "
-            "the same random tasks (moves, holds and payload changes drawn from each "
-            "scenario's task model) with its own drives, sized by one rule from catalogue "
-            "parts, with ideal and with real parts; intervals are 95 % bootstrap intervals "
-            f"over the tasks. {study_step_error(results, names)}", "",
-            *[line for name in names for line in (
-                study.scenario_sentence(name, results.csv), "")],
-            *markdown_table(header, rows), ""]
-
-
-def study_step_error(results: Results, names: list[str]) -> str:
-    """The studies' steps and the largest error each study's own step leaves in a run's
-    E_drawn per loss set, against the finest step (`bench/study_step.csv`, where `make
-    bench` wrote it)."""
-    steps = {name: json.loads((results.folder / "study" / name / "settings.json").read_text())
-             ["step"] for name in names}
-    took = ("The runs take steps of "
-            + ", ".join(f"{plain(1e3 * step)} ms ({name})" for name, step in steps.items()))
-    link = "([docs/study.md](docs/study.md#the-step-and-its-error))"
-    if not (results.folder / "bench" / "study_step.csv").is_file():
-        return f"{took}; `make bench` measures the error they leave {link}."
-    table = results.csv("bench/study_step")
-    own = table[[steps.get(name) == step for name, step in zip(table.scenario,
-                                                                    table.step_size)]]
-    worst = own.groupby("losses").rel_error.max()
-    return (f"{took}, which leave a run's E_drawn within "
-            + " and ".join(f"{number(error, 2)} ({loss_set} set)"
-                           for loss_set, error in worst.items())
-            + f" of its value at {plain(1e3 * table.step_size.min())} ms {link}.")
+        "## What it answers", "", GENERATED_START, "", *headlines(results),
+        *markdown_table(HEADER, rows), "",
+        "Every variant in both loss sets, the study's intervals and the sentences behind "
+        "them: [docs/findings.md](docs/findings.md).", "", GENERATED_END, ""]))
