@@ -278,3 +278,21 @@ def test_replace_starts_the_set_anew(tmp_path: Path, scenario: scenarios.Scenari
     assert not (out / "v1.csv").exists()
     assert json.loads((out / results.SETTINGS).read_text()) == other
     results.check_result_set(out, other)
+
+
+def test_the_printed_summary_fits_a_terminal() -> None:
+    """Every committed set's printed summary: the variant, E_drawn, eps and the drive, each
+    row within 100 characters, every variant once with its E_drawn as the CSV has it."""
+    for path in sorted(RESULTS_DIR.glob("*/summary.csv")) + sorted(
+            RESULTS_DIR.glob("*/realistic/summary.csv")):
+        name = path.relative_to(RESULTS_DIR).parts[0]
+        loss_set = "realistic" if path.parent.name == "realistic" else "ideal"
+        text = results.summary_text(path, scenarios.load(name), loss_set)
+        lines = text.splitlines()
+        assert max(map(len, lines)) <= results.WIDTH, path
+        assert lines[1].split() == ["variant", "E_drawn", "[J]", "eps", "drive"]
+        table = pd.read_csv(path)
+        for row, line in zip(table.itertuples(), lines[2:], strict=False):
+            variant, drawn, eps, *_ = line.split()
+            assert (variant, float(drawn)) == (row.variant, pytest.approx(row.E_drawn,
+                                                                          rel=5e-4))

@@ -364,29 +364,49 @@ def _read_csv(path: Path, **options: object) -> pd.DataFrame:
                         "start a new result set") from None
 
 
+WIDTH = 100  # characters a printed summary row takes at most
+
+
 def summary_text(path: Path, scenario: Scenario, loss_set: str = "ideal") -> str:
-    """A summary CSV of the scenario's loss set as a readable table: energies in J, efforts
-    in N m or N, tracking errors in deg (revolute joints) or mm (prismatic joints)."""
+    """A summary CSV of the scenario's loss set as a table for a terminal, each row at most
+    WIDTH characters: the variant, E_drawn [J], eps and each joint's drive in short (from the
+    set's drives.csv where there is one), then a line per failed design; every other column
+    stays in the CSV."""
     table = pd.read_csv(path)
-    shown = ["variant", "E_drawn", "E_in", "E_copper", "E_gear", "E_mech"]
-    shown = [c for c in shown if c in table]
-    per_drive = ["tau_peak", "tau_rms", "F_peak", "F_rms", "i_rms", "I_nom", "V_peak",
-                 "track_err_max", "track_err_rms"]
+    drives = path.parent / "drives.csv"
+    short = _short_drives(_read_csv(drives, keep_default_na=False)) if drives.exists() else {}
+    rows = [(str(row.variant), f"{row.E_drawn:.4g}", f"{row.eps:.3g}",
+             short.get(row.variant, str(getattr(row, "drive", "")))) for row in table.itertuples()]
+    header = ("variant", "E_drawn [J]", "eps", "drive")
+    widths = [max(len(r[i]) for r in (header, *rows)) for i in range(3)]
+    room = WIDTH - sum(widths) - 6
+
+    def line(cells: tuple[str, ...]) -> str:
+        drive = cells[3] if len(cells[3]) <= room else cells[3][:room - 3] + "..."
+        return (f"{cells[0]:<{widths[0]}}  {cells[1]:>{widths[1]}}  {cells[2]:>{widths[2]}}"
+                f"  {drive}").rstrip()
+
+    title = scenario.name if loss_set == "ideal" else f"{scenario.name}, {loss_set} losses"
     suffixes = {}
     for variant in scenario.variants.values():  # the joints of every variant
         resolved = scenario.for_variant(variant)
         suffixes |= {suffix(resolved, joint): joint for joint in resolved.joints}
-    shown += [f"{metric}{s}" for s in suffixes for metric in per_drive
-              if f"{metric}{s}" in table]
-    for s, joint in suffixes.items():
-        for column in (f"track_err_max{s}", f"track_err_rms{s}"):
-            if column in table:
-                table[column] = plots.joint_drawn_in(joint)[1](table[column])
-    shown += ["eps", "W_phases", "eps_W", *(c for c in summary_outputs() if c in table)]
-    title = scenario.name if loss_set == "ideal" else f"{scenario.name}, {loss_set} losses"
-    return "\n".join([f"{title} (tracking errors in deg, or mm for prismatic joints)",
-                      table[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}"),
+    return "\n".join([f"{title}: every metric in {path.name}", line(header), *map(line, rows),
                       *failed_designs(table, suffixes)])
+
+
+def _short_drives(drives: pd.DataFrame) -> dict[str, str]:
+    """Each variant's drives in short, `joint: motor ratio:1 + screw` (the joint named where
+    it has several), from a drives.csv."""
+    out: dict[str, list[str]] = {}
+    for variant, rows in drives.groupby("variant", sort=False):
+        several = len(rows) > 1
+        for row in rows.itertuples():
+            ratio = f" {row.gear_ratio:g}:1" if row.gearhead else ""
+            screw = f" + {row.screw}" if row.screw else ""
+            out.setdefault(variant, []).append(
+                f"{row.joint + ': ' if several else ''}{row.motor}{ratio}{screw}")
+    return {variant: "; ".join(cells) for variant, cells in out.items()}
 
 
 def failed_designs(table: pd.DataFrame, suffixes: Mapping[str, object]) -> list[str]:
