@@ -26,45 +26,61 @@ NAME_MAX = 255  # bytes in a file or folder name on Linux, macOS and Windows fil
 class Command(NamedTuple):
     module: str
     help: str
+    example: str  # one command line, shown in the command's help
 
 
 COMMANDS = {
     "build-fmus": Command("harness.fmu.build",
-                          "build the FMUs of fmu_src whose inputs changed into build/fmus"),
+                          "build the FMUs of fmu_src whose inputs changed into build/fmus",
+                          "python -m harness build-fmus --force"),
     "cosim": Command("harness.run.cosim",
                      "run scenario variants in an engine (FMPy master, monolithic reference, "
                      "FMI Model Exchange, libcosim at a fixed step or under ECCO, FMPy's SSP "
-                     "runner) and write CSV series, summary and plots"),
+                     "runner) and write CSV series, summary and plots",
+                     "python -m harness cosim --scenario franchetti2021 --variants "
+                     "self_regulating --losses ideal"),
     "compare": Command("harness.run.compare",
-                       "compare two result CSV files signal by signal within tolerances"),
+                       "compare two result CSV files signal by signal within tolerances",
+                       "python -m harness compare results/franchetti2021/unbalanced.csv "
+                       "build/results/reference/franchetti2021/unbalanced.csv"),
     "ciupitu-example": Command("harness.design.ciupitu_example",
                                "Ciupitu 2018 Section 4 example: eps and max |M_u| for "
-                               "parabolic and linear payloads"),
+                               "parabolic and linear payloads",
+                               "python -m harness ciupitu-example --json"),
     "ciupitu-design": Command("harness.design.ciupitu",
                               "choose the Ciupitu counterweight (m2, OA, AB) of franchetti2021 "
-                              "by minimising E_drawn"),
+                              "by minimising E_drawn",
+                              "python -m harness ciupitu-design"),
     "active-design": Command("harness.design.active_spring",
                              "Ciupitu 2018 Fig. 8: the frame joint ordinate Y_B that balances "
-                             "a payload change (eq. 27, solved numerically)"),
+                             "a payload change (eq. 27, solved numerically)",
+                             "python -m harness active-design --json --mp 1.0"),
     "rocking-design": Command("harness.design.rocking_counterweight",
                               "design Ciupitu's rocking counterweight (Figure 4b) for the "
-                              "Section 4 example by least squares on M_u"),
+                              "Section 4 example by least squares on M_u",
+                              "python -m harness rocking-design"),
     "sweep": Command("harness.sweeps", "run a parameter sweep file on Dask and write "
-                     "results/sweeps/<name>.parquet/.csv/plots"),
+                     "results/sweeps/<name>.parquet/.csv/plots",
+                     "python -m harness sweep harness/sweeps/table1.toml --out build/sweeps"),
     "study": Command("harness.study",
                      "every variant over random tasks with confidence intervals, on Dask "
-                     "(results/study/<scenario>/)"),
+                     "(results/study/<scenario>/)",
+                     "python -m harness study --scenario franchetti2021 --tasks 3 --out "
+                     "build/study"),
     "bench": Command("harness.bench",
                      "benchmarks: FMU step cost against a trivial FMU and in a C host, "
                      "co-simulation real-time factor, step convergence, sweep scaling "
-                     "(results/bench)"),
+                     "(results/bench)",
+                     "python -m harness bench --only fmu_step,cli_help --out build/bench"),
     "docs": Command("harness.report.docs",
                     "write the generated pages: the FMUs' variable tables and list from the "
                     "built FMUs, docs/findings.md and the README's and docs/performance.md's "
-                    "figures from the committed results"),
+                    "figures from the committed results",
+                    "python -m harness docs"),
     "cross-check": Command("harness.fmu.cross_check",
                            "write every FMU with its reference result in the FMI cross-check "
-                           "layout (build/cross-check) and validate it"),
+                           "layout (build/cross-check) and validate it",
+                           "python -m harness cross-check --out build/cross-check"),
 }
 
 
@@ -91,10 +107,13 @@ def add_command(commands: argparse._SubParsersAction, name: str,
     and run function added."""
     command = COMMANDS[name]
     sub = commands.add_parser(name, help=command.help, description=command.help,
+                              epilog=f"example:\n  {command.example}",
                               formatter_class=HelpFormatter)
     if load:
         module = importlib.import_module(command.module)
         module.add_arguments(sub)
+        if sub.epilog != f"example:\n  {command.example}":  # the module's own epilog after it
+            sub.epilog = f"example:\n  {command.example}\n\n{sub.epilog}"
         sub.set_defaults(run=module.run)
     return sub
 

@@ -1,4 +1,4 @@
-"""The bench's checks (harness.bench.CHECKS) on fabricated tables: which figures are checked
+"""The bench's checks (harness.bench.targets.CHECKS) on fabricated tables: which figures are checked
 against which bound, what checks.csv holds and the exit status; no timing."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from harness import bench, cli
+from harness.bench.targets import checks
 
 
 def fmu_step_table(mechanism_ratio: float) -> pd.DataFrame:
@@ -39,7 +40,7 @@ def verdicts(table: pd.DataFrame) -> dict[str, bool]:
 @pytest.mark.parametrize(("ratio", "passed"), [(1.2, True), (1.0, False), (0.98, False),
                                                (math.nan, False)])
 def test_every_mechanism_step_must_cost_more_than_the_floor(ratio: float, passed: bool) -> None:
-    table = bench.checks({"fmu_step": fmu_step_table(ratio)})
+    table = checks({"fmu_step": fmu_step_table(ratio)})
     assert verdicts(table) == {"CiupituBalancer ratio_to_floor": True,
                                "SelfRegulatingBalancer ratio_to_floor": passed}
     row = table.iloc[1]
@@ -49,7 +50,7 @@ def test_every_mechanism_step_must_cost_more_than_the_floor(ratio: float, passed
 
 @pytest.mark.parametrize(("best_s", "passed"), [(0.4, True), (1.0, False), (1.3, False)])
 def test_the_top_level_help_must_take_under_a_second(best_s: float, passed: bool) -> None:
-    table = bench.checks({"cli_help": help_table(best_s)})
+    table = checks({"cli_help": help_table(best_s)})
     assert verdicts(table) == {"python -m harness --help best_s": passed}
     assert (table.bound.iloc[0], table.unit.iloc[0]) == (1.0, "s")
 
@@ -65,7 +66,7 @@ def study_step_table(error_at_study_step: float) -> pd.DataFrame:
 @pytest.mark.parametrize(("error", "passed"), [(4e-4, True), (1e-3, False), (2.1e-2, False)])
 def test_a_study_step_must_leave_under_1e_3_of_e_drawn(error: float, passed: bool) -> None:
     """Only the task model's own step is checked (4 ms's error is not the study's)."""
-    table = bench.checks({"study_step": study_step_table(error)})
+    table = checks({"study_step": study_step_table(error)})
     assert verdicts(table) == {"franchetti2021 rel_error at 2 ms": passed}
     assert table.value.iloc[0] == error and table.bound.iloc[0] == 1e-3
 
@@ -74,7 +75,7 @@ def test_unchecked_benchmarks_give_no_checks() -> None:
     """The convergence table, and the master's share of a step, are reported figures: the
     latter compares two timings taken seconds apart, which the machine's load moves more than
     any bound a check could hold."""
-    assert bench.checks({"convergence": pd.DataFrame({"x": [1.0]}),
+    assert checks({"convergence": pd.DataFrame({"x": [1.0]}),
                          "master_share": master_share_table(33.0)}).empty
 
 

@@ -70,53 +70,63 @@ check of the benchmarks it ran fails, after writing every table.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
-
-from harness.bench.steps import BENCH_DIR, cosim, fmu_step, master_share, native_step
-from harness.bench.studies import (
-    cli_help,
-    convergence,
-    ecco,
-    ecco_plot,
-    study_benchmark,
-    study_step,
-    sweep_benchmark,
-)
-from harness.bench.targets import checks, earlier_tables
 from harness.errors import UserError
-from harness.io import write_csv
 
+if TYPE_CHECKING:  # the command's help imports none of what the benchmarks need
+    import pandas as pd
+
+BENCH_DIR = Path(__file__).resolve().parents[2] / "results" / "bench"
 # master_share's run and replay are timed seconds apart, so each needs enough repeats for its
 # best to reach the machine's quiet state (with 3, one bench run in three measured a variant's
 # FMU calls 6.7 % above its whole step)
 MASTER_SHARE_REPEATS = 5
 
+
+@dataclass(frozen=True)
+class Benchmark:
+    """A benchmark: the function `harness.bench.<module>.<function>`, imported when it runs,
+    called with the steps and repeats it takes (steps: FMU steps per repeat; repeats: at
+    least min_repeats)."""
+
+    module: str
+    function: str
+    steps: bool = True
+    repeats: bool = True
+    min_repeats: int = 1
+
+    def __call__(self, steps: int, repeats: int) -> pd.DataFrame:
+        function = getattr(importlib.import_module(f"harness.bench.{self.module}"),
+                           self.function)
+        given = {"steps": steps} if self.steps else {}
+        if self.repeats:
+            given["repeats"] = max(repeats, self.min_repeats)
+        return function(**given)
+
+
 BENCHMARKS: dict[str, Callable[..., pd.DataFrame]] = {
-    "fmu_step": fmu_step,
-    "native_step": native_step,
+    "fmu_step": Benchmark("steps", "fmu_step"),
+    "native_step": Benchmark("steps", "native_step"),
     # steps and repeats apply to the FMU-only step cost
-    "cosim": cosim,
+    "cosim": Benchmark("steps", "cosim"),
     # steps do not apply; at least MASTER_SHARE_REPEATS repeats
-    "master_share": lambda steps, repeats: master_share(
-        steps, max(repeats, MASTER_SHARE_REPEATS)),
-    # steps and repeats do not apply
-    "convergence": lambda steps, repeats: convergence(),
-    "ecco": ecco,
-    # runs/s of a parameter sweep with 1 and 2 worker processes; steps and repeats do not apply
-    "sweep": lambda steps, repeats: sweep_benchmark(),
-    # steps and repeats do not apply
-    "study": study_benchmark,
-    "study_step": study_step,
-    # steps do not apply
-    "cli_help": cli_help,
+    "master_share": Benchmark("steps", "master_share", min_repeats=MASTER_SHARE_REPEATS),
+    "convergence": Benchmark("studies", "convergence", steps=False, repeats=False),
+    "ecco": Benchmark("studies", "ecco"),
+    # runs/s of a parameter sweep with 1 and 2 worker processes
+    "sweep": Benchmark("studies", "sweep_benchmark", steps=False, repeats=False),
+    "study": Benchmark("studies", "study_benchmark"),
+    "study_step": Benchmark("studies", "study_step"),
+    "cli_help": Benchmark("studies", "cli_help"),
 }
-
-
-PLOTS: dict[str, Callable[[pd.DataFrame, Path], Path]] = {"ecco": ecco_plot}
+# the figure a benchmark's table gets beside its CSV: (module, function)
+PLOTS = {"ecco": ("studies", "ecco_plot")}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -136,12 +146,17 @@ def run(args: argparse.Namespace) -> int:
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
         raise UserError(f"--only: unknown benchmark(s) {unknown}; choose from {list(BENCHMARKS)}")
+    from harness.bench.targets import checks, earlier_tables
+    from harness.io import write_csv
+
     tables = {}
     for name in names:
         tables[name] = BENCHMARKS[name](steps=args.steps, repeats=args.repeats)
         print(write_csv(tables[name], args.out / f"{name}.csv"))
         if name in PLOTS:
-            print(PLOTS[name](tables[name], args.out / f"{name}.png"))
+            module, function = PLOTS[name]
+            plot = getattr(importlib.import_module(f"harness.bench.{module}"), function)
+            print(plot(tables[name], args.out / f"{name}.png"))
         print(tables[name].to_string(index=False))
     checked = checks(tables)
     if checked.empty:

@@ -25,9 +25,7 @@ from harness.engines.result import RunResult
 from harness.errors import UserError
 from harness.fmu import build as fmu_build
 from harness.fmu.loader import CoSimFMU
-from harness.run.results import RESULTS_DIR
 
-BENCH_DIR = RESULTS_DIR / "bench"
 FLOOR_SOURCE_DIR = fmu_build.SOURCE_DIR / "bench_floor"
 FLOOR_BUILD_DIR = fmu_build.DEFAULT_DEST.parent / "bench"
 STEP_SIZE = 1e-3  # communication step [s], the harness default

@@ -29,8 +29,6 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from scipy.optimize import brentq
-
 from fmu_src.mechanisms.active_spring import model as active_spring
 from harness.errors import UserError
 
@@ -112,6 +110,8 @@ def design(p: active_spring.Parameters, payload: float, theta: float) -> Design:
             break   # later brackets lie farther from Y_B than the roots found
         # an end at 0: that end; a bracket Brent's method does not narrow down in its
         # iterations (lengths of 1e50 m) holds no root it can give
+        from scipy.optimize import brentq
+
         root, outcome = brentq(f, lo, hi, xtol=1e-15, rtol=4.0 * 2.0 ** -52,
                                full_output=True, disp=False)
         if outcome.converged and abs(f(root)) <= tolerance:  # not a pole of F_s / l_s,

@@ -39,13 +39,10 @@ import argparse
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
 
 from fmu_src.mechanisms.ciupitu import physics as ciupitu
-from fmu_src.units.drive.dc_motor import armature_voltage, drive_powers
+from fmu_src.units.drive.dc_motor import MotorParameters, armature_voltage, drive_powers
 from harness import scenarios
-from harness.drive.motor import MotorParameters
-from harness.engines.plan import physics_parameters, prepare
 from harness.errors import UserError
 
 SCENARIO = "franchetti2021"
@@ -77,6 +74,8 @@ class TaskEnergy:
                  motor: MotorParameters = MotorParameters(), sample: float = SAMPLE) -> None:
         if (variant.model or scenario.model) != MODEL:
             raise UserError(f"variant {variant.name} of {scenario.name} is not a {MODEL}")
+        from harness.engines.plan import physics_parameters, prepare
+
         self.params = physics_parameters(ciupitu, prepare(scenario, variant, motor=motor)
                                          .parameters)
         self.motor = motor
@@ -124,6 +123,8 @@ def design(energy: TaskEnergy | None = None) -> Design:
     """Minimise the predicted E_drawn over m2 and OA with AB = w (see the module docstring)."""
     energy = energy or task_energy()
     AB = energy.params.w
+    from scipy.optimize import minimize
+
     result = minimize(lambda x: energy(x[0], x[1], AB), x0=[0.5, 0.5 * AB], method="L-BFGS-B",
                       bounds=[(0.0, M2_MAX), (0.0, OA_MAX * AB)],
                       options={"ftol": 1e-15, "gtol": 1e-10})
@@ -135,6 +136,8 @@ def design(energy: TaskEnergy | None = None) -> Design:
 
 def best_mass(energy: TaskEnergy, OA: float, AB: float) -> tuple[float, float]:
     """(m2 [kg], E_drawn [J]) minimising the objective for a given bar (OA, AB)."""
+    from scipy.optimize import minimize_scalar
+
     result = minimize_scalar(lambda m2: energy(m2, OA, AB), bounds=(0.0, M2_MAX),
                              method="bounded", options={"xatol": 1e-9})
     return float(result.x), float(result.fun)

@@ -37,8 +37,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import least_squares, minimize
-from scipy.stats import qmc
 
 from fmu_src.mechanisms.ciupitu import example as paper_example
 from fmu_src.mechanisms.rocking_counterweight import statics
@@ -118,6 +116,8 @@ def _local_search(data: paper_example.ExampleData, law: str, B_left: bool, x0: n
     def linkage(x: np.ndarray) -> statics.Linkage:
         return statics.Linkage(*x.tolist(), B_left)
 
+    from scipy.optimize import minimize
+
     result = minimize(lambda x: objective(data, law, linkage(x)), x0, method="SLSQP",
                       bounds=_bounds(data), options={"maxiter": MAXITER, "ftol": ftol},
                       constraints=[{"type": "ineq",
@@ -133,6 +133,8 @@ def _polish(data: paper_example.ExampleData, law: str, best: LocalOptimum) -> tu
     unless that leaves the transmission constraint, which then fixes the valley and SLSQP
     with POLISH_FTOL converges."""
     bounds = np.array(_bounds(data))
+    from scipy.optimize import least_squares
+
     fit = least_squares(
         lambda x: unbalance(data, law, statics.Linkage(*x.tolist(), best.B_left)),
         np.array(best.x), bounds=(bounds[:, 0], bounds[:, 1]), jac="3-point", x_scale="jac",
@@ -151,6 +153,8 @@ def local_optima(law: str, data: paper_example.ExampleData = PAPER, starts: int 
     """The local minima the multistart finds, best first (see the module docstring)."""
     paper_example.validate_example(data)
     bounds = np.array(_bounds(data))
+    from scipy.stats import qmc
+
     unit = qmc.Sobol(len(VARIABLES), scramble=False).random_base2(screen)
     points = bounds[:, 0] + (bounds[:, 1] - bounds[:, 0]) * unit
     found: list[tuple[float, np.ndarray, bool]] = []

@@ -13,12 +13,15 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from harness.drive.controller import ControllerDesign
-from harness.engines.plan import DEFAULT_STEP, Drives, Motors, RunPlan, prepare
-from harness.engines.result import RunResult
-from harness.scenarios import Scenario, Variant
+from harness.engines.settings import DEFAULT_STEP
+
+if TYPE_CHECKING:  # the registry imports no engine, nor what an engine needs
+    from harness.drive.controller import ControllerDesign
+    from harness.engines.plan import Drives, Motors, RunPlan
+    from harness.engines.result import RunResult
+    from harness.scenarios import Scenario, Variant
 
 __all__ = ["DEFAULT_STEP", "ENGINES", "Engine", "run"]
 
@@ -69,9 +72,12 @@ ENGINES = {
 
 def run(engine: str, scenario: Scenario, variant: Variant, step_size: float = DEFAULT_STEP,
         progress: Callable[[int], None] | None = None, drives: Drives = None,
-        motor: Motors = None, design: ControllerDesign = ControllerDesign(),
+        motor: Motors = None, design: ControllerDesign | None = None,
         **options: Any) -> RunResult:
     """One run of the variant in the named engine: its plan (`prepare`, with the drives,
-    motor and design), then the engine with its options."""
-    return ENGINES[engine](prepare(scenario, variant, step_size, drives, motor, design),
-                          progress, **options)
+    motor and design, by default `ControllerDesign()`), then the engine with its options."""
+    from harness.drive.controller import ControllerDesign
+    from harness.engines.plan import prepare
+
+    plan = prepare(scenario, variant, step_size, drives, motor, design or ControllerDesign())
+    return ENGINES[engine](plan, progress, **options)

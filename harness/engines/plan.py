@@ -23,10 +23,9 @@ from harness import registry
 from harness.drive.controller import ControllerDesign, PIDGains
 from harness.drive.motor import LEGACY, JointDrive, MotorParameters, motors
 from harness.drive.plan import DrivePlan, JointStart, design_drive, plan_drive
+from harness.engines.settings import DEFAULT_STEP
 from harness.errors import UserError
 from harness.scenarios import Scenario, Variant
-
-DEFAULT_STEP = 1e-3  # communication step [s]
 
 Motors = MotorParameters | Mapping[str, MotorParameters] | None
 Drives = Mapping[str, JointDrive] | None

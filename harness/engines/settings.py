@@ -1,15 +1,15 @@
 """The engines' own settings, which the command line offers without importing an engine
-(`harness.run.cosim`): the description a fixed-step libcosim run reads, and ECCO's
-step-size controller."""
+(`harness.run.cosim`): the default communication step, the description a fixed-step
+libcosim run reads, and ECCO's step-size controller."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
-
-import numpy as np
 
 from harness.errors import UserError
 
+DEFAULT_STEP = 1e-3  # communication step [s]
 SOURCES = ("osp", "ssp")  # the fixed-step run's description: OspSystemStructure.xml or .ssp
 
 
@@ -35,7 +35,7 @@ class EccoSettings:
     def check(self) -> None:
         """UserError naming the first setting outside its range."""
         for name, value in asdict(self).items():
-            if not (value > 0.0 and np.isfinite(value)):
+            if not (value > 0.0 and math.isfinite(value)):
                 raise UserError(f"ECCO {name} = {value} is outside (0, inf)")
         if self.min_step > self.max_step:
             raise UserError(f"ECCO min_step = {self.min_step} s exceeds max_step = "

@@ -33,18 +33,20 @@ import shutil
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import fmpy
 import numpy as np
-import pandas as pd
 import pythonfmu
 from fmpy import read_model_description
-from fmpy.cross_check.validate_vendor_repo import validate_repo
 from fmpy.model_description import ModelDescription
 
 from harness.fmu import build as fmu_build
 from harness.fmu import docs as fmu_docs
 from harness.io import write_atomic, write_csv
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["export", "importer_inputs", "model_dir"]
 
@@ -65,6 +67,8 @@ def model_dir(dest: Path, model: str, interface: str = "cs") -> Path:
 
 def frame(table: np.ndarray) -> pd.DataFrame:
     """A structured array as a table with the same columns."""
+    import pandas as pd
+
     return pd.DataFrame({name: table[name] for name in table.dtype.names})
 
 
@@ -215,6 +219,8 @@ def run(args: argparse.Namespace) -> int:
     for model in fmu_build.MODELS:
         for folder in export(model, args.out):
             print(folder)
+    from fmpy.cross_check.validate_vendor_repo import validate_repo
+
     fmu_count, _, problems = validate_repo(str(args.out.resolve()))
     print(f"validate_vendor_repo: {len(problems)} problems in {fmu_count} FMUs")
     for problem in problems:

@@ -23,7 +23,6 @@ import fmpy
 import numpy as np
 from fmpy import read_model_description, simulate_fmu
 from fmpy.model_description import ModelDescription, ModelVariable
-from matplotlib.figure import Figure
 
 from fmu_src.mechanism import DocumentedRun
 from harness import registry
@@ -200,6 +199,8 @@ def plot_reference(md: ModelDescription, run: ReferenceRun, result: np.ndarray,
     panels: dict[str, list[str]] = {}
     for name in names:
         panels.setdefault(unit_of(variables[name]) or variables[name].type, []).append(name)
+    from matplotlib.figure import Figure  # the FMUs' build draws; the rest of fmu does not
+
     figure = Figure(figsize=(8.0, 1.9 * len(panels) + 0.6), layout="constrained")
     axes = figure.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (unit, members) in zip(axes, panels.items()):

@@ -10,18 +10,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from harness.fmu import build as fmu_build
-from harness.fmu import variable_pages
 from harness.io import write_atomic
-from harness.report.committed import Results
-from harness.report.findings import findings_markdown
-from harness.report.headline import headline_section
-from harness.report.performance import performance_section
-from harness.report.text import GENERATED_START
-from harness.run.results import RESULTS_DIR
 
-ROOT = RESULTS_DIR.parent
+if TYPE_CHECKING:  # the command's help reads no results
+    from harness.report.committed import Results
+
+ROOT = Path(__file__).resolve().parents[2]
 FINDINGS = ROOT / "docs" / "findings.md"
 README = ROOT / "README.md"
 PERFORMANCE = ROOT / "docs" / "performance.md"
@@ -30,6 +27,12 @@ PERFORMANCE = ROOT / "docs" / "performance.md"
 def pages(results: Results) -> dict[Path, str]:
     """Every page made from the results, with its text: docs/findings.md whole, the README
     and docs/performance.md with their generated sections replaced."""
+    from harness.fmu import variable_pages
+    from harness.report.findings import findings_markdown
+    from harness.report.headline import headline_section
+    from harness.report.performance import performance_section
+    from harness.report.text import GENERATED_START
+
     return {
         FINDINGS: findings_markdown(results),
         README: variable_pages.with_generated_section(
@@ -41,6 +44,8 @@ def pages(results: Results) -> dict[Path, str]:
 
 def write_pages(results: Results | None = None) -> list[Path]:
     """Write the pages whose text changed; the paths written."""
+    from harness.report.committed import Results
+
     written = []
     for path, text in pages(results or Results()).items():
         if not path.is_file() or path.read_text() != text:
@@ -54,6 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from harness.fmu import variable_pages
+
     fmus = [fmu_build.locate(m, args.fmus) for m in fmu_build.MODELS]
     for written in [*variable_pages.write_pages(fmus), *write_pages()]:
         print(written)

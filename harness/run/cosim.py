@@ -30,21 +30,20 @@ from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import pandas as pd
-from tqdm import tqdm
+from typing import TYPE_CHECKING, Any
 
 from harness import interrupts, scenarios
-from harness.drive.motor import JointDrive
-from harness.drive.sizing import Sizing
 from harness.engines import DEFAULT_STEP, ENGINES, Engine
-from harness.engines import plan as run_plan
-from harness.engines.result import RunResult
 from harness.engines.settings import SOURCES, EccoSettings
 from harness.errors import UserError
-from harness.run import results, sizing
 from harness.scenarios import losses
+
+if TYPE_CHECKING:  # the command's help imports none of what its runs need
+    import pandas as pd
+
+    from harness.drive.motor import JointDrive
+    from harness.drive.sizing import Sizing
+    from harness.engines.result import RunResult
 
 BUILD_RESULTS = Path(__file__).resolve().parents[2] / "build" / "results"
 # the ECCO settings as options: (field of EccoSettings, unit, meaning)
@@ -193,6 +192,9 @@ def selected_scenarios(spec: str, variants: str) -> list[scenarios.Scenario]:
 def plan(args: argparse.Namespace, engine: Engine, out: Path) -> list[Plan]:
     """Every result set the command makes, each scenario, variant, model, option and folder
     checked before anything runs."""
+    from harness.engines import plan as run_plan
+    from harness.run import results
+
     plans = []
     for loaded in selected_scenarios(args.scenario, args.variants):
         loaded.check_step(args.step)
@@ -231,13 +233,16 @@ def run_variant(engine: Engine, scenario: scenarios.Scenario, name: str, step: f
         if progress is not None:
             progress(steps)
 
+    from harness.engines.plan import prepare
+
     interrupts.stop_if_requested()
-    return engine(run_plan.prepare(scenario, scenario.variant(name), step, drives), advance,
-                  **options)
+    return engine(prepare(scenario, scenario.variant(name), step, drives), advance, **options)
 
 
 def size_variant(loaded: scenarios.Scenario, name: str, step: float) -> dict[str, Sizing]:
     """A variant's sizing (harness.run.sizing) for every loss set of its scenario."""
+    from harness.run import sizing
+
     interrupts.stop_if_requested()
     return sizing.size_variant([s for _, s in losses.loss_sets(loaded, "all")], name, step)
 
@@ -251,6 +256,11 @@ def run_all(plans: list[Plan], step: float, workers: int = 1, quiet: bool = Fals
     A SIGINT or SIGTERM stops the runs (none is interrupted midway in its FMU, nor a write)
     and raises
     KeyboardInterrupt."""
+    import pandas as pd
+    from tqdm import tqdm
+
+    from harness.run import sizing
+
     runner, options = ENGINES[engine], options or {}
     sizings = list(dict.fromkeys((plan.loaded.name, name) for plan in plans
                                  if plan.loaded is not None for name in plan.variants))
@@ -355,6 +365,8 @@ def write_result_set(plan: Plan, runs: list[RunResult], drives: pd.DataFrame | N
     then redraw the scenario's headline figure from every loss set's summary there is
     (results.write_energy_figure: the set written last, whichever it is, leaves it showing
     both); their paths and the set's summary, to print."""
+    from harness.run import results
+
     paths = results.write_run(runs, plan.scenario, plan.folder, plan.loss_set, drives,
                               plan.settings, plan.replace)
     paths.append(results.write_energy_figure(plan.scenario,
@@ -366,6 +378,8 @@ def write_result_set(plan: Plan, runs: list[RunResult], drives: pd.DataFrame | N
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise UserError(f"--workers = {args.workers} must be at least 1")
+    from harness.run import results
+
     options = engine_options(args)
     out = args.out or (results.RESULTS_DIR if args.engine == "fmpy"
                        else BUILD_RESULTS / args.engine)
