@@ -220,11 +220,16 @@ class CoSimFMU:
         return self
 
     def __exit__(self, _type: type | None, error: BaseException | None, _trace: Any) -> None:
-        """close(); when the block raised, a refused terminate is a note on that error,
-        which stays the one raised (it says what went wrong first)."""
-        try:
-            self.close()
-        except FMUCallError as refused:
-            if error is None:
-                raise
-            error.add_note(str(refused))
+        close_after(self.close, error)
+
+
+def close_after(close: Callable[[], None], error: BaseException | None) -> None:
+    """close() an instance at the end of its block; when the block raised error, a refused
+    terminate is a note on that error, which stays the one raised (it says what went wrong
+    first: the FMU's own message)."""
+    try:
+        close()
+    except FMUCallError as refused:
+        if error is None:
+            raise
+        error.add_note(str(refused))

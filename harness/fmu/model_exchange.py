@@ -29,7 +29,7 @@ from fmpy.fmi1 import FMICallException
 
 from harness import registry
 from harness.fmu import build as fmu_build
-from harness.fmu.loader import CoSimFMU, FMUCallError, LogMessage, keeper, plumbing
+from harness.fmu.loader import CoSimFMU, FMUCallError, LogMessage, close_after, keeper, plumbing
 from harness.scenarios import Scenario
 
 MODEL_EXCHANGE = "ModelExchange"
@@ -246,11 +246,4 @@ class ModelExchangeFMU:
         return self
 
     def __exit__(self, _type: type | None, error: BaseException | None, _trace: Any) -> None:
-        """close(); when the block raised, a refused terminate is a note on that error,
-        which stays the one raised (the FMU's first message says what went wrong)."""
-        try:
-            self.close()
-        except FMUCallError as refused:
-            if error is None:
-                raise
-            error.add_note(str(refused))
+        close_after(self.close, error)
