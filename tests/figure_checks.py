@@ -27,11 +27,12 @@ from matplotlib.lines import Line2D
 from matplotlib.text import Annotation, Text
 from matplotlib.transforms import Bbox
 
+from harness.run.plots import NO_MARKER
+
 SLACK = 0.5          # [px] what an extent may pass an edge or overlap by, rounding
 COINCIDE_PX = 1.5    # [px] a line within this of a later one at HIDDEN_SHARE of its points
 HIDDEN_SHARE = 0.9   # is hidden by it (unless markers or gaps of its own show)
 LEAST_LOG_TICKS = 3
-NO_MARKER = (None, "None", "none", "", " ")
 
 
 _DRAWN: WeakSet[Figure] = WeakSet()  # the figures laid out once (reading ticks marks stale)

@@ -77,6 +77,7 @@ COINCIDE = 0.01
 COINCIDE_SHARE = 0.9
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 MARKS_PER_LINE = 12
+NO_MARKER = (None, "None", "none", "", " ")
 
 
 def significant(value: float, figures: int = 3) -> str:
@@ -158,10 +159,11 @@ def show_coinciding(lines: Sequence[Line2D]) -> bool:
     for group in groups:
         for k, line in enumerate(group):
             step = len(line.get_xdata()) // MARKS_PER_LINE
-            staggered = step > 1 and line.get_marker() in (None, "None", "none", "", " ")
+            unmarked = line.get_marker() in NO_MARKER
+            staggered = step > 1 and unmarked
             if staggered:
                 line.set_markevery((k * step // len(group), step))
-            if line.get_marker() in (None, "None", "none", "", " "):
+            if unmarked:
                 line.set_marker(MARKERS[k % len(MARKERS)])
             line.set_markersize(4.0 if staggered else 4.0 + 2.5 * (len(group) - 1 - k))
     return bool(groups)
@@ -174,7 +176,7 @@ def fit_suptitle(fig: Figure, text: str, fontsize: float = 12.0) -> None:
 
 
 # the units of the harness's own columns of a run's series (a joint's suffixed the same)
-SERIES_UNITS = {"time": "s", "i": "A", "V": "V", "P_elec": "W", "E_drawn": "J", "E_in": "J",
+SERIES_UNITS = {"time": "s", **{name: unit for _, unit, name in DRIVE_SIGNALS}, "E_in": "J",
                 "W_bond_drive": "J", "W_bond_joint": "J", "W_bond_error": "J"}
 
 
