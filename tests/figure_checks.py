@@ -1,6 +1,7 @@
-"""Checks of a drawn matplotlib figure, read from its artists' display extents after
-`fig.canvas.draw()`. Each check returns the defects it finds, one line each (none: the
-figure passes); `defects` runs them all.
+"""Checks of a drawn matplotlib figure, read from its artists' display extents once it is
+laid out (`draw`: `fig.draw_without_rendering()` on an Agg canvas, the draw of
+`fig.canvas.draw()` without painting). Each check returns the defects it finds, one line
+each (none: the figure passes); `defects` runs them all.
 
 These live with the tests, not in the harness's save_figure: a figure is a view of results
 that took hours to compute, and a check that refused to save it over a label a pixel too
@@ -20,6 +21,7 @@ from matplotlib.axis import Axis
 from matplotlib.backend_bases import RendererBase
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PathCollection
+from matplotlib.colors import to_hex
 from matplotlib.container import BarContainer
 from matplotlib.figure import Figure
 from matplotlib.legend import Legend
@@ -39,11 +41,12 @@ _DRAWN: WeakSet[Figure] = WeakSet()  # the figures laid out once (reading ticks 
 
 
 def draw(fig: Figure) -> RendererBase:
-    """Lay the figure out and draw it on an Agg canvas, the first time it is checked; its
-    renderer."""
+    """Lay the figure out on an Agg canvas as its PNG would be (every extent placed, no
+    pixel painted), the first time it is checked; its renderer."""
     if fig not in _DRAWN or not isinstance(fig.canvas, FigureCanvasAgg):
-        canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
-        canvas.draw()
+        if not isinstance(fig.canvas, FigureCanvasAgg):
+            FigureCanvasAgg(fig)
+        fig.draw_without_rendering()
         _DRAWN.add(fig)
     return fig.canvas.get_renderer()
 
@@ -379,7 +382,7 @@ def hidden_lines(fig: Figure) -> list[str]:
                 close = np.nan_to_num(distance, nan=np.inf) <= COINCIDE_PX
                 if close.mean() >= HIDDEN_SHARE and not _line_shows(line, lines[j]):
                     found.append(f"{_where(ax)}: "
-                                 f"{line.get_label()!r} (colour {line.get_color()!r}) lies "
+                                 f"{line.get_label()!r} (colour {to_hex(line.get_color())}) lies "
                                  f"hidden under {lines[j].get_label()!r}")
                     break
     return found

@@ -219,7 +219,7 @@ def test_a_line_hidden_under_another_is_flagged() -> None:
              *ax.plot(x, np.cos(x), color="C2", label="uncompensated")]
     labelled(ax)
     assert [f.split(": ", 1)[1] for f in checks.hidden_lines(fig)] == [
-        "'compensated' (colour 'C0') lies hidden under 'compensated_backdrivable'"]
+        "'compensated' (colour #1f77b4) lies hidden under 'compensated_backdrivable'"]
     fig, ax = panel()
     lines = [*ax.plot(x, np.sin(x), color="C0"), *ax.plot(x, np.sin(x), color="C1"),
              *ax.plot(x, np.cos(x), color="C2")]
