@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from types import SimpleNamespace
 
+import figure_checks as checks
 import numpy as np
 import pandas as pd
 import pytest
@@ -92,7 +93,7 @@ def test_each_variant_draws_the_panel_signals_it_has(tmp_path: Path) -> None:
                             series=pd.DataFrame({**common, "OB": 0.2 + 0 * time_}))]
     scenario = scenario_files.load("franchetti2021")
     fig = plots.figure(runs, scenario)
-    axes = {ax.get_title(loc="left"): ax for ax in fig.axes if ax.get_visible()}
+    axes = {titled(ax): ax for ax in fig.axes if ax.get_visible()}
     geometry = axes["spring length or counterweight position"]
     lines = [(line.get_linestyle(), to_hex(line.get_color()), line.get_ydata()[0])
              for line in geometry.get_lines()]
@@ -101,7 +102,8 @@ def test_each_variant_draws_the_panel_signals_it_has(tmp_path: Path) -> None:
     angle = axes["link angle"]
     assert len(angle.get_lines()) == 3  # theta of each variant, the reference of the first
     assert angle.get_lines()[1].get_ydata()[-1] == pytest.approx(np.degrees(1.0))
-    assert axes["payload"].get_ylabel() == "kg" and axes["adjuster travel"].get_ylabel() == "mm"
+    assert axes["payload"].get_ylabel() == "[kg]"
+    assert axes["adjuster travel"].get_ylabel() == "[mm]"
     assert not axes["drive q: motor current"].get_lines()  # neither drives the anchor
     path = plots.plot(runs, scenario, tmp_path / "p.png")
     assert path.read_bytes().startswith(b"\x89PNG")
@@ -159,6 +161,11 @@ def headline(name: str) -> tuple[Figure, dict[str, pd.DataFrame]]:
     return fig, tables
 
 
+def titled(ax: object) -> str:
+    """A panel's title without its letter: 'link angle' of '(a) link angle'."""
+    return re.sub(r"^\([a-z]\) ", "", ax.get_title(loc="left"))
+
+
 def visible_axes(fig: Figure) -> list:
     return [ax for ax in fig.axes if ax.get_visible()]
 
@@ -167,7 +174,7 @@ def assert_every_drive_of_every_variant_is_drawn(fig: Figure,
                                                  scenario: scenario_files.Scenario) -> None:
     """Each drive's column (effort, current, voltage, power, energy drawn) draws that drive's
     signal of every variant driving it, once; the figure's legend names every variant."""
-    axes = {ax.get_title(loc="left"): ax for ax in visible_axes(fig)}
+    axes = {titled(ax): ax for ax in visible_axes(fig)}
     joints = {joint.name for v in scenario.variants.values()
               for joint in scenario.for_variant(v).joints}
     for joint in joints:
@@ -180,7 +187,7 @@ def assert_every_drive_of_every_variant_is_drawn(fig: Figure,
         for signal, title in enumerate(titles):
             levels = sorted(round(line.get_ydata()[0]) for line in axes[title].get_lines())
             assert levels == [column_value(k, j, signal) for k, j in driving], title
-    assert fig.legends[0].get_title().get_text() == "variant"
+    assert fig.legends[0].get_title().get_text().startswith("variant")
     assert [t.get_text() for t in fig.legends[0].get_texts()] == list(scenario.variants)
 
 
@@ -190,36 +197,25 @@ def assert_every_line_lies_inside_its_axes(fig: Figure) -> None:
         (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
         for line in ax.get_lines():
             x, y = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
-            assert x.size and x0 <= x.min() and x.max() <= x1, ax.get_title(loc="left")
-            assert y0 <= y.min() and y.max() <= y1, ax.get_title(loc="left")
+            assert x.size and x0 <= x.min() and x.max() <= x1, titled(ax)
+            assert y0 <= y.min() and y.max() <= y1, titled(ax)
 
 
 def assert_each_axis_carries_one_unit(fig: Figure) -> None:
-    """Every y label is one unit (no 'mm | kg', no 'N m | N'); the bottom panel of each
-    column reads time [s]."""
-    units = known_units()
+    """Every y label is one unit in brackets (no 'mm | kg', no 'N m | N'), the panel's
+    title its quantity; the bottom panel of each column reads time [s]."""
+    units = {f"[{unit}]" for unit in known_units()}
     for ax in visible_axes(fig):
-        assert ax.get_ylabel() in units, (ax.get_title(loc="left"), ax.get_ylabel())
+        assert ax.get_ylabel() in units, (titled(ax), ax.get_ylabel())
     assert {ax.get_xlabel() for ax in visible_axes(fig)} == {"", "time [s]"}
     columns = {round(ax.get_position().x0, 3) for ax in visible_axes(fig)}
     assert sum(ax.get_xlabel() == "time [s]" for ax in visible_axes(fig)) == len(columns)
 
 
-def overlaps(a: object, b: object) -> bool:
-    """Whether two display-space boxes share an area (touching edges do not)."""
-    return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
-
-
-def assert_no_legend_covers_an_axes(fig: Figure) -> None:
-    """Every legend (a figure's, an axes') lies outside every axes' data area, so it covers
-    no data."""
-    legends = [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_legend())]
-    assert legends
-    for legend in legends:
-        box = legend.get_window_extent()
-        for ax in visible_axes(fig):
-            assert not overlaps(box, ax.get_window_extent()), (
-                [t.get_text() for t in legend.get_texts()], ax.get_title(loc="left"))
+def assert_no_legend_covers_data(fig: Figure) -> None:
+    """The figure has legends, and none covers data (figure_checks.legend_over_data)."""
+    assert [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_legend())]
+    assert checks.legend_over_data(fig) == []
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -236,7 +232,7 @@ def test_the_time_series_show_every_drive_one_unit_per_axis_and_no_legend_on_dat
     assert_every_drive_of_every_variant_is_drawn(fig, scenario)
     assert_every_line_lies_inside_its_axes(fig)
     assert_each_axis_carries_one_unit(fig)
-    assert_no_legend_covers_an_axes(fig)
+    assert_no_legend_covers_data(fig)
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -276,7 +272,7 @@ def test_the_headline_shows_every_variant_in_both_loss_sets_on_a_log_axis(name: 
     assert len(bars) == 2 * len(scenario.variants)
     np.testing.assert_allclose(ends, energies, rtol=1e-12)
     texts = {t.get_text() for t in ax.texts}
-    assert texts == {f"{e:.3g} J" for e in energies}
+    assert texts == {f"{plots.significant(e)} J" for e in energies}
     (x0, x1), area = ax.get_xlim(), ax.get_window_extent()
     for bar in bars:
         assert x0 <= bar.get_x() and bar.get_x() + bar.get_width() <= x1
@@ -285,7 +281,7 @@ def test_the_headline_shows_every_variant_in_both_loss_sets_on_a_log_axis(name: 
         box = text.get_window_extent()
         assert area.x0 <= box.x0 and box.x1 <= area.x1 and area.y0 <= box.y0 <= box.y1 <= area.y1
     assert re.fullmatch(r".*\[J\].*", ax.get_xlabel())
-    assert_no_legend_covers_an_axes(fig)
+    assert_no_legend_covers_data(fig)
 
 
 def test_a_loss_set_without_a_variant_says_not_run() -> None:
@@ -295,7 +291,7 @@ def test_a_loss_set_without_a_variant_says_not_run() -> None:
     table = pd.DataFrame({"variant": ["compensated", "uncompensated"], "E_drawn": [0.0, 20.0]})
     fig = plots.energy_figure(scenario, {"ideal": table})
     (ax,) = fig.axes
-    assert sorted(t.get_text() for t in ax.texts) == ["0 J", "20 J", "not run"]
+    assert sorted(t.get_text() for t in ax.texts) == ["0 J", "20.0 J", "not run"]
     assert len(ax.patches) == 1
 
 

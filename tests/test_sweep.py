@@ -286,7 +286,9 @@ def test_saving_compares_the_variants_the_sweep_file_names(
     assert shown["k [N/m] = 981"][1] == pytest.approx(expected[981.0])
     assert shown["k [N/m] = 500"][1][:2] == pytest.approx(expected[500.0][:2])
     assert math.isnan(shown["k [N/m] = 500"][1][2])  # the failed run
-    assert top.get_ylabel() == "saving 1 - E_drawn(unregulated) / E_drawn(self_regulating) [%]"
+    assert top.get_ylabel() == "energy saving [%]"
+    assert ("saving = 1 - E_drawn(unregulated) / E_drawn(self_regulating)"
+            in " ".join(fig.get_suptitle().split()))
     # the mark: a vertical line at payload_max
     assert any(list(line.get_xdata()) == [2.0, 2.0] for line in top.get_lines())
     # bottom: E_drawn of both variants (solid the variant, dashed the baseline), log scale
@@ -297,9 +299,10 @@ def test_saving_compares_the_variants_the_sweep_file_names(
                           ("--", pytest.approx([1.5] * 3)),
                           ("-", pytest.approx([1.5, 2.5, 3.5])),
                           ("--", pytest.approx([1.981] * 3))]
-    assert [t.get_text() for t in bottom.get_legend().get_texts()] == [
-        "unregulated", "self_regulating"]
-    assert "unregulated against self_regulating" in fig.get_suptitle()
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == [
+        "k [N/m] = 500", "k [N/m] = 981", "E_drawn of unregulated",
+        "E_drawn of self_regulating"]  # under the panels, over no data
+    assert "unregulated against self_regulating" in " ".join(fig.get_suptitle().split())
 
 
 def test_map_shows_the_saving_of_each_point(
@@ -329,6 +332,32 @@ def test_lines_draw_each_column_per_variant(
             x, y = lines_of(ax)[f"k [N/m] = {k:g}"]
             ok = [p for p in (0.5, 1.5, 2.5) if variant != "unregulated" or (p, k) != (2.5, 500.0)]
             assert x == ok and y == pytest.approx([drawn(variant, p, k) for p in ok])
+
+
+def test_a_value_of_the_lines_axis_may_have_a_name(
+        plotted: tuple[definition.Sweep, pd.DataFrame]) -> None:
+    """`lines_labels` names values of the lines axis (design_rule's paper_design 0 and 1)
+    in the legend; a value it does not name reads '<axis> = <value>'."""
+    loaded, table = plotted
+    spec = {**loaded.plots["saving"], "lines_labels": {"500": "soft spring"}}
+    fig = plots.saving_figure(loaded, table, spec)
+    assert [t.get_text() for t in fig.legends[0].get_texts()][:2] == [
+        "soft spring", "k [N/m] = 981"]
+
+
+def test_lines_draw_no_panel_for_a_column_a_variant_lacks() -> None:
+    """regulation's lines: the columns both variants have share the bottom rows, each
+    variant's own stand above them; no empty panel."""
+    rows, row_of = plots.lines_layout(
+        ["E_cw", "W_adjust", "E_drawn_q", "E_drawn", "balance_error"],
+        {"self_regulating": ["E_cw", "E_drawn", "balance_error"],
+         "active_relocation": ["W_adjust", "E_drawn_q", "E_drawn", "balance_error"]})
+    assert rows == 4
+    assert row_of == {("self_regulating", "E_cw"): 1, ("active_relocation", "W_adjust"): 0,
+                      ("active_relocation", "E_drawn_q"): 1,
+                      ("self_regulating", "E_drawn"): 2, ("active_relocation", "E_drawn"): 2,
+                      ("self_regulating", "balance_error"): 3,
+                      ("active_relocation", "balance_error"): 3}
 
 
 def test_plot_writes_one_png_per_plot_of_the_file(

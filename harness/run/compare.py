@@ -24,12 +24,16 @@ import csv
 import stat
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 from fmpy.util import validate_signal
 
 from harness.errors import UserError
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @dataclass(frozen=True)
@@ -168,29 +172,58 @@ def report(comparisons: list[SignalComparison]) -> str:
     return table.to_string(index=False, float_format=lambda v: f"{v:.4g}")
 
 
+def figure(reference: pd.DataFrame, result: pd.DataFrame,
+           comparisons: list[SignalComparison]) -> Figure:
+    """Per signal (a row): reference, result and tolerance band (left), result - reference
+    at the reference's times and the tolerance (right), each axis in the signal's unit
+    (`harness.run.plots.column_unit`), the legend under the panels."""
+    from matplotlib.figure import Figure  # imported here: only a plot needs it
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    from harness.run.plots import column_unit, fit_suptitle
+
+    fig = Figure(figsize=(12, 1.4 + 2.4 * len(comparisons)), layout="constrained")
+    axes = fig.subplots(len(comparisons), 2, sharex=True, squeeze=False)
+    t_ref = reference.time.to_numpy(float)
+    for (value, difference), c in zip(axes, comparisons, strict=True):
+        unit = column_unit(c.name) or "unit unknown"
+        colour = "C0" if c.passed else "C3"
+        y_ref = reference[c.name].to_numpy(float)
+        value.fill_between(t_ref, y_ref - c.allowed, y_ref + c.allowed, color="0.85")
+        value.plot(t_ref, y_ref, "k", lw=1)
+        value.plot(result.time, result[c.name], "--", color=colour, lw=1)
+        deviation = np.interp(t_ref, result.time.to_numpy(float),
+                              result[c.name].to_numpy(float)) - y_ref
+        difference.axhspan(-c.allowed, c.allowed, color="0.85")
+        difference.plot(t_ref, deviation, "--", color=colour, lw=1)
+        status = "ok" if c.passed else (f"FAIL: {c.outside_tolerance} points outside the "
+                                        f"tolerance, {c.outside_band} outside the band")
+        value.set_title(f"{c.name}: {status}", loc="left", fontsize=10)
+        difference.set_title(f"{c.name}: result - reference", loc="left", fontsize=10)
+        value.set_ylabel(f"{c.name} [{unit}]")
+        difference.set_ylabel(f"difference [{unit}]")
+        for ax in (value, difference):
+            ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    fig.legend(handles=[Line2D([], [], color="k", lw=1, label="reference"),
+                        Line2D([], [], color="C0", ls="--", lw=1, label="result (passes)"),
+                        Line2D([], [], color="C3", ls="--", lw=1, label="result (fails)"),
+                        Patch(color="0.85", label="tolerance: atol + rtol max|reference|")],
+               loc="outside lower center", ncols=4, fontsize=8)
+    passed = sum(c.passed for c in comparisons)
+    fit_suptitle(fig, f"result against reference: {passed} of {len(comparisons)} signals "
+                      "within tolerance")
+    return fig
+
+
 def plot(reference: pd.DataFrame, result: pd.DataFrame, comparisons: list[SignalComparison],
          path: Path) -> Path:
-    """Reference, result and tolerance band per signal, written atomically as PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")  # files only, no window
-    import matplotlib.pyplot as plt  # imported here: only a plot needs it
-
+    """The comparison's `figure`, written atomically as PNG at path."""
     from harness.io import save_figure
 
-    fig, axes = plt.subplots(len(comparisons), 1, figsize=(9, 2.2 * len(comparisons)),
-                             sharex=True, squeeze=False)
-    for ax, c in zip(axes[:, 0], comparisons, strict=True):
-        ax.fill_between(reference.time, reference[c.name] - c.allowed,
-                        reference[c.name] + c.allowed, color="0.85", label="tolerance")
-        ax.plot(reference.time, reference[c.name], "k", lw=1, label="reference")
-        ax.plot(result.time, result[c.name], "--", color="C3" if not c.passed else "C0",
-                lw=1, label="result")
-        ax.set_ylabel(c.name)
-        ax.legend(fontsize=7, loc="upper right")
-    axes[-1, 0].set_xlabel("time [s]")
-    fig.tight_layout()
-    return save_figure(fig, path)
+    return save_figure(figure(reference, result, comparisons), path)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

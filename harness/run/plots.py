@@ -7,19 +7,26 @@ declare (their registrations' plot_panels): panels of one title are one panel, s
 of different models that fill the same role (the one-link figure's adjuster travel, spring
 length or counterweight position) share it. A variable in metres is drawn in mm, one in
 radians in deg. Each drive's column is its effort, motor current, voltage, electrical power
-and energy drawn, for every variant that has that drive. Every axis carries one quantity in
-one unit, a colour per variant (the figure's legend), a line style per signal of a panel
-(the panel's legend, beside it): no legend covers data.
+and energy drawn, for every variant that has that drive; the energy drawn on a symmetric log
+axis where the variants' totals span decades. Panels are lettered down each column, left to
+right. Every axis carries one quantity (the panel's title) in one unit, a colour per variant
+(the figure's legend), a line style per signal of a panel (the panel's legend, beside it):
+no legend covers data. Lines that coincide carry markers of their own (`show_coinciding`).
 
 The headline (`energy_figure`): E_drawn of every variant in every loss set, horizontal bars
 on a logarithmic axis, so that a balanced variant's hundredths of a joule and an unbalanced
 one's hundred joules both read off it, each value printed at its bar.
+
+The helpers every figure of the harness draws with: `significant` (values printed with three
+significant figures), `readable_log` (a logarithmic axis with at least three labelled ticks),
+`show_coinciding`, `fit_suptitle` (a title wrapped to the figure's width) and `column_unit`.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Protocol
@@ -28,10 +35,11 @@ import numpy as np
 import pandas as pd
 from matplotlib import rcParams
 from matplotlib.axes import Axes
+from matplotlib.axis import Axis
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import FuncFormatter
+from matplotlib.ticker import FuncFormatter, Locator, MaxNLocator, NullFormatter
 
 from harness import registry
 from harness.io import save_figure
@@ -57,6 +65,130 @@ COLUMN_WIDTH = 5.6   # [in] of a column of panels
 ROW_HEIGHT = 2.4     # [in] of a row of panels
 LOSS_SET_COLOURS = {"ideal": "tab:blue", "realistic": "tab:orange"}
 LOSS_SET_LABELS = {"ideal": "ideal", "realistic": "realistic losses"}
+
+
+# a logarithmic axis's major ticks: the first of these multiples of each decade that puts
+# MIN_LOG_TICKS inside the view (then linear ticks, in a view narrower than that)
+LOG_SUBS = ((1.0,), (1.0, 2.0, 5.0), (1.0, 2.0, 3.0, 5.0), tuple(float(k) for k in range(1, 10)))
+MIN_LOG_TICKS = 3
+# lines of a panel coincide where they differ by less than this fraction of its y range
+# at 90 % of their points or more; each then gets markers (MARKERS, about MARKS_PER_LINE)
+COINCIDE = 0.01
+COINCIDE_SHARE = 0.9
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+MARKS_PER_LINE = 12
+NO_MARKER = (None, "None", "none", "", " ")
+
+
+def significant(value: float, figures: int = 3) -> str:
+    """value with `figures` significant figures, trailing zeros kept and no exponent:
+    13 -> '13.0', 0.0747 -> '0.0747', 1234 -> '1230'."""
+    if value == 0 or not math.isfinite(value):
+        return f"{value:g}"
+    rounded = float(f"{value:.{figures}g}")
+    return f"{rounded:.{max(0, figures - 1 - math.floor(math.log10(abs(rounded))))}f}"
+
+
+class LogTicks(Locator):
+    """Major ticks of a logarithmic axis: decades, or 1-2-5, 1-2-3-5 or every multiple of a
+    decade, the first that puts MIN_LOG_TICKS ticks inside the view."""
+
+    def __call__(self) -> list[float]:
+        return self.tick_values(*self.axis.get_view_interval())
+
+    def tick_values(self, vmin: float, vmax: float) -> list[float]:
+        low, high = sorted((vmin, vmax))
+        if not (0 < low < high < math.inf):
+            return []
+        decades = range(math.floor(math.log10(low)), math.ceil(math.log10(high)) + 1)
+        for subs in LOG_SUBS:
+            ticks = [float(f"{s * 10.0 ** e:.12g}") for e in decades for s in subs]
+            inside = [t for t in ticks if low * (1 - 1e-9) <= t <= high * (1 + 1e-9)]
+            if len(inside) >= MIN_LOG_TICKS:
+                return inside
+        return [t for t in MaxNLocator(MIN_LOG_TICKS + 1).tick_values(low, high)
+                if low <= t <= high]
+
+
+def readable_log(axis: Axis) -> None:
+    """Label a logarithmic axis (set its scale first) at LogTicks with plain numbers ('0.1',
+    '20'), its minor ticks unlabelled; a symmetric log axis at its own ticks, the same way."""
+    if axis.get_scale() == "log":
+        axis.set_major_locator(LogTicks())
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def coinciding(lines: Sequence[Line2D], tolerance: float = COINCIDE) -> list[list[Line2D]]:
+    """Groups (in drawing order) of the lines of one axes each close (`_close`) to another of
+    its group: within tolerance times the axes' y range as its scale draws it (decades on a
+    log axis; set the limits first). Lines of two styles are not grouped: each shows
+    through the other's gaps."""
+    if not lines:
+        return []
+    scale = lines[0].axes.yaxis.get_transform()
+    values = [scale.transform(np.asarray(line.get_ydata(), float)) for line in lines]
+    limit = tolerance * float(np.ptp(scale.transform(np.asarray(lines[0].axes.get_ylim()))))
+    groups: list[list[int]] = []
+    for i, line in enumerate(lines):
+        joined = next((group for group in groups for k in group if _close(
+            line, lines[k], values[i], values[k], limit)), None)
+        if joined is None:
+            groups.append([i])
+        else:
+            joined.append(i)
+    return [[lines[i] for i in group] for group in groups if len(group) > 1]
+
+
+def _close(line: Line2D, other: Line2D, y: np.ndarray, y_other: np.ndarray,
+           limit: float) -> bool:
+    """Whether two lines of one style on the same x values are within limit of each other
+    at COINCIDE_SHARE of their points."""
+    x, x_other = (np.asarray(a.get_xdata(), float) for a in (line, other))
+    return (line.get_linestyle() == other.get_linestyle() and x.shape == x_other.shape
+            and np.allclose(x, x_other, equal_nan=True)
+            and float(np.mean(np.abs(y - y_other) <= limit)) >= COINCIDE_SHARE)
+
+
+def show_coinciding(lines: Sequence[Line2D]) -> bool:
+    """Give each line of a coinciding group (`coinciding`) markers that the others leave in
+    sight: where it has none, a shape of its own staggered along the line; where the group's
+    markers fall on the same points (a line of few points), larger the earlier it is drawn,
+    nested. Returns whether any lines coincide."""
+    groups = coinciding(lines)
+    for group in groups:
+        for k, line in enumerate(group):
+            step = len(line.get_xdata()) // MARKS_PER_LINE
+            unmarked = line.get_marker() in NO_MARKER
+            staggered = step > 1 and unmarked
+            if staggered:
+                line.set_markevery((k * step // len(group), step))
+            if unmarked:
+                line.set_marker(MARKERS[k % len(MARKERS)])
+            line.set_markersize(4.0 if staggered else 4.0 + 2.5 * (len(group) - 1 - k))
+    return bool(groups)
+
+
+def fit_suptitle(fig: Figure, text: str, fontsize: float = 12.0) -> None:
+    """The figure's title, wrapped to lines that fit its width."""
+    width = max(20, int(fig.get_figwidth() * 72.0 / (0.6 * fontsize)))
+    fig.suptitle("\n".join(textwrap.wrap(text, width)), fontsize=fontsize)
+
+
+# the units of the harness's own columns of a run's series (a joint's suffixed the same)
+SERIES_UNITS = {"time": "s", **{name: unit for _, unit, name in DRIVE_SIGNALS}, "E_in": "J",
+                "W_bond_drive": "J", "W_bond_joint": "J", "W_bond_error": "J"}
+
+
+def column_unit(name: str) -> str | None:
+    """The SI unit of a column of a run's series ('N m' for N.m), a reference `<name>_ref`
+    that of its variable; None for a name no mechanism or drive has."""
+    name = name.removesuffix("_ref")
+    units = {v.name: v.unit for r in registry.mechanisms().values()
+             for v in (*r.physics.INPUT_VARIABLES, *r.physics.OUTPUT_VARIABLES)}
+    base = next((b for b in SERIES_UNITS if name == b or name.startswith(f"{b}_")), None)
+    unit = units.get(name) or SERIES_UNITS.get(base or "")
+    return unit.replace(".", " ") if unit else None
 
 
 class Plotted(Protocol):
@@ -169,16 +301,19 @@ def figure(results: Sequence[Plotted], scenario: Scenario, loss_set: str = "idea
     colours = dict(zip((r.variant for r in results),
                        itertools.cycle(rcParams["axes.prop_cycle"].by_key()["color"]),
                        strict=False))
-    for row, panel in enumerate(mechanism):
-        _draw_mechanism_panel(axes[row, 0], panel, results, colours)
+    letters = iter("abcdefghijklmnopqrstuvwxyz")
+    marked = [_draw_mechanism_panel(axes[row, 0], panel, results, colours, next(letters))
+              for row, panel in enumerate(mechanism)]
     for column, (joint, panels) in enumerate(zip(joints, columns, strict=True), 1):
         for row, (title, unit, name) in enumerate(panels):
             ax = axes[row, column]
-            for r in results:
-                found = drive_column(r.series, joint, name)
-                if found is not None:
-                    ax.plot(r.series.time, r.series[found], color=colours[r.variant], lw=1.2)
-            _decorate(ax, title, unit)
+            lines = [ax.plot(r.series.time, r.series[found], color=colours[r.variant],
+                             lw=1.2)[0]
+                     for r in results if (found := drive_column(r.series, joint, name))]
+            if name == "E_drawn":
+                _log_if_decades(ax, lines)
+            marked.append(show_coinciding(lines))
+            _decorate(ax, f"({next(letters)}) {title}", unit)
     axes[0, 0].set_xlim(0.0, scenario.duration)  # the task, on every panel (shared)
     for column, used in enumerate([len(mechanism), *map(len, columns)]):
         for ax in axes[used:, column]:
@@ -188,7 +323,8 @@ def figure(results: Sequence[Plotted], scenario: Scenario, loss_set: str = "idea
     fig.legend(handles=[Line2D([], [], color=colours[r.variant], lw=2, label=r.variant)
                         for r in results],
                loc="outside lower center", ncols=min(len(results), 6), fontsize=9,
-               title="variant", title_fontsize=9)
+               title="variant" + (" (lines that coincide carry markers)" if any(marked)
+                                  else ""), title_fontsize=9)
     fig.suptitle(set_title(scenario, "mechanism and drives over the task", loss_set))
     return fig
 
@@ -200,18 +336,23 @@ def plot(results: Sequence[Plotted], scenario: Scenario, path: Path,
 
 
 def _draw_mechanism_panel(ax: Axes, panel: Panel, results: Sequence[Plotted],
-                          colours: Mapping[str, str]) -> None:
-    """One panel of the mechanism's column, its signals' line styles in a legend beside it."""
+                          colours: Mapping[str, str], letter: str) -> bool:
+    """One panel of the mechanism's column, its signals' line styles in a legend beside it;
+    whether lines of it coincide (`show_coinciding`)."""
     title, unit, signals = panel
     styled = list(zip(itertools.cycle(STYLES), signals))
+    lines = []
     for r in results:
         for style, (name, convert) in styled:
             reference = name.endswith("_ref")
             if name not in r.series or (reference and r is not results[0]):
                 continue
             values = r.series[name].to_numpy()
-            ax.plot(r.series.time, convert(values) if convert else values, ls=style,
-                    color="k" if reference else colours[r.variant], lw=1.2)
+            line, = ax.plot(r.series.time, convert(values) if convert else values, ls=style,
+                            color="k" if reference else colours[r.variant], lw=1.2,
+                            zorder=2.5 if reference else 2.0)  # the reference over all
+            if not reference:  # drawn once, in black, over every variant's
+                lines.append(line)
     shown = [(style, name) for style, (name, _) in styled
              if any(name in r.series for r in results)]
     handles = [Line2D([], [], ls=style, color="k" if name.endswith("_ref") else "0.4",
@@ -220,12 +361,23 @@ def _draw_mechanism_panel(ax: Axes, panel: Panel, results: Sequence[Plotted],
     if handles:
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                   borderaxespad=0.0, fontsize=8, handlelength=2.5)
-    _decorate(ax, title, unit)
+    _decorate(ax, f"({letter}) {title}", unit)
+    return show_coinciding(lines)
+
+
+def _log_if_decades(ax: Axes, lines: Sequence[Line2D]) -> None:
+    """A symmetric log y axis when the lines' final values span decades (self-regulation's
+    hundredths of a joule beside tens), linear up to the decade below half the smallest."""
+    finals = [float(line.get_ydata()[-1]) for line in lines]
+    positive = [v for v in finals if v > 0 and math.isfinite(v)]
+    if len(positive) > 1 and max(positive) > 30.0 * min(positive):
+        ax.set_yscale("symlog", linthresh=10.0 ** math.floor(math.log10(min(positive) / 2)))
+        readable_log(ax.yaxis)
 
 
 def _decorate(ax: Axes, title: str, unit: str) -> None:
     ax.set_title(title, loc="left", fontsize=10)
-    ax.set_ylabel(unit)
+    ax.set_ylabel(f"[{unit}]")
     ax.grid(alpha=0.3)
 
 
@@ -255,15 +407,16 @@ def energy_figure(scenario: Scenario, tables: Mapping[str, pd.DataFrame]) -> Fig
             value = values.get(variant, math.nan)
             if value > 0:
                 ax.barh(y, value - low, height * 0.9, left=low, color=colour)
-                text, at = f"{value:.3g} J", value * 1.15
+                text, at = f"{significant(value)} J", value * 1.15
             else:
-                text, at = ("not run" if math.isnan(value) else f"{value:.3g} J"), low * 1.15
+                text = "not run" if math.isnan(value) else f"{significant(value)} J"
+                at = low * 1.15
             ax.text(at, y, text, va="center", fontsize=8)
     baselines = set(scenario.baselines.values())
     ax.set_yticks(range(len(variants)),
                   [f"{v} (baseline)" if v in baselines else v for v in variants])
     ax.set_ylim(len(variants) - 0.5, -0.5)  # the first variant on top
-    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    readable_log(ax.xaxis)
     ax.set_xlabel("energy drawn from the supply over the task, E_drawn [J] (log scale)")
     ax.xaxis.grid(True, which="major", alpha=0.3)
     ax.legend(handles=[Patch(color=LOSS_SET_COLOURS.get(s, f"C{k + 2}"),

@@ -16,8 +16,10 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from harness.io import save_figure
+from harness.run.plots import fit_suptitle, readable_log, show_coinciding, significant
 from harness.sweeps.definition import Sweep
 
 # [%] the plots' floor: the saving tends to -inf where E_drawn(baseline) tends to 0
@@ -46,64 +48,91 @@ def _panels(sweep: Sweep, spec: dict[str, Any], data: pd.DataFrame, rows: int = 
     """A figure with a column of `rows` panels per value of the spec's `panels` axis."""
     panel = spec.get("panels")
     groups = list(data.groupby(panel)) if panel else [(None, data)]
-    fig = Figure(figsize=(5.2 * len(groups), 0.6 + 4.0 * rows), layout="constrained")
+    fig = Figure(figsize=(max(5.2 * len(groups), 6.4) + 0.8, 1.6 + 3.8 * rows),
+                 layout="constrained")
     axes = fig.subplots(rows, len(groups), squeeze=False, sharex=True, sharey="row")
     return fig, [(value, axes[:, i], group) for i, (value, group) in enumerate(groups)]
 
 
 def _axis_label(sweep: Sweep, name: str) -> str:
-    return next(a.label for a in sweep.axes if a.name == name)
+    """An axis's label on a figure's axis: its name and unit, [-] for a number without one."""
+    axis = next(a for a in sweep.axes if a.name == name)
+    return axis.label if axis.unit else f"{axis.name} [-]"
 
 
-def _panel_title(sweep: Sweep, spec: dict[str, Any], value: Any) -> str:
-    return "" if value is None else f"{_axis_label(sweep, spec['panels'])} = {value:g}"
+def _value_label(sweep: Sweep, spec: dict[str, Any], role: str, value: Any) -> str:
+    """What a value of the spec's `role` axis (lines, panels) is called: the spec's
+    `<role>_labels` name for it (a table of the value as written, '0', '0.05'), else
+    '<axis label> = <value>'."""
+    named = spec.get(f"{role}_labels", {}).get(f"{value:g}")
+    return named or f"{next(a.label for a in sweep.axes if a.name == spec[role])} = {value:g}"
+
+
+def _legend(fig: Figure, handles: list[Line2D]) -> None:
+    """The figure's legend, under its panels (no legend covers data)."""
+    if handles:
+        fig.legend(handles=handles, loc="outside lower center", fontsize=8,
+                   ncols=min(len(handles), 4))
 
 
 def saving_figure(sweep: Sweep, table: pd.DataFrame, spec: dict[str, Any]) -> Figure:
     """Against the x axis: the energy saving of `variant` against `baseline` [%] (top;
     values below SAVING_FLOOR drawn on it and labelled) and E_drawn of both [J] (bottom, log
     scale; variant solid, baseline dashed); one line per value of `lines`, one column per
-    value of `panels`, a dotted line at the value of `mark`."""
+    value of `panels`, a dotted line at the value of `mark`; the legend under the panels."""
     x, lines, mark = spec["x"], spec.get("lines"), spec.get("mark")
     variant, baseline = spec["variant"], spec["baseline"]
     points = saving(sweep, table, spec)
     fig, panels = _panels(sweep, spec, points, rows=2)
+    handles: dict[str, Line2D] = {}
+    drawn: dict[Axes, list[Line2D]] = {}
     for value, (top, bottom), group in panels:
         for i, (line, data) in enumerate(group.groupby(lines) if lines else [(None, group)]):
             data = data.sort_values(x)
-            label = None if line is None else f"{_axis_label(sweep, lines)} = {line:g}"
             percent = 100.0 * data.saving
-            top.plot(data[x], percent.clip(lower=SAVING_FLOOR), "o-", color=f"C{i}", ms=4,
-                     lw=1.4, label=label)
+            label = None if line is None else _value_label(sweep, spec, "lines", line)
+            drawn.setdefault(top, []).extend(top.plot(
+                data[x], percent.clip(lower=SAVING_FLOOR), "o-", color=f"C{i}", ms=4, lw=1.4,
+                label=label))
+            if label is not None:
+                handles.setdefault(label, Line2D([], [], color=f"C{i}", lw=1.4, label=label))
             for at, below in zip(data[x][percent < SAVING_FLOOR],
                                  percent[percent < SAVING_FLOOR], strict=True):
                 top.annotate(f"{below:.0f}", (at, SAVING_FLOOR), textcoords="offset points",
                              xytext=(5, 3 + 9 * i), fontsize=7, color=f"C{i}")
-            bottom.semilogy(data[x], data[f"E_drawn_{variant}"], "o-", color=f"C{i}",
-                            ms=4, lw=1.4)
-            bottom.semilogy(data[x], data[f"E_drawn_{baseline}"], "s--",
-                            color=f"C{i}", ms=4, lw=1.0, mfc="none")
-        for ax in (top, bottom):
-            if mark and mark in group and group[mark].notna().any():
-                ax.axvline(float(group[mark].median()), color="k", ls=":", lw=1)
-            ax.grid(alpha=0.3)
+            drawn.setdefault(bottom, []).extend([
+                *bottom.semilogy(data[x], data[f"E_drawn_{variant}"], "o-", color=f"C{i}",
+                                 ms=4, lw=1.4),
+                *bottom.semilogy(data[x], data[f"E_drawn_{baseline}"], "s--", color=f"C{i}",
+                                 ms=4, lw=1.0, mfc="none")])
+        title = "" if value is None else _value_label(sweep, spec, "panels", value)
         if mark and mark in group and group[mark].notna().any():
-            top.annotate(f"{mark} = {float(group[mark].median()):.3g} ",
-                        (float(group[mark].median()), 0.5), ha="right",
-                        xycoords=("data", "axes fraction"), fontsize=8)
+            at = float(group[mark].median())
+            for ax in (top, bottom):
+                ax.axvline(at, color="k", ls=":", lw=1)
+            title = "; ".join(t for t in (title, f"dotted: {mark} = {significant(at)}") if t)
+        for ax in (top, bottom):
+            ax.grid(alpha=0.3)
         top.axhline(0.0, color="0.5", lw=0.8)
-        top.set_ylim(SAVING_FLOOR - 8.0, 105.0)
-        top.set_title(_panel_title(sweep, spec, value), fontsize=10)
-        bottom.plot([], [], "ko-", ms=4, label=variant)
-        bottom.plot([], [], "ks--", ms=4, mfc="none", label=baseline)
-        bottom.legend(fontsize=8, loc="lower right")
+        top.set_title(title, fontsize=10)
+        readable_log(bottom.yaxis)
         bottom.set_xlabel(_axis_label(sweep, x))
-        if lines:
-            top.legend(fontsize=8, loc="lower right")
-    panels[0][1][0].set_ylabel(f"saving 1 - E_drawn({variant}) / E_drawn({baseline}) [%]")
+    shown = 100.0 * points.saving.clip(lower=SAVING_FLOOR / 100.0)
+    if shown.notna().any():
+        low, high = float(shown.min()), float(shown.max())
+        pad = max(5.0, 0.08 * (high - low))
+        panels[0][1][0].set_ylim(low - pad, min(high + pad, 101.0))  # no saving above 100 %
+    for lines_drawn in drawn.values():  # the limits set
+        show_coinciding(lines_drawn)
+    panels[0][1][0].set_ylabel("energy saving [%]")
     panels[0][1][1].set_ylabel("E_drawn [J]")
-    fig.suptitle(f"{sweep.name}: drive energy saved by {variant} against {baseline} "
-                 f"({sweep.scenario.name})")
+    _legend(fig, [*handles.values(),
+                  Line2D([], [], color="k", marker="o", ms=4, label=f"E_drawn of {variant}"),
+                  Line2D([], [], color="k", marker="s", ms=4, mfc="none", ls="--",
+                         label=f"E_drawn of {baseline}")])
+    fit_suptitle(fig, f"{sweep.name}: drive energy saved by {variant} against {baseline} "
+                      f"({sweep.scenario.name}), saving = 1 - E_drawn({variant}) / "
+                      f"E_drawn({baseline})")
     return fig
 
 
@@ -129,48 +158,69 @@ def map_figure(sweep: Sweep, table: pd.DataFrame, spec: dict[str, Any]) -> Figur
         else:
             image = ax.scatter(group[x], group[y], c=100.0 * group.saving, cmap="RdYlGn",
                                norm=norm, s=30, edgecolors="k", linewidths=0.3)
-        ax.set_title(_panel_title(sweep, spec, value), fontsize=10)
+        ax.set_title("" if value is None else _value_label(sweep, spec, "panels", value),
+                     fontsize=10)
         ax.set_xlabel(_axis_label(sweep, x))
     panels[0][1][0].set_ylabel(_axis_label(sweep, y))
     fig.colorbar(image, ax=[axes[0] for _, axes, _ in panels], extend="min",
                  label="energy saving [%]")
-    fig.suptitle(f"{sweep.name}: drive energy saved by {spec['variant']} against "
-                 f"{spec['baseline']} [%]")
+    fit_suptitle(fig, f"{sweep.name}: drive energy saved by {spec['variant']} against "
+                      f"{spec['baseline']} ({sweep.scenario.name}), saving = 1 - "
+                      f"E_drawn({spec['variant']}) / E_drawn({spec['baseline']})")
     return fig
 
 
+def lines_layout(columns: Sequence[str], has: dict[str, list[str]]
+                 ) -> tuple[int, dict[tuple[str, str], int]]:
+    """The rows of a lines figure and the row of each (variant, column) drawn: the columns
+    every variant has share the bottom rows, in order; above them each variant's own columns,
+    in order, down to the shared ones (no panel for a column a variant lacks)."""
+    shared = [c for c in columns if all(c in mine for mine in has.values())]
+    own = {v: [c for c in mine if c not in shared] for v, mine in has.items()}
+    above = max((len(mine) for mine in own.values()), default=0)
+    rows = {(v, c): above - len(mine) + k for v, mine in own.items()
+            for k, c in enumerate(mine)}
+    rows |= {(v, c): above + k for v in has for k, c in enumerate(shared)}
+    return above + len(shared), rows
+
+
 def lines_figure(sweep: Sweep, table: pd.DataFrame, spec: dict[str, Any]) -> Figure:
-    """One panel per `y` column (a row) and variant (a column) against the x axis, one line
-    per value of `lines`; a variant without the column (all NaN) leaves its panel empty.
-    `labels` may give a y column a longer label."""
+    """One panel per `y` column and variant that has it (not all NaN) against the x axis, a
+    column of panels per variant (`lines_layout`), one line per value of `lines` (the legend
+    under the panels). `labels` may give a y column a longer label."""
     x, lines, labels = spec["x"], spec.get("lines"), spec.get("labels", {})
     ok = table[table.status == "ok"]
     variants = list(sweep.variants)
-    fig = Figure(figsize=(5.2 * len(variants), 0.6 + 2.6 * len(spec["y"])), layout="constrained")
-    axes = fig.subplots(len(spec["y"]), len(variants), squeeze=False, sharex=True)
-    for row, column in enumerate(spec["y"]):
-        for col, variant in enumerate(variants):
-            ax = axes[row, col]
-            data = ok[ok.variant == variant]
-            if column in data and data[column].notna().any():
-                groups = data.groupby(lines) if lines else [(None, data)]
-                for i, (line, group) in enumerate(groups):
-                    group = group.sort_values(x)
-                    label = None if line is None else f"{_axis_label(sweep, lines)} = {line:g}"
-                    ax.plot(group[x], group[column], "o-", color=f"C{i}", ms=3, lw=1.2,
-                            label=label)
-                if lines and row == 0:
-                    ax.legend(fontsize=7)
-            else:
-                ax.text(0.5, 0.5, f"no {column}", transform=ax.transAxes, ha="center",
-                        color="0.5")
+    has = {v: [c for c in spec["y"] if c in ok and ok[ok.variant == v][c].notna().any()]
+           for v in variants}
+    rows, row_of = lines_layout(spec["y"], has)
+    fig = Figure(figsize=(5.2 * len(variants), 1.2 + 2.6 * max(rows, 1)), layout="constrained")
+    axes = fig.subplots(max(rows, 1), len(variants), squeeze=False, sharex=True)
+    handles: dict[str, Line2D] = {}
+    for col, variant in enumerate(variants):
+        data = ok[ok.variant == variant]
+        for ax in axes[:, col]:
+            ax.set_visible(False)
+        for column in has[variant]:
+            ax = axes[row_of[(variant, column)], col]
+            ax.set_visible(True)
+            drawn = []
+            for i, (line, group) in enumerate(data.groupby(lines) if lines else [(None, data)]):
+                group = group.sort_values(x)
+                label = None if line is None else _value_label(sweep, spec, "lines", line)
+                drawn += ax.plot(group[x], group[column], "o-", color=f"C{i}", ms=3, lw=1.2,
+                                 label=label)
+                if label is not None:
+                    handles.setdefault(label, Line2D([], [], color=f"C{i}", marker="o", ms=3,
+                                                     label=label))
+            show_coinciding(drawn)
             ax.grid(alpha=0.3)
             ax.set_ylabel(labels.get(column, column), fontsize=8)
-            if row == 0:
-                ax.set_title(variant, fontsize=10)
-            if row == len(spec["y"]) - 1:
-                ax.set_xlabel(_axis_label(sweep, x))
-    fig.suptitle(f"{sweep.name}: {sweep.description or sweep.scenario.name}")
+        if has[variant]:
+            axes[row_of[(variant, has[variant][0])], col].set_title(variant, fontsize=10)
+        axes[-1, col].set_xlabel(_axis_label(sweep, x))
+    _legend(fig, list(handles.values()))
+    fit_suptitle(fig, f"{sweep.name}: {sweep.description or sweep.scenario.name}")
     return fig
 
 
